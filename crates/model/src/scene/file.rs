@@ -1,0 +1,193 @@
+//! The on-disk TOML form of a scene, exactly as written (ids by name, values optional).
+//!
+//! These key names are a contract read and written by other tools: see `docs/scene-format.md`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::IntegratorKind;
+
+/// A colour: a grey level 0..255, or `[r, g, b]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Colour {
+    /// Grey level 0 (black) to 255 (white).
+    Grey(u8),
+    /// Red, green, blue, each 0..255.
+    Rgb([u8; 3]),
+}
+
+impl Colour {
+    /// The colour as `[r, g, b]`.
+    pub fn rgb(self) -> [u8; 3] {
+        match self {
+            Colour::Grey(g) => [g, g, g],
+            Colour::Rgb(c) => c,
+        }
+    }
+}
+
+/// How a scene is drawn (`[render]`); every key optional.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSettings {
+    /// Image width, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
+    /// Disc radius, px.
+    pub radius: f64,
+    /// Background colour.
+    pub background: Colour,
+    /// Disc colour.
+    pub foreground: Colour,
+    /// Standard deviation of additive Gaussian pixel noise, grey levels.
+    pub noise: f64,
+    /// Standard deviation of the Gaussian blur applied before noise, px (0 = none).
+    pub blur: f64,
+    /// Seed of the pixel noise.
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            radius: 5.0,
+            background: Colour::Grey(0),
+            foreground: Colour::Grey(255),
+            noise: 0.0,
+            blur: 0.0,
+            seed: 1,
+        }
+    }
+}
+
+/// `[recording]`: timing of the recording.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingFile {
+    /// Frames per second; frame `k` is at `t = k / fps`.
+    pub fps: f64,
+    /// Number of frames.
+    pub frames: usize,
+    /// Integration substeps per frame (default 20).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub substeps: Option<u32>,
+    /// Integration scheme (default `verlet`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrator: Option<IntegratorKind>,
+}
+
+/// One `[[particles]]` entry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleFile {
+    /// Unique id.
+    pub id: String,
+    /// Mass.
+    pub mass: f64,
+    /// Position at frame 0, px.
+    pub position: [f64; 2],
+    /// Velocity at frame 0, px/s (default zero).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<[f64; 2]>,
+    /// Pinned (default false).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub fixed: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// One `[[springs]]` entry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringFile {
+    /// The two particle ids.
+    pub between: [String; 2],
+    /// Rest length `L`, px; absent = unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<f64>,
+    /// Stiffness `S`; absent = unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// Dashpot coefficient overriding `physics.spring_damping`, mass/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<f64>,
+}
+
+/// One `[[torsions]]` entry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TorsionFile {
+    /// The centre particle id `i`.
+    pub at: String,
+    /// The end particle ids `j` and `k`.
+    pub between: [String; 2],
+    /// Rest cosine `M`; absent = unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rest_cos: Option<f64>,
+    /// Angular stiffness `T`; absent = unknown.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+}
+
+/// One `[[physics.walls]]` entry.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallFile {
+    /// A point on the wall, px.
+    pub point: [f64; 2],
+    /// Normal pointing into the allowed side (normalised on load).
+    pub normal: [f64; 2],
+    /// Restitution of the normal velocity, 0..1.
+    pub restitution: f64,
+}
+
+/// `[physics]`: each key absent = effect off.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhysicsFile {
+    /// Uniform acceleration, px/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<[f64; 2]>,
+    /// Linear drag, 1/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drag: Option<f64>,
+    /// Quadratic drag, 1/px.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quadratic_drag: Option<f64>,
+    /// Global spring dashpot coefficient, mass/s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spring_damping: Option<f64>,
+    /// Walls.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub walls: Vec<WallFile>,
+}
+
+/// A whole scene file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Scene name (default: the file's stem).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Timing.
+    pub recording: RecordingFile,
+    /// Drawing settings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub render: Option<RenderSettings>,
+    /// Point masses.
+    pub particles: Vec<ParticleFile>,
+    /// Extension springs.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub springs: Vec<SpringFile>,
+    /// Torsional springs.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub torsions: Vec<TorsionFile>,
+    /// Extra physics.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physics: Option<PhysicsFile>,
+}

@@ -1,0 +1,528 @@
+//! Scene files: the TOML contract between physfit's stages, validated into a [`Scene`].
+//!
+//! A *scene* has every value; a *structure* is a scene with bond values and `[physics]` left
+//! out (topology, masses, frame-0 positions); a *fitted model* is a structure with the values
+//! filled in, itself a scene that renders.
+
+mod error;
+mod file;
+
+pub use error::{SceneError, SceneProblem};
+pub use file::{
+    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, SceneFile, SpringFile, TorsionFile, WallFile,
+};
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::{
+    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Spring, State, Torsion,
+    Vec2, Wall,
+};
+
+/// Default integration substeps per frame when `[recording]` gives none.
+pub const DEFAULT_SUBSTEPS: u32 = 20;
+
+/// Timing of a recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RecordingSettings {
+    /// Frames per second; frame `k` is at `t = k / fps`.
+    pub fps: f64,
+    /// Number of frames.
+    pub frames: usize,
+    /// Integration substeps per frame.
+    pub substeps: u32,
+    /// Integration scheme.
+    pub integrator: IntegratorKind,
+}
+
+/// A particle as a scene describes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParticleSpec {
+    /// Unique id.
+    pub id: String,
+    /// Mass.
+    pub mass: f64,
+    /// Position at frame 0, px.
+    pub position: Vec2,
+    /// Velocity at frame 0, px/s.
+    pub velocity: Vec2,
+    /// Pinned.
+    pub fixed: bool,
+}
+
+/// A spring as a scene describes it: values may be unknown (`None`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpringSpec {
+    /// The two particles.
+    pub ends: [ParticleId; 2],
+    /// Rest length `L`, px.
+    pub rest_length: Option<f64>,
+    /// Stiffness `S`.
+    pub stiffness: Option<f64>,
+    /// Per-spring dashpot coefficient, mass/s.
+    pub damping: Option<f64>,
+}
+
+/// A torsion as a scene describes it: values may be unknown (`None`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TorsionSpec {
+    /// Centre particle `i`.
+    pub center: ParticleId,
+    /// End particles `j`, `k`.
+    pub ends: [ParticleId; 2],
+    /// Rest cosine `M`.
+    pub rest_cos: Option<f64>,
+    /// Angular stiffness `T`.
+    pub stiffness: Option<f64>,
+}
+
+/// A validated scene (or structure, or fitted model).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Scene name.
+    pub name: String,
+    /// Timing.
+    pub recording: RecordingSettings,
+    /// Drawing settings (defaults where the file gives none).
+    pub render: RenderSettings,
+    /// True if and only if the file had a `[render]` table (kept when written back).
+    pub has_render_table: bool,
+    /// Particles, in file order; `ParticleId(k)` is `particles[k]`.
+    pub particles: Vec<ParticleSpec>,
+    /// Springs, in file order.
+    pub springs: Vec<SpringSpec>,
+    /// Torsions, in file order.
+    pub torsions: Vec<TorsionSpec>,
+    /// Extra physics (all off when the file has no `[physics]`).
+    pub physics: Physics,
+}
+
+fn check_finite(key: impl FnOnce() -> String, values: &[f64]) -> Result<(), SceneProblem> {
+    match values.iter().find(|v| !v.is_finite()) {
+        Some(&value) => Err(SceneProblem::NonFinite { key: key(), value }),
+        None => Ok(()),
+    }
+}
+
+fn check_range(key: impl FnOnce() -> String, value: f64, ok: bool, allowed: &'static str) -> Result<(), SceneProblem> {
+    if ok {
+        Ok(())
+    } else {
+        Err(SceneProblem::OutOfRange {
+            key: key(),
+            value,
+            allowed,
+        })
+    }
+}
+
+fn v2(a: [f64; 2]) -> Vec2 {
+    Vec2::new(a[0], a[1])
+}
+
+fn a2(v: Vec2) -> [f64; 2] {
+    [v.x, v.y]
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut scene = Scene::from_toml_str(&text, &path.display().to_string())?;
+        if scene.name.is_empty() {
+            scene.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        }
+        Ok(scene)
+    }
+
+    /// Parses and validates scene text; `file` names it in errors.
+    pub fn from_toml_str(text: &str, file: &str) -> Result<Scene, SceneError> {
+        let raw: SceneFile = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map(|s| line_column(text, s.start)).unwrap_or((1, 1));
+            SceneError::Parse {
+                file: file.to_string(),
+                line,
+                column,
+                message: e.message().to_string(),
+            }
+        })?;
+        Scene::from_file(raw).map_err(|problem| SceneError::Invalid {
+            file: file.to_string(),
+            problem,
+        })
+    }
+
+    /// Validates the raw file form.
+    pub fn from_file(raw: SceneFile) -> Result<Scene, SceneProblem> {
+        let rec = &raw.recording;
+        check_finite(|| "recording.fps".into(), &[rec.fps])?;
+        check_range(|| "recording.fps".into(), rec.fps, rec.fps > 0.0, "positive")?;
+        check_range(|| "recording.frames".into(), rec.frames as f64, rec.frames >= 1, "at least 1")?;
+        let substeps = rec.substeps.unwrap_or(DEFAULT_SUBSTEPS);
+        check_range(|| "recording.substeps".into(), substeps as f64, substeps >= 1, "at least 1")?;
+        let render = raw.render.clone().unwrap_or_default();
+        check_finite(|| "render.radius".into(), &[render.radius])?;
+        check_range(|| "render.radius".into(), render.radius, render.radius > 0.0, "positive")?;
+        check_finite(|| "render.noise".into(), &[render.noise])?;
+        check_range(|| "render.noise".into(), render.noise, render.noise >= 0.0, "zero or positive")?;
+        check_finite(|| "render.blur".into(), &[render.blur])?;
+        check_range(|| "render.blur".into(), render.blur, render.blur >= 0.0, "zero or positive")?;
+        for (key, v) in [("render.width", render.width), ("render.height", render.height)] {
+            check_range(|| key.into(), v as f64, v >= 1, "at least 1")?;
+        }
+
+        if raw.particles.is_empty() {
+            return Err(SceneProblem::NoParticles);
+        }
+        let mut index = HashMap::new();
+        let mut particles = Vec::with_capacity(raw.particles.len());
+        for (k, p) in raw.particles.iter().enumerate() {
+            if p.id.is_empty() {
+                return Err(SceneProblem::EmptyId(k));
+            }
+            if index.insert(p.id.clone(), ParticleId(k as u32)).is_some() {
+                return Err(SceneProblem::DuplicateId(p.id.clone()));
+            }
+            check_finite(|| format!("particle \"{}\" mass", p.id), &[p.mass])?;
+            if p.mass <= 0.0 {
+                return Err(SceneProblem::NonPositiveMass {
+                    id: p.id.clone(),
+                    mass: p.mass,
+                });
+            }
+            check_finite(|| format!("particle \"{}\" position", p.id), &p.position)?;
+            let velocity = p.velocity.unwrap_or([0.0, 0.0]);
+            check_finite(|| format!("particle \"{}\" velocity", p.id), &velocity)?;
+            particles.push(ParticleSpec {
+                id: p.id.clone(),
+                mass: p.mass,
+                position: v2(p.position),
+                velocity: v2(velocity),
+                fixed: p.fixed,
+            });
+        }
+        let resolve = |bond: &dyn Fn() -> String, ids: &[&String]| -> Result<Vec<ParticleId>, SceneProblem> {
+            let mut out: Vec<ParticleId> = Vec::with_capacity(ids.len());
+            for id in ids {
+                let pid = *index.get(*id).ok_or_else(|| SceneProblem::MissingParticle {
+                    bond: bond(),
+                    id: (*id).clone(),
+                })?;
+                if out.contains(&pid) {
+                    return Err(SceneProblem::RepeatedParticle {
+                        bond: bond(),
+                        id: (*id).clone(),
+                    });
+                }
+                out.push(pid);
+            }
+            Ok(out)
+        };
+
+        let mut springs = Vec::with_capacity(raw.springs.len());
+        for s in &raw.springs {
+            let name = || spring_name(&s.between);
+            let ends = resolve(&name, &[&s.between[0], &s.between[1]])?;
+            for (key, v) in [("length", s.length), ("stiffness", s.stiffness), ("damping", s.damping)] {
+                if let Some(v) = v {
+                    check_finite(|| format!("{} {key}", name()), &[v])?;
+                }
+            }
+            springs.push(SpringSpec {
+                ends: [ends[0], ends[1]],
+                rest_length: s.length,
+                stiffness: s.stiffness,
+                damping: s.damping,
+            });
+        }
+
+        let mut torsions = Vec::with_capacity(raw.torsions.len());
+        for t in &raw.torsions {
+            let name = || torsion_name(&t.at, &t.between);
+            let ids = resolve(&name, &[&t.at, &t.between[0], &t.between[1]])?;
+            for (key, v) in [("rest_cos", t.rest_cos), ("stiffness", t.stiffness)] {
+                if let Some(v) = v {
+                    check_finite(|| format!("{} {key}", name()), &[v])?;
+                }
+            }
+            if let Some(m) = t.rest_cos {
+                check_range(|| format!("{} rest_cos", name()), m, (-1.0..=1.0).contains(&m), "in [-1, 1]")?;
+            }
+            torsions.push(TorsionSpec {
+                center: ids[0],
+                ends: [ids[1], ids[2]],
+                rest_cos: t.rest_cos,
+                stiffness: t.stiffness,
+            });
+        }
+
+        let physics = match &raw.physics {
+            None => Physics::default(),
+            Some(ph) => physics_from_file(ph)?,
+        };
+
+        Ok(Scene {
+            name: raw.name.clone().unwrap_or_default(),
+            recording: RecordingSettings {
+                fps: rec.fps,
+                frames: rec.frames,
+                substeps,
+                integrator: rec.integrator.unwrap_or_default(),
+            },
+            render,
+            has_render_table: raw.render.is_some(),
+            particles,
+            springs,
+            torsions,
+            physics,
+        })
+    }
+
+    /// The raw file form, ready to serialise. Unknown values stay absent.
+    pub fn to_file(&self) -> SceneFile {
+        let id = |p: ParticleId| self.particles[p.index()].id.clone();
+        let ph = &self.physics;
+        let physics = if *ph == Physics::default() {
+            None
+        } else {
+            let nz = |v: f64| if v != 0.0 { Some(v) } else { None };
+            Some(PhysicsFile {
+                gravity: if ph.gravity != Vec2::zeros() { Some(a2(ph.gravity)) } else { None },
+                drag: nz(ph.drag),
+                quadratic_drag: nz(ph.quadratic_drag),
+                spring_damping: nz(ph.spring_damping),
+                walls: ph
+                    .walls
+                    .iter()
+                    .map(|w| WallFile {
+                        point: a2(w.point),
+                        normal: a2(w.normal),
+                        restitution: w.restitution,
+                    })
+                    .collect(),
+            })
+        };
+        SceneFile {
+            name: Some(self.name.clone()),
+            recording: RecordingFile {
+                fps: self.recording.fps,
+                frames: self.recording.frames,
+                substeps: Some(self.recording.substeps),
+                integrator: Some(self.recording.integrator),
+            },
+            render: if self.has_render_table { Some(self.render.clone()) } else { None },
+            particles: self
+                .particles
+                .iter()
+                .map(|p| ParticleFile {
+                    id: p.id.clone(),
+                    mass: p.mass,
+                    position: a2(p.position),
+                    velocity: if p.velocity != Vec2::zeros() { Some(a2(p.velocity)) } else { None },
+                    fixed: p.fixed,
+                })
+                .collect(),
+            springs: self
+                .springs
+                .iter()
+                .map(|s| SpringFile {
+                    between: [id(s.ends[0]), id(s.ends[1])],
+                    length: s.rest_length,
+                    stiffness: s.stiffness,
+                    damping: s.damping,
+                })
+                .collect(),
+            torsions: self
+                .torsions
+                .iter()
+                .map(|t| TorsionFile {
+                    at: id(t.center),
+                    between: [id(t.ends[0]), id(t.ends[1])],
+                    rest_cos: t.rest_cos,
+                    stiffness: t.stiffness,
+                })
+                .collect(),
+            physics,
+        }
+    }
+
+    /// The scene as TOML text.
+    pub fn to_toml_string(&self) -> Result<String, SceneError> {
+        toml::to_string(&self.to_file()).map_err(|e| SceneError::Serialize(e.to_string()))
+    }
+
+    /// Writes the scene to `path` atomically (a temporary file renamed into place).
+    pub fn save(&self, path: &Path) -> Result<(), SceneError> {
+        let text = self.to_toml_string()?;
+        crate::write_atomic(path, text.as_bytes()).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// The structure of this scene: same topology, masses and frame-0 positions; bond values,
+    /// per-spring damping and `[physics]` removed.
+    pub fn structure(&self) -> Scene {
+        let mut s = self.clone();
+        for sp in &mut s.springs {
+            sp.rest_length = None;
+            sp.stiffness = None;
+            sp.damping = None;
+        }
+        for t in &mut s.torsions {
+            t.rest_cos = None;
+            t.stiffness = None;
+        }
+        s.physics = Physics::default();
+        s
+    }
+
+    /// Number of unknown bond values (absent `length`, `stiffness`, `rest_cos`).
+    pub fn unknown_count(&self) -> usize {
+        self.springs
+            .iter()
+            .map(|s| s.rest_length.is_none() as usize + s.stiffness.is_none() as usize)
+            .sum::<usize>()
+            + self
+                .torsions
+                .iter()
+                .map(|t| t.rest_cos.is_none() as usize + t.stiffness.is_none() as usize)
+                .sum::<usize>()
+    }
+
+    /// Index of the particle with this id.
+    pub fn particle_id(&self, id: &str) -> Option<ParticleId> {
+        self.particles.iter().position(|p| p.id == id).map(|k| ParticleId(k as u32))
+    }
+
+    /// The spring's display name, e.g. `spring p0-p1`.
+    pub fn spring_label(&self, k: usize) -> String {
+        let s = &self.springs[k];
+        spring_name(&[self.particles[s.ends[0].index()].id.clone(), self.particles[s.ends[1].index()].id.clone()])
+    }
+
+    /// The torsion's display name, e.g. `torsion p0-p1-p2` (centre in the middle).
+    pub fn torsion_label(&self, k: usize) -> String {
+        let t = &self.torsions[k];
+        let id = |p: ParticleId| self.particles[p.index()].id.clone();
+        torsion_name(&id(t.center), &[id(t.ends[0]), id(t.ends[1])])
+    }
+
+    /// The model with every value, or an error naming the first unknown value.
+    pub fn model(&self) -> Result<Model, SceneProblem> {
+        let particles = ParticleSet {
+            particles: self
+                .particles
+                .iter()
+                .map(|p| Particle {
+                    mass: p.mass,
+                    fixed: p.fixed,
+                })
+                .collect(),
+        };
+        let mut springs = Vec::with_capacity(self.springs.len());
+        for (k, s) in self.springs.iter().enumerate() {
+            let need = |v: Option<f64>, key| {
+                v.ok_or_else(|| SceneProblem::UnknownValue {
+                    bond: self.spring_label(k),
+                    key,
+                })
+            };
+            let mut spring = Spring::new(s.ends[0], s.ends[1], need(s.rest_length, "length")?, need(s.stiffness, "stiffness")?);
+            spring.damping = s.damping;
+            springs.push(spring);
+        }
+        let mut torsions = Vec::with_capacity(self.torsions.len());
+        for (k, t) in self.torsions.iter().enumerate() {
+            let need = |v: Option<f64>, key| {
+                v.ok_or_else(|| SceneProblem::UnknownValue {
+                    bond: self.torsion_label(k),
+                    key,
+                })
+            };
+            torsions.push(Torsion::new(
+                t.center,
+                t.ends[0],
+                t.ends[1],
+                need(t.rest_cos, "rest_cos")?,
+                need(t.stiffness, "stiffness")?,
+            ));
+        }
+        Ok(Model {
+            particles,
+            springs,
+            torsions,
+            physics: self.physics.clone(),
+        })
+    }
+
+    /// The state at frame 0.
+    pub fn initial_state(&self) -> State {
+        State::new(
+            self.particles.iter().map(|p| p.position).collect(),
+            self.particles.iter().map(|p| if p.fixed { Vec2::zeros() } else { p.velocity }).collect(),
+        )
+    }
+
+    /// Time stepping of the recording.
+    pub fn integration_parameters(&self) -> IntegrationParameters {
+        IntegrationParameters {
+            frame_dt: 1.0 / self.recording.fps,
+            substeps: self.recording.substeps,
+            integrator: self.recording.integrator,
+        }
+    }
+}
+
+fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
+    let mut out = Physics::default();
+    if let Some(g) = ph.gravity {
+        check_finite(|| "physics.gravity".into(), &g)?;
+        out.gravity = v2(g);
+    }
+    for (key, v, slot) in [
+        ("physics.drag", ph.drag, &mut out.drag),
+        ("physics.quadratic_drag", ph.quadratic_drag, &mut out.quadratic_drag),
+        ("physics.spring_damping", ph.spring_damping, &mut out.spring_damping),
+    ] {
+        if let Some(v) = v {
+            check_finite(|| key.into(), &[v])?;
+            *slot = v;
+        }
+    }
+    for (k, w) in ph.walls.iter().enumerate() {
+        check_finite(|| format!("physics.walls[{k}].point"), &w.point)?;
+        check_finite(|| format!("physics.walls[{k}].normal"), &w.normal)?;
+        check_finite(|| format!("physics.walls[{k}].restitution"), &[w.restitution])?;
+        check_range(
+            || format!("physics.walls[{k}].restitution"),
+            w.restitution,
+            (0.0..=1.0).contains(&w.restitution),
+            "in [0, 1]",
+        )?;
+        let wall = Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
+        out.walls.push(wall);
+    }
+    Ok(out)
+}
+
+/// A spring's display name from its two ids: `spring a-b`.
+pub fn spring_name(between: &[String; 2]) -> String {
+    format!("spring {}-{}", between[0], between[1])
+}
+
+/// A torsion's display name: `torsion j-i-k` with the centre `i` in the middle.
+pub fn torsion_name(at: &str, between: &[String; 2]) -> String {
+    format!("torsion {}-{}-{}", between[0], at, between[1])
+}
+
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
+}
