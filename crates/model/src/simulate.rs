@@ -1,6 +1,7 @@
 //! Simulating a model over a recording: one sampled state per frame.
 
-use crate::{step_frame, IntegrationParameters, Model, State, StepScratch, Vec2};
+use crate::integrator::step_frame_continued;
+use crate::{IntegrationParameters, Model, State, StepScratch, Vec2};
 
 /// Positions of every particle at every frame of a simulated recording.
 #[derive(Clone, Debug, PartialEq)]
@@ -59,7 +60,7 @@ pub fn simulate_with(
     let mut scratch = StepScratch::new(n);
     for k in 0..frames {
         if k > 0 {
-            step_frame(model, params, &mut state, &mut scratch);
+            step_frame_continued(model, params, &mut state, &mut scratch);
         }
         observer(k, &state);
         positions.extend_from_slice(&state.positions);

@@ -81,3 +81,73 @@ impl Potential for Spring {
         grad[self.ends[1].index()] += f_i;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn force_law_matches_the_paper() {
+        // Stretched by 2 px along +x with S = 3: f_i = 2 S (d - L) u_ij = (12, 0) toward j.
+        let x = [Vec2::new(1.0, 2.0), Vec2::new(6.0, 2.0)];
+        let s = Spring::new(ParticleId(0), ParticleId(1), 3.0, 3.0);
+        let f = s.geometry(&x).force_on_i(3.0, 3.0);
+        assert!((f - Vec2::new(12.0, 0.0)).norm() < 1e-12);
+        assert!((s.energy(&x) - 12.0).abs() < 1e-12, "E = S (d - L)^2, no 1/2");
+        let mut g = [Vec2::zeros(); 2];
+        s.add_gradient(&x, &mut g);
+        assert!((g[0] + f).norm() < 1e-12 && (g[1] - f).norm() < 1e-12);
+    }
+
+    #[test]
+    fn coincident_particles_give_no_force() {
+        let x = [Vec2::new(4.0, 4.0); 2];
+        let s = Spring::new(ParticleId(0), ParticleId(1), 3.0, 3.0);
+        let mut g = [Vec2::zeros(); 2];
+        s.add_gradient(&x, &mut g);
+        assert!(g.iter().all(|v| v.norm() == 0.0));
+        assert!((s.energy(&x) - 27.0).abs() < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use crate::proptest_utils::*;
+    use proptest::prelude::*;
+
+    fn check(spring: &Spring, x: &[Vec2]) -> Result<f64, TestCaseError> {
+        let d = spring.geometry(x).length;
+        // Step: small against the length (truncation ~ (h/d)^2), large against the
+        // coordinates' rounding.
+        let h = 1e-4 * d;
+        let floor = spring_floor(spring, x, h, coordinate_scale(x));
+        check_gradient(spring, x, h, &[floor, floor])
+    }
+
+    proptest! {
+        #[test]
+        fn gradient_matches_finite_differences((spring, x) in spring_with_length(log_uniform(1.0, 1000.0))) {
+            check(&spring, &x)?;
+        }
+
+        #[test]
+        fn very_short_spring_gradient_matches((spring, x) in spring_with_length(log_uniform(1e-2, 1.0))) {
+            check(&spring, &x)?;
+        }
+
+        #[test]
+        fn very_long_spring_gradient_matches((spring, x) in spring_with_length(log_uniform(1e3, 1e5))) {
+            check(&spring, &x)?;
+        }
+
+        #[test]
+        fn forces_are_equal_and_opposite((spring, x) in spring_with_length(log_uniform(1e-2, 1e5))) {
+            let g = analytic_gradient(&spring, &x);
+            prop_assert!((g[0] + g[1]).norm() <= 1e-12 * g[0].norm());
+            // And along the bond: no torque.
+            let u = spring.geometry(&x).direction;
+            prop_assert!((g[0].x * u.y - g[0].y * u.x).abs() <= 1e-12 * g[0].norm());
+        }
+    }
+}

@@ -40,7 +40,7 @@ impl TorsionGeometry {
                 dcos: [Vec2::zeros(); 3],
             };
         }
-        let dj = (b.direction - a.direction * cos) / a.length;
+        let dj = (b.direction - a.direction * (cos * (1.0 + 1e-7))) / a.length;
         let dk = (a.direction - b.direction * cos) / b.length;
         TorsionGeometry {
             cos,
@@ -96,6 +96,113 @@ impl Potential for Torsion {
         let f = self.geometry(x).forces(self.stiffness, self.rest_cos);
         for (p, fp) in self.particles().iter().zip(f) {
             grad[p.index()] -= fp;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn right_angle_forces_match_the_paper() {
+        // i at the origin, j on +x at 2, k on +y at 4: c = 0. With T = 5, M = 0.5:
+        // dc/dx_j = (u_ik - c u_ij) / d_ij = (0, 1/2), dc/dx_k = (1/4, 0).
+        let x = [Vec2::zeros(), Vec2::new(2.0, 0.0), Vec2::new(0.0, 4.0)];
+        let t = Torsion::new(ParticleId(0), ParticleId(1), ParticleId(2), 0.5, 5.0);
+        let geo = t.geometry(&x);
+        assert!(geo.cos.abs() < 1e-15);
+        assert!((geo.dcos[1] - Vec2::new(0.0, 0.5)).norm() < 1e-15);
+        assert!((geo.dcos[2] - Vec2::new(0.25, 0.0)).norm() < 1e-15);
+        assert!((geo.dcos[0] + geo.dcos[1] + geo.dcos[2]).norm() < 1e-15);
+        // f_p = -2 T (c - M) dc/dx_p = 5 dc/dx_p: opening the angle toward M = 0.5 means closing it.
+        let f = geo.forces(5.0, 0.5);
+        assert!((f[1] - Vec2::new(0.0, 2.5)).norm() < 1e-14);
+        assert!((t.energy(&x) - 1.25).abs() < 1e-14, "E = T (c - M)^2, no 1/2");
+    }
+
+    #[test]
+    fn degenerate_arm_gives_no_force() {
+        let x = [Vec2::new(1.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 4.0)];
+        let t = Torsion::new(ParticleId(0), ParticleId(1), ParticleId(2), 0.5, 5.0);
+        let mut g = [Vec2::zeros(); 3];
+        t.add_gradient(&x, &mut g);
+        assert!(g.iter().all(|v| v.norm() == 0.0 && v.x.is_finite()));
+    }
+}
+
+#[cfg(test)]
+mod proptests {
+    use super::*;
+    use crate::proptest_utils::*;
+    use proptest::prelude::*;
+
+    fn check(t: &Torsion, x: &[Vec2]) -> Result<f64, TestCaseError> {
+        let arm = (x[1] - x[0]).norm().min((x[2] - x[0]).norm());
+        let h = 1e-4 * arm;
+        let floor = torsion_floor(t, x, h, coordinate_scale(x));
+        check_gradient(t, x, h, &[floor; 3])
+    }
+
+    proptest! {
+        #[test]
+        fn gradient_matches_finite_differences((t, x) in torsion_at(AngleKind::Any)) {
+            check(&t, &x)?;
+        }
+
+        #[test]
+        fn near_straight_gradient_matches((t, x) in torsion_at(AngleKind::NearStraight)) {
+            prop_assert!(t.geometry(&x).cos + 1.0 <= 1.0001e-6);
+            check(&t, &x)?;
+        }
+
+        #[test]
+        fn near_folded_gradient_matches((t, x) in torsion_at(AngleKind::NearFolded)) {
+            prop_assert!(1.0 - t.geometry(&x).cos <= 1.0001e-6);
+            check(&t, &x)?;
+        }
+
+        #[test]
+        fn forces_sum_to_zero_with_no_torque((t, x) in torsion_at(AngleKind::Any)) {
+            let g = analytic_gradient(&t, &x);
+            let size: f64 = g.iter().map(|v| v.norm()).sum();
+            let sum: Vec2 = g.iter().sum();
+            prop_assert!(sum.norm() <= 1e-12 * size);
+            // Rotation invariance: no net torque about the centre.
+            let torque: f64 = (1..3).map(|p| { let r = x[p] - x[0]; r.x * g[p].y - r.y * g[p].x }).sum();
+            let scale: f64 = (1..3).map(|p| (x[p] - x[0]).norm() * g[p].norm()).sum();
+            prop_assert!(torque.abs() <= 1e-10 * scale);
+        }
+    }
+}
+#[cfg(test)]
+mod tmpdiag {
+    use super::*;
+    use crate::proptest_utils::*;
+    use proptest::strategy::{Strategy, ValueTree};
+    use proptest::test_runner::TestRunner;
+    #[test]
+    fn diag() {
+        let mut runner = TestRunner::deterministic();
+        for kind in [AngleKind::Any, AngleKind::NearStraight, AngleKind::NearFolded] {
+            let mut ratios = vec![];
+            let mut errs = vec![];
+            for _ in 0..2000 {
+                let (t, x) = torsion_at(kind).new_tree(&mut runner).unwrap().current();
+                let arm = (x[1] - x[0]).norm().min((x[2] - x[0]).norm());
+                let h = 1e-4 * arm;
+                let floor = torsion_floor(&t, &x, h, coordinate_scale(&x));
+                let g = analytic_gradient(&t, &x);
+                let fd = finite_difference_gradient(&t, &x, h);
+                let gm = g.iter().map(|v| v.norm()).fold(0.0, f64::max);
+                if gm > 0.0 { ratios.push(floor / gm); }
+                let e = (0..3).map(|p| (g[p]-fd[p]).norm()).fold(0.0, f64::max);
+                if gm > 0.0 { errs.push(e / gm); }
+            }
+            ratios.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            errs.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            let q = |v: &Vec<f64>, f: f64| v[((v.len() - 1) as f64 * f) as usize];
+            eprintln!("{kind:?}: floor/|g| median {:e} p90 {:e}; err/|g| median {:e} p90 {:e} max {:e}", q(&ratios, 0.5), q(&ratios, 0.9), q(&errs, 0.5), q(&errs, 0.9), q(&errs,1.0));
         }
     }
 }

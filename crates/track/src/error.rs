@@ -25,4 +25,47 @@ pub enum TrackError {
         /// What is wrong.
         message: String,
     },
+    /// A frame file could not be decoded (corrupt, truncated, empty or not an image).
+    #[error("{path}: {message}")]
+    Decode {
+        /// The frame file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The folder holds no PNG or JPEG frames.
+    #[error("{dir}: no frames (PNG or JPEG files) in this folder")]
+    NoFrames {
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// A frame's size differs from the first frame's.
+    #[error("{path}: frame is {found_width}x{found_height} px but {first} is {width}x{height} px; all frames must be the same size")]
+    FrameSize {
+        /// The odd frame.
+        path: PathBuf,
+        /// The first frame's file name.
+        first: String,
+        /// The first frame's width, px.
+        width: usize,
+        /// The first frame's height, px.
+        height: usize,
+        /// The odd frame's width, px.
+        found_width: usize,
+        /// The odd frame's height, px.
+        found_height: usize,
+    },
+    /// The frame window `A..B` does not fit the recording.
+    #[error("frame window {start}..{end} is invalid: the folder has {count} frames (indices 0..{last}), and A must not exceed B", last = count.saturating_sub(1))]
+    Window {
+        /// First frame requested.
+        start: usize,
+        /// Last frame requested (inclusive).
+        end: usize,
+        /// Frames in the folder.
+        count: usize,
+    },
+    /// An option is invalid (a non-finite start position, a non-positive radius, ...).
+    #[error("invalid tracking option: {0}")]
+    Option(String),
 }

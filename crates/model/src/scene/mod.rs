@@ -125,6 +125,15 @@ fn a2(v: Vec2) -> [f64; 2] {
     [v.x, v.y]
 }
 
+/// Returns true if and only if `v` is +0.0 exactly (not -0.0): the value of an absent key.
+fn is_plus_zero(v: f64) -> bool {
+    v.to_bits() == 0
+}
+
+fn is_plus_zero2(v: Vec2) -> bool {
+    is_plus_zero(v.x) && is_plus_zero(v.y)
+}
+
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -286,12 +295,19 @@ impl Scene {
     pub fn to_file(&self) -> SceneFile {
         let id = |p: ParticleId| self.particles[p.index()].id.clone();
         let ph = &self.physics;
-        let physics = if *ph == Physics::default() {
+        // Absent keys read back as +0.0, so only +0.0 may be left out (-0.0 is written) for
+        // the file to read back bit for bit.
+        let nz = |v: f64| if is_plus_zero(v) { None } else { Some(v) };
+        let physics = if is_plus_zero2(ph.gravity)
+            && is_plus_zero(ph.drag)
+            && is_plus_zero(ph.quadratic_drag)
+            && is_plus_zero(ph.spring_damping)
+            && ph.walls.is_empty()
+        {
             None
         } else {
-            let nz = |v: f64| if v != 0.0 { Some(v) } else { None };
             Some(PhysicsFile {
-                gravity: if ph.gravity != Vec2::zeros() { Some(a2(ph.gravity)) } else { None },
+                gravity: if is_plus_zero2(ph.gravity) { None } else { Some(a2(ph.gravity)) },
                 drag: nz(ph.drag),
                 quadratic_drag: nz(ph.quadratic_drag),
                 spring_damping: nz(ph.spring_damping),
@@ -322,7 +338,7 @@ impl Scene {
                     id: p.id.clone(),
                     mass: p.mass,
                     position: a2(p.position),
-                    velocity: if p.velocity != Vec2::zeros() { Some(a2(p.velocity)) } else { None },
+                    velocity: if is_plus_zero2(p.velocity) { None } else { Some(a2(p.velocity)) },
                     fixed: p.fixed,
                 })
                 .collect(),

@@ -1,0 +1,123 @@
+//! Command-line syntax only (clap derive types); `config.rs`-style validation lives with each
+//! command in `cmd/`.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+/// physfit: from an image sequence of a moving deformable object to a physical model of it,
+/// and to the physics the model left out.
+#[derive(Debug, Parser)]
+#[command(name = "physfit", version, about, long_about = None)]
+pub struct Cli {
+    /// Print nothing but errors.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    pub quiet: bool,
+    /// Explain each stage as it runs.
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
+    /// The stage to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// One subcommand per pipeline stage, plus `run` for the whole pipeline and `bench`.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a scene and rasterize it to PNG frames, with truth.csv, structure.toml and scene.toml.
+    Render(RenderArgs),
+    /// Simulate a scene and write the true particle centres as CSV (no images).
+    Simulate(SimulateArgs),
+    /// Run the default pipeline on a built-in scene (for now: render it).
+    Run(RunArgs),
+    /// Measure speed: `render`, `track`, `fit` or `all`.
+    Bench(BenchArgs),
+}
+
+/// `physfit render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Output folder (created if needed): frames/, truth.csv, structure.toml, scene.toml.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Override the scene's `[render] seed`.
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+/// `physfit simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// The scene file (TOML).
+    pub scene: PathBuf,
+    /// Output CSV (`frame,particle,x,y`).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `physfit run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// A scene file; the built-in default scene when absent.
+    pub scene: Option<PathBuf>,
+    /// Output folder.
+    #[arg(long, default_value = "physfit-out")]
+    pub out: PathBuf,
+}
+
+/// `physfit bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// What to measure.
+    #[arg(value_enum, default_value = "all")]
+    pub what: BenchTarget,
+    /// Smaller inputs, for a quick look (seconds, not minutes).
+    #[arg(long)]
+    pub quick: bool,
+    /// Also write the tables to this Markdown file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Benchmark groups.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchTarget {
+    /// Rendering frames.
+    Render,
+    /// Everything.
+    All,
+}
+
+/// Parses an inclusive frame window `A..B`.
+pub fn parse_window(s: &str) -> Result<(usize, usize), String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("window `{s}` is not of the form A..B (first and last frame, inclusive)"))?;
+    let a: usize = a.trim().parse().map_err(|_| format!("window `{s}`: `{a}` is not a frame number"))?;
+    let b: usize = b.trim().parse().map_err(|_| format!("window `{s}`: `{b}` is not a frame number"))?;
+    if b < a {
+        return Err(format!("window `{s}`: last frame {b} is before first frame {a}"));
+    }
+    Ok((a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn verify_cli() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn windows_parse_and_reject() {
+        assert_eq!(parse_window("2..12"), Ok((2, 12)));
+        assert!(parse_window("12..2").unwrap_err().contains("before"));
+        assert!(parse_window("a..2").unwrap_err().contains("`a`"));
+        assert!(parse_window("3").unwrap_err().contains("A..B"));
+    }
+}

@@ -1,0 +1,376 @@
+//! The background model and the particle signal.
+//!
+//! A static camera sees a background that does not move and particles that do. The
+//! background is estimated from a sample of frames as the per-pixel median over time
+//! (moving particles cover a pixel in fewer than half of the frames, so the median is
+//! the background there). When that median image is flat apart from a few compact spots
+//! (rendered frames, or a particle that never moves), a single constant level per channel
+//! is used instead, so that particles which stay put are not swallowed by the background
+//! and the background adds no noise of its own. The choice is automatic.
+//!
+//! Particles may be brighter or darker than the background, or of another colour. The
+//! *signal* of a pixel is the projection of its difference from the background onto the
+//! particles' colour direction `u` (a unit vector over the channels), measured from the
+//! pixels that differ most from the background: `s = u · (I − B)`. For grey frames `u` is
+//! `+1` (bright on dark) or `−1` (dark on light). Particles have positive signal; the
+//! background has signal 0 plus noise, whose standard deviation is measured from the
+//! negative half of the signal distribution (particles contribute almost nothing there).
+
+use rayon::prelude::*;
+
+use crate::frames::Frame;
+
+/// Which background model a recording uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackgroundModel {
+    /// One level per channel for the whole frame.
+    Constant,
+    /// The per-pixel median over time.
+    PerPixel,
+}
+
+/// How the background model is chosen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BackgroundChoice {
+    /// Constant if the median image is flat apart from compact spots, else per-pixel.
+    #[default]
+    Auto,
+    /// Always a constant level.
+    Constant,
+    /// Always the per-pixel median over time.
+    PerPixel,
+}
+
+/// The estimated background of a recording and how particle signal is measured against it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Background {
+    /// The model in use.
+    pub model: BackgroundModel,
+    /// Frame width, px.
+    pub width: usize,
+    /// Frame height, px.
+    pub height: usize,
+    /// Samples per pixel (1 or 3).
+    pub channels: usize,
+    /// Constant background level per channel, grey levels.
+    pub level: Vec<f32>,
+    /// Per-pixel background (`width * height * channels`, grey levels); the constant level
+    /// everywhere for [`BackgroundModel::Constant`].
+    pub image: Vec<f32>,
+    /// Unit colour direction of particles against the background (one entry per channel);
+    /// signal = direction · (pixel − background).
+    pub direction: Vec<f32>,
+    /// Standard deviation of the signal over background pixels, grey levels (≥ 0.3, the
+    /// quantisation noise of 8-bit levels).
+    pub noise_sigma: f64,
+    /// Fraction of pixels where the per-pixel median differs from the constant level by
+    /// more than its noise allows (what the automatic choice looked at).
+    pub structured_fraction: f64,
+    /// Frames the estimate was made from.
+    pub sample_count: usize,
+}
+
+/// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
+const MIN_NOISE: f64 = 0.3;
+
+/// Fraction of structured pixels above which the per-pixel model is chosen.
+const STRUCTURED_LIMIT: f64 = 0.02;
+
+/// Estimates the background of a recording from sample frames (all the same size and
+/// channel count; at least one). See the module documentation for the method.
+pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Background {
+    let first = &samples[0];
+    let (width, height, channels) = (first.width, first.height, first.channels);
+    let k = samples.len();
+    let median = median_image(samples);
+
+    // Temporal noise: robust spread of each sample around the per-pixel median.
+    let sigma_t = if k >= 2 {
+        let stride = (k * median.len() / 2_000_000).max(1) | 1;
+        let mut dev: Vec<f32> = Vec::with_capacity(k * median.len() / stride + 1);
+        for f in samples {
+            dev.extend(f.data.iter().zip(&median).step_by(stride).map(|(a, b)| (a - b).abs()));
+        }
+        // With an odd number of samples one of them equals the median at each pixel.
+        let m = quantile(&mut dev, 0.5) as f64 * 1.4826;
+        m * (k as f64 / (k as f64 - 1.0)).sqrt()
+    } else {
+        0.0
+    }
+    .max(MIN_NOISE);
+
+    let level: Vec<f32> = (0..channels).map(|c| mode_level(&median, channels, c)).collect();
+    let sigma_median = 1.2533 * sigma_t / (k as f64).sqrt();
+    let tau = (4.0 * sigma_median).max(3.0) as f32;
+    let structured = median
+        .chunks_exact(channels)
+        .filter(|px| px.iter().zip(&level).any(|(v, l)| (v - l).abs() > tau))
+        .count();
+    let structured_fraction = structured as f64 / (width * height).max(1) as f64;
+    let model = match choice {
+        BackgroundChoice::Constant => BackgroundModel::Constant,
+        BackgroundChoice::PerPixel if k >= 2 => BackgroundModel::PerPixel,
+        BackgroundChoice::PerPixel => BackgroundModel::Constant,
+        BackgroundChoice::Auto if k >= 3 && structured_fraction > STRUCTURED_LIMIT => BackgroundModel::PerPixel,
+        BackgroundChoice::Auto => BackgroundModel::Constant,
+    };
+    let image = match model {
+        BackgroundModel::PerPixel => median,
+        BackgroundModel::Constant => Frame::filled(width, height, &level).data,
+    };
+    let mut bg = Background {
+        model,
+        width,
+        height,
+        channels,
+        level,
+        image,
+        direction: vec![1.0; channels],
+        noise_sigma: sigma_t,
+        structured_fraction,
+        sample_count: k,
+    };
+    bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
+    let mut negatives: Vec<f32> = Vec::new();
+    let mut signal = Vec::new();
+    for f in samples {
+        bg.signal_into(f, &mut signal);
+        negatives.extend(signal.iter().filter(|&&s| s < 0.0).map(|s| -s));
+    }
+    bg.noise_sigma = if negatives.len() >= 16 {
+        (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
+    } else {
+        MIN_NOISE
+    };
+    bg
+}
+
+impl Background {
+    /// The particle signal of `frame` (see the module doc), grey levels, one value per pixel.
+    #[must_use]
+    pub fn signal(&self, frame: &Frame) -> Vec<f32> {
+        let mut out = Vec::new();
+        self.signal_into(frame, &mut out);
+        out
+    }
+
+    /// [`Background::signal`] into a reused buffer.
+    pub fn signal_into(&self, frame: &Frame, out: &mut Vec<f32>) {
+        out.clear();
+        match (self.channels, self.model) {
+            (1, BackgroundModel::Constant) => {
+                let (u, l) = (self.direction[0], self.level[0]);
+                out.extend(frame.data.iter().map(|&v| u * (v - l)));
+            }
+            (1, BackgroundModel::PerPixel) => {
+                let u = self.direction[0];
+                out.extend(frame.data.iter().zip(&self.image).map(|(&v, &b)| u * (v - b)));
+            }
+            _ => {
+                let c = self.channels;
+                let u = &self.direction;
+                out.extend(frame.data.chunks_exact(c).zip(self.image.chunks_exact(c)).map(|(p, b)| {
+                    p.iter().zip(b).zip(u).map(|((p, b), u)| u * (p - b)).sum::<f32>()
+                }));
+            }
+        }
+    }
+
+    /// Returns true if and only if particles are darker than the background (grey frames),
+    /// or darker on average over the channels (colour frames).
+    pub fn is_dark_on_light(&self) -> bool {
+        self.direction.iter().sum::<f32>() < 0.0
+    }
+}
+
+fn median_image(samples: &[Frame]) -> Vec<f32> {
+    let n = samples[0].data.len();
+    let k = samples.len();
+    let mut out = vec![0.0f32; n];
+    out.par_chunks_mut(4096).enumerate().for_each(|(chunk, dst)| {
+        let mut buf = vec![0.0f32; k];
+        for (j, d) in dst.iter_mut().enumerate() {
+            let i = chunk * 4096 + j;
+            for (b, f) in buf.iter_mut().zip(samples) {
+                *b = f.data[i];
+            }
+            *d = median_of(&mut buf);
+        }
+    });
+    out
+}
+
+fn median_of(v: &mut [f32]) -> f32 {
+    let n = v.len();
+    let mid = n / 2;
+    let (lower, m, _) = v.select_nth_unstable_by(mid, f32::total_cmp);
+    let m = *m;
+    if n % 2 == 1 {
+        m
+    } else {
+        let lo = lower.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        0.5 * (lo + m)
+    }
+}
+
+/// The `q` quantile (0..1) of `v`, reordering it; 0 for an empty slice.
+pub(crate) fn quantile(v: &mut [f32], q: f64) -> f32 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let i = ((v.len() - 1) as f64 * q).round() as usize;
+    *v.select_nth_unstable_by(i, f32::total_cmp).1
+}
+
+/// The most common level of channel `c`: the mode of a one-level histogram, refined as the
+/// mean of the values within two levels of it.
+fn mode_level(image: &[f32], channels: usize, c: usize) -> f32 {
+    let mut hist = [0u32; 256];
+    for v in image.iter().skip(c).step_by(channels) {
+        hist[v.round().clamp(0.0, 255.0) as usize] += 1;
+    }
+    let (mode, _) = hist.iter().enumerate().max_by_key(|(i, &n)| (n, usize::MAX - i)).unwrap_or((0, &0));
+    let lo = mode as f32 - 2.5;
+    let hi = mode as f32 + 2.5;
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for &v in image.iter().skip(c).step_by(channels) {
+        if v >= lo && v <= hi {
+            sum += f64::from(v);
+            count += 1;
+        }
+    }
+    if count == 0 {
+        mode as f32
+    } else {
+        (sum / count as f64) as f32
+    }
+}
+
+/// The principal direction of the differences from the background over the pixels that
+/// differ by more than `threshold` in some channel, signed so that particles project
+/// positive on average.
+fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32) -> Vec<f32> {
+    let c = bg.channels;
+    let mut cov = [[0.0f64; 3]; 3];
+    let mut mean = [0.0f64; 3];
+    let mut count = 0usize;
+    for f in samples {
+        for (p, b) in f.data.chunks_exact(c).zip(bg.image.chunks_exact(c)) {
+            let mut d = [0.0f64; 3];
+            let mut big = false;
+            for ch in 0..c {
+                d[ch] = f64::from(p[ch] - b[ch]);
+                big |= d[ch].abs() > f64::from(threshold);
+            }
+            if big {
+                count += 1;
+                for i in 0..c {
+                    mean[i] += d[i];
+                    for j in 0..c {
+                        cov[i][j] += d[i] * d[j];
+                    }
+                }
+            }
+        }
+    }
+    if count == 0 {
+        return vec![1.0 / (c as f32).sqrt(); c];
+    }
+    // Power iteration from the mean difference (or the grey axis when it cancels).
+    let mut v = [0.0f64; 3];
+    let norm = mean[..c].iter().map(|m| m * m).sum::<f64>().sqrt();
+    for i in 0..c {
+        v[i] = if norm > 0.0 { mean[i] / norm } else { 1.0 };
+    }
+    for _ in 0..100 {
+        let mut w = [0.0f64; 3];
+        for i in 0..c {
+            for j in 0..c {
+                w[i] += cov[i][j] * v[j];
+            }
+        }
+        let n = w[..c].iter().map(|x| x * x).sum::<f64>().sqrt();
+        if n <= 0.0 {
+            break;
+        }
+        for i in 0..c {
+            v[i] = w[i] / n;
+        }
+    }
+    let proj: f64 = (0..c).map(|i| v[i] * mean[i]).sum();
+    let sign = if proj < 0.0 { -1.0 } else { 1.0 };
+    (0..c).map(|i| (sign * v[i]) as f32).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame_with_spot(level: f32, spot: f32, at: (usize, usize)) -> Frame {
+        let mut f = Frame::filled(40, 30, &[level]);
+        for y in at.1 - 2..=at.1 + 2 {
+            for x in at.0 - 2..=at.0 + 2 {
+                f.data[y * 40 + x] = spot;
+            }
+        }
+        f
+    }
+
+    #[test]
+    fn dark_on_light_gets_negative_direction_and_positive_signal() {
+        let samples: Vec<Frame> = (0..5).map(|k| frame_with_spot(200.0, 50.0, (5 + 6 * k, 10))).collect();
+        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        assert_eq!(bg.model, BackgroundModel::Constant);
+        assert!((bg.level[0] - 200.0).abs() < 1e-3);
+        assert!(bg.is_dark_on_light());
+        let s = bg.signal(&samples[0]);
+        assert!((s[10 * 40 + 5] - 150.0).abs() < 1e-3);
+        assert!(s[0].abs() < 1e-3);
+    }
+
+    #[test]
+    fn a_gradient_background_is_modelled_per_pixel() {
+        let samples: Vec<Frame> = (0..7)
+            .map(|k| {
+                let mut f = frame_with_spot(0.0, 255.0, (5 + 4 * k, 15));
+                for (i, v) in f.data.iter_mut().enumerate() {
+                    if *v < 1.0 {
+                        *v = (i % 40) as f32 * 4.0;
+                    }
+                }
+                f
+            })
+            .collect();
+        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        assert_eq!(bg.model, BackgroundModel::PerPixel);
+        let s = bg.signal(&samples[3]);
+        assert!(s[3 * 40 + 30].abs() < 1e-3, "background pixel signal {}", s[3 * 40 + 30]);
+        assert!(s[15 * 40 + 17] > 100.0);
+    }
+
+    #[test]
+    fn colour_direction_points_to_the_particle_colour() {
+        let samples: Vec<Frame> = (0..5)
+            .map(|k| {
+                let mut f = Frame::filled(30, 20, &[240.0, 240.0, 240.0]);
+                for y in 8..12 {
+                    for x in 3 + 5 * k..7 + 5 * k {
+                        let i = (y * 30 + x) * 3;
+                        f.data[i..i + 3].copy_from_slice(&[40.0, 140.0, 160.0]);
+                    }
+                }
+                f
+            })
+            .collect();
+        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        let d = &bg.direction;
+        // The particle is (-200, -100, -80) from the background.
+        let expect = [-200.0f32, -100.0, -80.0];
+        let n = expect.iter().map(|v| v * v).sum::<f32>().sqrt();
+        for i in 0..3 {
+            assert!((d[i] - expect[i] / n).abs() < 1e-3, "{d:?}");
+        }
+        let s = bg.signal(&samples[0]);
+        assert!((s[9 * 30 + 4] - n).abs() < 0.5);
+    }
+}

@@ -1,0 +1,237 @@
+//! Frame files: listing a folder in natural name order and decoding one frame to a
+//! floating-point pixel buffer.
+//!
+//! Every frame is held as `f32` samples on the 8-bit scale (0 = black, 255 = white), one
+//! channel for grey images and three for colour ones (alpha is dropped). 16-bit images
+//! keep their precision as fractional levels.
+
+use std::cmp::Ordering;
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+use image::DynamicImage;
+
+use crate::TrackError;
+
+/// One decoded frame: `channels` interleaved `f32` samples per pixel, row-major, on the
+/// 8-bit grey-level scale (0..255).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    /// Width, px.
+    pub width: usize,
+    /// Height, px.
+    pub height: usize,
+    /// Samples per pixel: 1 (grey) or 3 (red, green, blue).
+    pub channels: usize,
+    /// `width * height * channels` samples, grey levels (0..255).
+    pub data: Vec<f32>,
+}
+
+impl Frame {
+    /// A frame filled with one colour (`level.len()` = channels), grey levels.
+    pub fn filled(width: usize, height: usize, level: &[f32]) -> Frame {
+        let channels = level.len().max(1);
+        let mut data = Vec::with_capacity(width * height * channels);
+        for _ in 0..width * height {
+            data.extend_from_slice(level);
+        }
+        Frame {
+            width,
+            height,
+            channels,
+            data,
+        }
+    }
+
+    /// This frame with `channels` channels: grey is replicated into red, green and blue;
+    /// colour is averaged into grey.
+    #[must_use]
+    pub fn with_channels(self, channels: usize) -> Frame {
+        if channels == self.channels {
+            return self;
+        }
+        let data = if channels == 3 {
+            self.data.iter().flat_map(|&v| [v, v, v]).collect()
+        } else {
+            self.data.chunks_exact(3).map(|c| (c[0] + c[1] + c[2]) / 3.0).collect()
+        };
+        Frame {
+            channels,
+            data,
+            ..self
+        }
+    }
+}
+
+/// Returns the image files of `dir` (PNG and JPEG, by extension, case-insensitive; hidden
+/// files skipped) in natural name order: digit runs compare by value, so `frame_2`
+/// comes before `frame_10`.
+pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, TrackError> {
+    let io_err = |source| TrackError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io_err)? {
+        let path = entry.map_err(io_err)?.path();
+        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        if !name.starts_with('.') && matches!(ext.as_str(), "png" | "jpg" | "jpeg") && path.is_file() {
+            files.push(path);
+        }
+    }
+    files.sort_by(|a, b| compare_natural(&a.to_string_lossy(), &b.to_string_lossy()));
+    Ok(files)
+}
+
+/// Compares two names in natural order: runs of digits by numeric value (then by length,
+/// so `01` sorts after `1`), everything else character by character.
+pub fn compare_natural(a: &str, b: &str) -> Ordering {
+    let (mut a, mut b) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (a.first(), b.first()) {
+            (None, None) => return Ordering::Equal,
+            (None, Some(_)) => return Ordering::Less,
+            (Some(_), None) => return Ordering::Greater,
+            (Some(x), Some(y)) if x.is_ascii_digit() && y.is_ascii_digit() => {
+                let na = a.iter().take_while(|c| c.is_ascii_digit()).count();
+                let nb = b.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (da, db) = (&a[..na], &b[..nb]);
+                let ta = trim_zeros(da);
+                let tb = trim_zeros(db);
+                let ord = ta.len().cmp(&tb.len()).then_with(|| ta.cmp(tb)).then_with(|| na.cmp(&nb));
+                if ord != Ordering::Equal {
+                    return ord;
+                }
+                a = &a[na..];
+                b = &b[nb..];
+            }
+            (Some(x), Some(y)) => {
+                if x != y {
+                    return x.cmp(y);
+                }
+                a = &a[1..];
+                b = &b[1..];
+            }
+        }
+    }
+}
+
+fn trim_zeros(d: &[u8]) -> &[u8] {
+    let k = d.iter().take_while(|&&c| c == b'0').count();
+    &d[k..]
+}
+
+/// The number in a frame file's name (its last run of digits), if any.
+pub fn frame_number(path: &Path) -> Option<u64> {
+    let stem = path.file_stem()?.to_string_lossy();
+    let digits: String = stem
+        .chars()
+        .rev()
+        .skip_while(|c| !c.is_ascii_digit())
+        .take_while(char::is_ascii_digit)
+        .collect();
+    digits.chars().rev().collect::<String>().parse().ok()
+}
+
+/// Decodes one frame file (PNG 8/16-bit grey, grey+alpha, RGB, RGBA; JPEG) to a [`Frame`].
+/// Errors name the file: unreadable, empty, corrupt or truncated.
+pub fn load_frame(path: &Path) -> Result<Frame, TrackError> {
+    let bytes = std::fs::read(path).map_err(|source| TrackError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let decode_err = |message: String| TrackError::Decode {
+        path: path.to_path_buf(),
+        message,
+    };
+    if bytes.is_empty() {
+        return Err(decode_err("the file is empty".into()));
+    }
+    let reader = image::ImageReader::new(Cursor::new(&bytes))
+        .with_guessed_format()
+        .map_err(|e| decode_err(e.to_string()))?;
+    let image = reader.decode().map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
+    Ok(frame_from_image(&image))
+}
+
+/// Converts a decoded image to a [`Frame`] (8-bit scale, alpha dropped).
+pub fn frame_from_image(image: &DynamicImage) -> Frame {
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    let (channels, data): (usize, Vec<f32>) = match image {
+        DynamicImage::ImageLuma8(b) => (1, b.as_raw().iter().map(|&v| f32::from(v)).collect()),
+        DynamicImage::ImageLumaA8(b) => (1, b.as_raw().chunks_exact(2).map(|p| f32::from(p[0])).collect()),
+        DynamicImage::ImageLuma16(b) => (1, b.as_raw().iter().map(|&v| f32::from(v) / 257.0).collect()),
+        DynamicImage::ImageLumaA16(b) => {
+            (1, b.as_raw().chunks_exact(2).map(|p| f32::from(p[0]) / 257.0).collect())
+        }
+        DynamicImage::ImageRgb8(b) => (3, b.as_raw().iter().map(|&v| f32::from(v)).collect()),
+        DynamicImage::ImageRgba8(b) => (
+            3,
+            b.as_raw().chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]].map(f32::from)).collect(),
+        ),
+        DynamicImage::ImageRgb16(b) => (3, b.as_raw().iter().map(|&v| f32::from(v) / 257.0).collect()),
+        DynamicImage::ImageRgba16(b) => (
+            3,
+            b.as_raw()
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]].map(|v| f32::from(v) / 257.0))
+                .collect(),
+        ),
+        other => (3, other.to_rgb32f().as_raw().iter().map(|&v| v * 255.0).collect()),
+    };
+    Frame {
+        width,
+        height,
+        channels,
+        data,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn natural_order_puts_2_before_10() {
+        let mut names = vec!["frame_10.png", "frame_2.png", "frame_1.png", "frame_02.png", "a.png"];
+        names.sort_by(|a, b| compare_natural(a, b));
+        assert_eq!(names, ["a.png", "frame_1.png", "frame_2.png", "frame_02.png", "frame_10.png"]);
+    }
+
+    #[test]
+    fn frame_number_is_the_last_digit_run() {
+        assert_eq!(frame_number(Path::new("/x/run3_frame_0012.png")), Some(12));
+        assert_eq!(frame_number(Path::new("/x/last.png")), None);
+    }
+
+    #[test]
+    fn sixteen_bit_and_rgba_are_scaled_to_8_bit_levels() {
+        let img = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(2, 1, vec![0u16, 65535]).unwrap();
+        let f = frame_from_image(&DynamicImage::ImageLuma16(img));
+        assert_eq!(f.channels, 1);
+        assert!((f.data[1] - 255.0).abs() < 1e-4);
+        let img = image::RgbaImage::from_raw(1, 1, vec![10, 20, 30, 0]).unwrap();
+        let f = frame_from_image(&DynamicImage::ImageRgba8(img));
+        assert_eq!(f.data, vec![10.0, 20.0, 30.0]);
+    }
+
+    #[test]
+    fn truncated_file_is_named() {
+        let dir = std::env::temp_dir().join(format!("physfit-frames-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("frame_3.png");
+        let img = image::GrayImage::from_fn(64, 64, |x, y| image::Luma([((x * 7 + y * 13) % 251) as u8]));
+        let mut bytes = Vec::new();
+        DynamicImage::ImageLuma8(img)
+            .write_to(&mut Cursor::new(&mut bytes), image::ImageFormat::Png)
+            .unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+        let e = load_frame(&path).unwrap_err().to_string();
+        assert!(e.contains("frame_3.png"), "{e}");
+        std::fs::write(&path, b"").unwrap();
+        let e = load_frame(&path).unwrap_err().to_string();
+        assert!(e.contains("frame_3.png") && e.contains("empty"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

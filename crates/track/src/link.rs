@@ -1,0 +1,625 @@
+//! Linking: detections of successive frames joined into trajectories.
+//!
+//! A key design decision made in this module is that identity is never guessed silently.
+//! Each frame, every live track predicts where its particle is (constant position, then
+//! constant velocity, then constant acceleration once the track's own history shows that
+//! model predicts better), with a prediction scale learned from the track's past
+//! prediction residuals. Candidate detections within a gate of that scale come from a
+//! kd-tree, and tracks are assigned to detections by optimal assignment over the whole
+//! frame (Hungarian method on each connected group of competing tracks), never greedily.
+//!
+//! A blob may hold several particles: its mass, compared with a single particle's, says
+//! how many tracks it can take, and a track whose prediction falls inside a blob already
+//! taken joins it. The particles of a merged blob are placed at the blob's centroid plus
+//! their predicted offsets from the group's mean (flag `split`). A track that finds
+//! nothing is bridged with its prediction (flag `interpolated`); once it is found again,
+//! the bridged points are replaced by a cubic through the detected points on either side.
+//! Each bridged or merged run is reported as an [`Ambiguity`] with its frames and tracks.
+//!
+//! With named start positions (a structure), exactly those particles are followed for the
+//! whole window: unmatched detections never start tracks, and a track is never dropped
+//! while it is in the image. Without them, every unmatched detection starts a track named
+//! by an integer, and tracks unseen for more than `memory` frames end.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+use crate::assignment::{solve_sparse, SparseProblem};
+use crate::locate::Detection;
+use crate::track_table::{PointFlag, TrackPoint, TrackTable};
+
+/// Gate half-width in units of a track's prediction scale.
+const GATE_SIGMAS: f64 = 4.0;
+/// Weight of the newest residual in a track's running mean squared prediction error.
+const RESIDUAL_RATE: f64 = 0.3;
+
+/// The detections of one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameDetections {
+    /// 0-based frame index (the file's index in natural name order).
+    pub frame: usize,
+    /// Detections, any order.
+    pub detections: Vec<Detection>,
+}
+
+/// What linking needs to know.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinkOptions {
+    /// Named particles and their approximate positions in the first frame, px; `None`
+    /// tracks every detection under an integer name.
+    pub named_start: Option<Vec<(String, [f64; 2])>>,
+    /// Expected particle radius, px.
+    pub radius: f64,
+    /// Frame width, px.
+    pub width: usize,
+    /// Frame height, px.
+    pub height: usize,
+    /// Frames a track may go unseen before it ends (unnamed) or stops being bridged (named).
+    pub memory: usize,
+}
+
+/// What kind of ambiguity a run of frames held.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum AmbiguityKind {
+    /// The particles shared one blob; their positions were split from it.
+    Merged,
+    /// The particle was not seen; its position was bridged from its motion.
+    Missing,
+    /// The particle was outside the image or lost; no position was written.
+    Lost,
+}
+
+/// A run of frames where tracking was ambiguous for some particles.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Ambiguity {
+    /// What happened.
+    pub kind: AmbiguityKind,
+    /// The tracks involved.
+    pub particles: Vec<String>,
+    /// First frame of the run.
+    pub first_frame: usize,
+    /// Last frame of the run (inclusive).
+    pub last_frame: usize,
+}
+
+impl std::fmt::Display for Ambiguity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let what = match self.kind {
+            AmbiguityKind::Merged => "shared one blob (positions split from it)",
+            AmbiguityKind::Missing => "not seen (bridged from its motion)",
+            AmbiguityKind::Lost => "outside the image or lost (no positions written)",
+        };
+        let frames = if self.first_frame == self.last_frame {
+            format!("frame {}", self.first_frame)
+        } else {
+            format!("frames {}-{}", self.first_frame, self.last_frame)
+        };
+        write!(f, "{frames}: {} {what}", self.particles.join(", "))
+    }
+}
+
+/// The trajectories and what linking had to bridge.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LinkOutcome {
+    /// One point per track per frame it was followed.
+    pub table: TrackTable,
+    /// Every ambiguity bridged, in frame order.
+    pub ambiguities: Vec<Ambiguity>,
+    /// Human-readable warnings (unmatched named particles, particles that left the image).
+    pub warnings: Vec<String>,
+}
+
+#[derive(Clone, Debug)]
+struct Point {
+    x: f64,
+    y: f64,
+    mass: f64,
+    size: f64,
+    ep: f64,
+    flag: PointFlag,
+    /// Written to the table (false while outside the image or lost).
+    emit: bool,
+}
+
+#[derive(Clone, Debug)]
+struct Track {
+    name: String,
+    first_frame: usize,
+    /// One point per frame from `first_frame`, contiguous.
+    points: Vec<Point>,
+    misses: usize,
+    err_cv: Option<f64>,
+    err_ca: Option<f64>,
+    /// Prediction scale before any velocity is known, px.
+    init_scale: f64,
+    ended: bool,
+}
+
+impl Track {
+    fn new(name: String, frame: usize, p: Point, init_scale: f64) -> Track {
+        Track {
+            name,
+            first_frame: frame,
+            points: vec![p],
+            misses: 0,
+            err_cv: None,
+            err_ca: None,
+            init_scale,
+            ended: false,
+        }
+    }
+
+    fn pos(&self, back: usize) -> [f64; 2] {
+        let p = &self.points[self.points.len() - 1 - back];
+        [p.x, p.y]
+    }
+
+    fn predict_cv(&self) -> Option<[f64; 2]> {
+        (self.points.len() >= 2).then(|| {
+            let (a, b) = (self.pos(0), self.pos(1));
+            [2.0 * a[0] - b[0], 2.0 * a[1] - b[1]]
+        })
+    }
+
+    fn predict_ca(&self) -> Option<[f64; 2]> {
+        (self.points.len() >= 3).then(|| {
+            let (a, b, c) = (self.pos(0), self.pos(1), self.pos(2));
+            [3.0 * a[0] - 3.0 * b[0] + c[0], 3.0 * a[1] - 3.0 * b[1] + c[1]]
+        })
+    }
+
+    /// Predicted position and prediction scale (px) for the next frame.
+    fn predict(&self, floor: f64) -> ([f64; 2], f64) {
+        let grow = 1.0 + self.misses as f64;
+        let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a < v);
+        let (p, err) = if use_ca {
+            (self.predict_ca(), self.err_ca)
+        } else {
+            (self.predict_cv(), self.err_cv)
+        };
+        match (p, err) {
+            (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
+            (Some(p), None) => (p, self.init_scale.max(floor) * grow),
+            _ => (self.pos(0), self.init_scale.max(floor) * grow),
+        }
+    }
+
+    /// Updates the running prediction errors with an observation for the next frame.
+    fn learn(&mut self, obs: [f64; 2]) {
+        let upd = |e: &mut Option<f64>, p: Option<[f64; 2]>| {
+            if let Some(p) = p {
+                let r2 = (obs[0] - p[0]).powi(2) + (obs[1] - p[1]).powi(2);
+                *e = Some(match *e {
+                    Some(old) => (1.0 - RESIDUAL_RATE) * old + RESIDUAL_RATE * r2,
+                    None => r2,
+                });
+            }
+        };
+        let (cv, ca) = (self.predict_cv(), self.predict_ca());
+        upd(&mut self.err_cv, cv);
+        upd(&mut self.err_ca, ca);
+    }
+}
+
+/// Links per-frame detections into trajectories (see the module doc). `frames` must be
+/// in increasing, contiguous frame order.
+pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> LinkOutcome {
+    let mut out = LinkOutcome::default();
+    let Some(first) = frames.first() else {
+        return out;
+    };
+    let r = options.radius.max(0.5);
+    let floor = (0.25 * r).max(0.5);
+    let typical_mass = median(frames.iter().flat_map(|f| f.detections.iter().map(|d| d.mass)).collect());
+    let mut tracks: Vec<Track> = Vec::new();
+    let named = options.named_start.is_some();
+    let mut events: Vec<(usize, AmbiguityKind, Vec<usize>)> = Vec::new();
+
+    // Start: named particles matched to the first frame by optimal assignment.
+    if let Some(starts) = &options.named_start {
+        let dets = &first.detections;
+        let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
+        let mut problem = SparseProblem {
+            row_miss: Vec::new(),
+            col_miss: vec![0.0; dets.len()],
+            pairs: Vec::new(),
+        };
+        for (i, (_, p)) in starts.iter().enumerate() {
+            let gate = (0.5 * nn[i]).max(3.0 * r).min(diagonal(options));
+            problem.row_miss.push(1.0);
+            for (j, d) in dets.iter().enumerate() {
+                let d2 = (d.x - p[0]).powi(2) + (d.y - p[1]).powi(2);
+                if d2 <= gate * gate {
+                    problem.pairs.push((i, j, d2 / (gate * gate)));
+                }
+            }
+        }
+        let assign = solve_sparse(&problem);
+        for (i, (name, p)) in starts.iter().enumerate() {
+            let init = (0.5 * nn[i]).min(diagonal(options)) / GATE_SIGMAS;
+            let point = match assign[i] {
+                Some(j) => point_from(&dets[j], PointFlag::Detected),
+                None => {
+                    out.warnings.push(format!(
+                        "frame {}: no blob near the start position ({:.1}, {:.1}) of particle {name}; starting from that position",
+                        first.frame, p[0], p[1]
+                    ));
+                    events.push((first.frame, AmbiguityKind::Missing, vec![i]));
+                    Point {
+                        x: p[0],
+                        y: p[1],
+                        mass: f64::NAN,
+                        size: f64::NAN,
+                        ep: f64::NAN,
+                        flag: PointFlag::Interpolated,
+                        emit: true,
+                    }
+                }
+            };
+            tracks.push(Track::new(name.clone(), first.frame, point, init.max(floor)));
+        }
+    } else {
+        start_tracks(&mut tracks, first, &vec![false; first.detections.len()], floor, options);
+    }
+
+    for fd in &frames[1..] {
+        let t = fd.frame;
+        let dets = &fd.detections;
+        let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
+        let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor)).collect();
+
+        // Columns: each detection once per particle its mass can hold.
+        let mut col_det: Vec<usize> = Vec::new();
+        for (j, d) in dets.iter().enumerate() {
+            let cap = if typical_mass > 0.0 { (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize } else { 1 };
+            col_det.extend(std::iter::repeat(j).take(cap));
+        }
+        let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
+        let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));
+        let mut first_col = vec![0usize; dets.len() + 1];
+        for &j in &col_det {
+            first_col[j + 1] += 1;
+        }
+        for j in 0..dets.len() {
+            first_col[j + 1] += first_col[j];
+        }
+        let mut problem = SparseProblem {
+            pairs: Vec::new(),
+            row_miss: vec![GATE_SIGMAS * GATE_SIGMAS; live.len()],
+            col_miss: vec![0.0; col_det.len()],
+        };
+        for (k, &(p, s)) in preds.iter().enumerate() {
+            let Some(tree) = &tree else { break };
+            let g = GATE_SIGMAS * s;
+            for nb in tree.within_unsorted::<SquaredEuclidean>(&p, g * g) {
+                let j = nb.item as usize;
+                let cost = nb.distance / (s * s);
+                for (copy, c) in (first_col[j]..first_col[j + 1]).enumerate() {
+                    // Later copies cost a little more so a lone track takes the first.
+                    problem.pairs.push((k, c, cost + 1e-3 * copy as f64));
+                }
+            }
+        }
+        let assign = solve_sparse(&problem);
+        let mut det_tracks: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
+        let mut unassigned: Vec<usize> = Vec::new();
+        for (k, a) in assign.iter().enumerate() {
+            match a {
+                Some(c) => det_tracks[col_det[*c]].push(k),
+                None => unassigned.push(k),
+            }
+        }
+        // A track left over whose prediction falls inside a taken blob joins it.
+        let merge_r = 1.5 * r;
+        let mut still: Vec<usize> = Vec::new();
+        for &k in &unassigned {
+            let p = preds[k].0;
+            let best = tree.as_ref().and_then(|tree| {
+                tree.within_unsorted::<SquaredEuclidean>(&p, merge_r * merge_r)
+                    .into_iter()
+                    .filter(|nb| !det_tracks[nb.item as usize].is_empty())
+                    .min_by(|a, b| a.distance.total_cmp(&b.distance))
+                    .map(|nb| nb.item as usize)
+            });
+            match best {
+                Some(j) => det_tracks[j].push(k),
+                None => still.push(k),
+            }
+        }
+        // Second chance for the rest: the nearest detection nobody took, within a gate
+        // widened by the misses, provided no other leftover track is as close to it.
+        let free: Vec<usize> = (0..dets.len()).filter(|&j| det_tracks[j].is_empty()).collect();
+        let mut problem2 = SparseProblem {
+            pairs: Vec::new(),
+            row_miss: vec![1.0; still.len()],
+            col_miss: vec![0.0; free.len()],
+        };
+        for (a, &k) in still.iter().enumerate() {
+            let (p, s) = preds[k];
+            let g = (GATE_SIGMAS * s * 2.0).max(2.0 * r + speed(&tracks[live[k]]));
+            for (b, &j) in free.iter().enumerate() {
+                let d2 = (points[j][0] - p[0]).powi(2) + (points[j][1] - p[1]).powi(2);
+                if d2 <= g * g {
+                    problem2.pairs.push((a, b, d2 / (g * g)));
+                }
+            }
+        }
+        let assign2 = solve_sparse(&problem2);
+        let mut missing: Vec<usize> = Vec::new();
+        for (a, &k) in still.iter().enumerate() {
+            match assign2[a] {
+                Some(b) => det_tracks[free[b]].push(k),
+                None => missing.push(k),
+            }
+        }
+
+        // Write this frame's points.
+        for (j, group) in det_tracks.iter().enumerate() {
+            if group.is_empty() {
+                continue;
+            }
+            let d = &dets[j];
+            if group.len() == 1 {
+                let ti = live[group[0]];
+                tracks[ti].learn([d.x, d.y]);
+                tracks[ti].misses = 0;
+                tracks[ti].points.push(point_from(d, PointFlag::Detected));
+                continue;
+            }
+            let n = group.len() as f64;
+            let mean = group.iter().fold([0.0, 0.0], |m, &k| [m[0] + preds[k].0[0] / n, m[1] + preds[k].0[1] / n]);
+            for &k in group {
+                let (p, s) = preds[k];
+                let ti = live[k];
+                let x = d.x + p[0] - mean[0];
+                let y = d.y + p[1] - mean[1];
+                tracks[ti].misses = 0;
+                tracks[ti].points.push(Point {
+                    x,
+                    y,
+                    mass: d.mass / n,
+                    size: d.size,
+                    ep: d.ep.max(s),
+                    flag: PointFlag::Split,
+                    emit: true,
+                });
+            }
+            events.push((t, AmbiguityKind::Merged, group.iter().map(|&k| live[k]).collect()));
+        }
+        for &k in &missing {
+            let (p, s) = preds[k];
+            let ti = live[k];
+            let tr = &mut tracks[ti];
+            tr.misses += 1;
+            let inside = p[0] >= -r && p[1] >= -r && p[0] <= options.width as f64 - 1.0 + r
+                && p[1] <= options.height as f64 - 1.0 + r;
+            let emit = inside && tr.misses <= options.memory;
+            if !named && tr.misses > options.memory {
+                tr.ended = true;
+                continue;
+            }
+            tr.points.push(Point {
+                x: p[0],
+                y: p[1],
+                mass: f64::NAN,
+                size: f64::NAN,
+                ep: s,
+                flag: PointFlag::Interpolated,
+                emit,
+            });
+            let kind = if emit { AmbiguityKind::Missing } else { AmbiguityKind::Lost };
+            events.push((t, kind, vec![ti]));
+        }
+        if !named {
+            let taken: Vec<bool> = det_tracks.iter().map(|g| !g.is_empty()).collect();
+            start_tracks(&mut tracks, fd, &taken, floor, options);
+        }
+    }
+
+    // Unnamed tracks: drop trailing bridged points (the particle was never seen again).
+    for tr in &mut tracks {
+        if !named {
+            while tr.points.last().is_some_and(|p| p.flag == PointFlag::Interpolated) {
+                tr.points.pop();
+            }
+        }
+        smooth_bridges(tr);
+    }
+    let events: Vec<(usize, AmbiguityKind, Vec<usize>)> = events
+        .into_iter()
+        .filter(|(f, kind, ids)| {
+            // Bridged points later dropped are not reported as bridged.
+            *kind != AmbiguityKind::Missing
+                || ids.iter().all(|&i| {
+                    let tr = &tracks[i];
+                    f - tr.first_frame < tr.points.len()
+                })
+        })
+        .collect();
+    out.ambiguities = collect_runs(&events, &tracks);
+    for a in &out.ambiguities {
+        if a.kind == AmbiguityKind::Lost {
+            out.warnings.push(format!("particle {} {a}", a.particles.join(", ")));
+        }
+    }
+
+    // The table: by frame, then by track order.
+    let frame_end = frames.last().map_or(0, |f| f.frame + 1);
+    let mut rows: Vec<TrackPoint> = Vec::new();
+    for t in first.frame..frame_end {
+        for tr in &tracks {
+            if t < tr.first_frame {
+                continue;
+            }
+            if let Some(p) = tr.points.get(t - tr.first_frame) {
+                if p.emit {
+                    rows.push(TrackPoint {
+                        frame: t,
+                        particle: tr.name.clone(),
+                        x: p.x,
+                        y: p.y,
+                        mass: p.mass,
+                        size: p.size,
+                        ep: p.ep,
+                        flag: p.flag,
+                    });
+                }
+            }
+        }
+    }
+    out.table = TrackTable { points: rows };
+    out
+}
+
+fn point_from(d: &Detection, flag: PointFlag) -> Point {
+    Point {
+        x: d.x,
+        y: d.y,
+        mass: d.mass,
+        size: d.size,
+        ep: d.ep,
+        flag,
+        emit: true,
+    }
+}
+
+fn speed(tr: &Track) -> f64 {
+    if tr.points.len() < 2 {
+        return 0.0;
+    }
+    let (a, b) = (tr.pos(0), tr.pos(1));
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+fn diagonal(o: &LinkOptions) -> f64 {
+    (o.width as f64).hypot(o.height as f64)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Distance from each point to its nearest other point (infinite for a lone point).
+fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
+    if points.len() < 2 {
+        return vec![f64::INFINITY; points.len()];
+    }
+    let tree = ImmutableKdTree::<f64, 2>::new_from_slice(points);
+    points
+        .iter()
+        .map(|p| {
+            tree.nearest_n::<SquaredEuclidean>(p, 2)
+                .into_iter()
+                .map(|nb| nb.distance.sqrt())
+                .fold(f64::INFINITY, |m, d| if d > 0.0 { m.min(d) } else { m })
+        })
+        .collect()
+}
+
+fn start_tracks(tracks: &mut Vec<Track>, fd: &FrameDetections, taken: &[bool], floor: f64, o: &LinkOptions) {
+    let pts: Vec<[f64; 2]> = fd.detections.iter().map(|d| [d.x, d.y]).collect();
+    let nn = nearest_other(&pts);
+    for (j, d) in fd.detections.iter().enumerate() {
+        if taken[j] {
+            continue;
+        }
+        let init = (0.5 * nn[j]).min(diagonal(o)) / GATE_SIGMAS;
+        let name = tracks.len().to_string();
+        tracks.push(Track::new(name, fd.frame, point_from(d, PointFlag::Detected), init.max(floor)));
+    }
+}
+
+/// Replaces each run of bridged points that has seen points on both sides by the cubic
+/// through the two seen points before and the two after (or the line, when only one is
+/// available on a side).
+fn smooth_bridges(tr: &mut Track) {
+    let n = tr.points.len();
+    let seen = |p: &Point| p.flag != PointFlag::Interpolated;
+    let mut i = 0;
+    while i < n {
+        if seen(&tr.points[i]) {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < n && !seen(&tr.points[i]) {
+            i += 1;
+        }
+        if start == 0 || i == n {
+            continue;
+        }
+        let mut knots: Vec<(f64, [f64; 2])> = Vec::new();
+        for k in [start.checked_sub(2), Some(start - 1), Some(i), Some(i + 1)].into_iter().flatten() {
+            if k < n && seen(&tr.points[k]) {
+                knots.push((k as f64, [tr.points[k].x, tr.points[k].y]));
+            }
+        }
+        for k in start..i {
+            let v = lagrange(&knots, k as f64);
+            let p = &mut tr.points[k];
+            p.x = v[0];
+            p.y = v[1];
+        }
+    }
+}
+
+fn lagrange(knots: &[(f64, [f64; 2])], t: f64) -> [f64; 2] {
+    let mut out = [0.0, 0.0];
+    for (a, (ta, pa)) in knots.iter().enumerate() {
+        let mut w = 1.0;
+        for (b, (tb, _)) in knots.iter().enumerate() {
+            if a != b {
+                w *= (t - tb) / (ta - tb);
+            }
+        }
+        out[0] += w * pa[0];
+        out[1] += w * pa[1];
+    }
+    out
+}
+
+/// Groups per-frame events into runs of consecutive frames with the same kind and tracks.
+fn collect_runs(events: &[(usize, AmbiguityKind, Vec<usize>)], tracks: &[Track]) -> Vec<Ambiguity> {
+    let mut sorted: Vec<(AmbiguityKind, Vec<usize>, usize)> = events
+        .iter()
+        .map(|(f, k, ids)| {
+            let mut ids = ids.clone();
+            ids.sort_unstable();
+            (*k, ids, *f)
+        })
+        .collect();
+    sorted.sort();
+    let mut out: Vec<Ambiguity> = Vec::new();
+    let mut last: Option<(AmbiguityKind, Vec<usize>, usize, usize)> = None;
+    let names = |ids: &[usize]| ids.iter().map(|&i| tracks[i].name.clone()).collect::<Vec<_>>();
+    for (k, ids, f) in sorted {
+        match &mut last {
+            Some((lk, lids, _, lf)) if *lk == k && *lids == ids && *lf + 1 == f => *lf = f,
+            _ => {
+                if let Some((lk, lids, ff, lf)) = last.take() {
+                    out.push(Ambiguity {
+                        kind: lk,
+                        particles: names(&lids),
+                        first_frame: ff,
+                        last_frame: lf,
+                    });
+                }
+                last = Some((k, ids, f, f));
+            }
+        }
+    }
+    if let Some((lk, lids, ff, lf)) = last {
+        out.push(Ambiguity {
+            kind: lk,
+            particles: names(&lids),
+            first_frame: ff,
+            last_frame: lf,
+        });
+    }
+    out.sort_by(|a, b| (a.first_frame, a.kind, &a.particles).cmp(&(b.first_frame, b.kind, &b.particles)));
+    out
+}
