@@ -28,6 +28,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Simulate a scene and write the true particle centres as CSV (no images).
     Simulate(SimulateArgs),
+    /// Identify every bond's parameters from trajectories and a structure.
+    Fit(FitArgs),
     /// Run the default pipeline on a built-in scene (for now: render it).
     Run(RunArgs),
     /// Measure speed: `render`, `track`, `fit` or `all`.
@@ -55,6 +57,78 @@ pub struct SimulateArgs {
     /// Output CSV (`frame,particle,x,y`).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// `physfit track`.
+#[derive(Debug, Args)]
+pub struct TrackArgs {
+    /// Folder of frames (PNG 8/16-bit grey, RGB, RGBA, or JPEG), read in natural name order.
+    pub frames: PathBuf,
+    /// Output CSV: frame,particle,x,y,mass,size,ep,flag.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Name tracks after this structure's particles, matched to their positions in the first
+    /// analysed frame, and follow only those.
+    #[arg(long)]
+    pub structure: Option<PathBuf>,
+    /// First and last frame tracked, inclusive (`A..B`).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<(usize, usize)>,
+    /// Disc radius, px (estimated from the frames when absent).
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Score the tracks against true centres (`frame,particle,x,y`) and print the figures.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+}
+
+/// `physfit fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Trajectories (`frame,particle,x,y` CSV; `particle` = a structure id).
+    pub tracks: PathBuf,
+    /// The structure: a scene whose unknown bond values are left out.
+    #[arg(long)]
+    pub structure: PathBuf,
+    /// Output: the fitted model (the structure with every value filled in).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the fit report (JSON).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Solver.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub method: MethodArg,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// First and last frame analysed, inclusive (`A..B`).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<(usize, usize)>,
+    /// Compare with the true scene: each parameter's relative error goes into the report.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    /// Population of the genetic algorithms.
+    #[arg(long)]
+    pub population: Option<usize>,
+    /// Generations (GA) or iterations (annealing), at most.
+    #[arg(long)]
+    pub generations: Option<usize>,
+}
+
+/// Identification methods.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Linear least squares refined on the multi-step cost, with a global search fallback.
+    Auto,
+    /// Linear least squares on the equations of motion, refined by Levenberg-Marquardt.
+    Lsq,
+    /// The paper's simulated annealing.
+    Anneal,
+    /// The paper's genetic algorithm (global cost).
+    Ga,
+    /// The paper's genetic algorithm with per-particle local costs.
+    GaLocal,
 }
 
 /// `physfit run`.
@@ -86,6 +160,10 @@ pub struct BenchArgs {
 pub enum BenchTarget {
     /// Rendering frames.
     Render,
+    /// Tracking: decode, locate, link.
+    Track,
+    /// Identification: the paper's experiments and lsq scaling.
+    Fit,
     /// Everything.
     All,
 }

@@ -1,6 +1,9 @@
 //! `physfit bench`: speed measurements, reported as Markdown tables (never timed assertions).
 
 
+pub mod fit;
+pub mod render;
+
 use anyhow::Context;
 
 use crate::cli::{BenchArgs, BenchTarget};
@@ -8,8 +11,15 @@ use crate::progress::Verbosity;
 
 /// Runs the chosen benchmarks and prints (and optionally saves) their tables.
 pub fn run(args: &BenchArgs, _verbosity: Verbosity) -> anyhow::Result<()> {
-    let report = String::new();
-    let _ = (args.what == BenchTarget::Render, args.quick);
+    let mut report = String::new();
+    if matches!(args.what, BenchTarget::Render | BenchTarget::All) {
+        report.push_str(&render::run(args.quick)?);
+        report.push('\n');
+    }
+    if matches!(args.what, BenchTarget::Fit | BenchTarget::All) {
+        report.push_str(&fit::run(args.quick)?);
+        report.push('\n');
+    }
     print!("{report}");
     if let Some(path) = &args.out {
         physfit_model::write_atomic(path, report.as_bytes()).with_context(|| format!("writing {}", path.display()))?;

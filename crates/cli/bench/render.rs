@@ -26,7 +26,9 @@ fn scatter(count: usize) -> Vec<Vec2> {
         (z >> 11) as f64 / (1u64 << 53) as f64
     };
     let span = SIZE as f64 - 20.0;
-    (0..count).map(|_| Vec2::new(10.0 + span * uniform(), 10.0 + span * uniform())).collect()
+    (0..count)
+        .map(|_| Vec2::new(10.0 + span * uniform(), 10.0 + span * uniform()))
+        .collect()
 }
 
 /// The positions of frame `k`: the scatter drifted by a sub-pixel step per frame, so every
@@ -38,7 +40,12 @@ fn drifted(base: &[Vec2], k: usize, out: &mut Vec<Vec2>) {
 }
 
 /// Draws (and with `encode`, PNG-encodes) frames `0..frames`; returns the total PNG bytes.
-fn draw_frames(base: &[Vec2], settings: &RenderSettings, frames: std::ops::Range<usize>, encode: bool) -> anyhow::Result<usize> {
+fn draw_frames(
+    base: &[Vec2],
+    settings: &RenderSettings,
+    frames: std::ops::Range<usize>,
+    encode: bool,
+) -> anyhow::Result<usize> {
     let mut scratch = RenderScratch::new();
     let mut image = DynamicImage::new_luma8(0, 0);
     let mut positions = Vec::with_capacity(base.len());
@@ -55,15 +62,21 @@ fn draw_frames(base: &[Vec2], settings: &RenderSettings, frames: std::ops::Range
 
 /// Times `frames` frames; with `parallel`, frames are shared out over the rayon pool in chunks
 /// (each chunk reuses its buffers, as `render_sequence` does per thread).
-fn time_case(base: &[Vec2], settings: &RenderSettings, frames: usize, encode: bool, parallel: bool) -> anyhow::Result<Duration> {
+fn time_case(
+    base: &[Vec2],
+    settings: &RenderSettings,
+    frames: usize,
+    encode: bool,
+    parallel: bool,
+) -> anyhow::Result<Duration> {
     // One untimed frame warms caches and sizes the buffers.
     draw_frames(base, settings, 0..1, encode)?;
     let start = Instant::now();
     if parallel {
         let chunk = frames.div_ceil(rayon::current_num_threads() * 4).max(1);
-        (0..frames.div_ceil(chunk))
-            .into_par_iter()
-            .try_for_each(|c| draw_frames(base, settings, c * chunk..((c + 1) * chunk).min(frames), encode).map(|_| ()))?;
+        (0..frames.div_ceil(chunk)).into_par_iter().try_for_each(|c| {
+            draw_frames(base, settings, c * chunk..((c + 1) * chunk).min(frames), encode).map(|_| ())
+        })?;
     } else {
         draw_frames(base, settings, 0..frames, encode)?;
     }
@@ -93,8 +106,8 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         for (encode, stage) in [(false, "render"), (true, "render + PNG")] {
             for parallel in [false, true] {
                 let frames = match (quick, encode) {
-                    (true, false) => 12,
-                    (true, true) => 6,
+                    (true, false) => 40,
+                    (true, true) => 20,
                     (false, false) => 200,
                     (false, true) => 100,
                 };
@@ -102,7 +115,11 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
                 let secs = elapsed.as_secs_f64();
                 out.push_str(&format!(
                     "| {count} | {stage} | {} | {frames} | {secs:.3} | {:.1} |\n",
-                    if parallel { threads.to_string() } else { "1".to_string() },
+                    if parallel {
+                        threads.to_string()
+                    } else {
+                        "1".to_string()
+                    },
                     frames as f64 / secs.max(1e-9),
                 ));
             }

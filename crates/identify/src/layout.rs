@@ -98,6 +98,8 @@ pub struct StiffnessScales {
     /// Typical transverse stiffness of the torsions, energy per px² (a torsion's `T` scale is
     /// this times the product of its arm lengths).
     pub torsion_per_px2: f64,
+    /// Typical angular frequency of the bonds' oscillations, rad/s.
+    pub omega: f64,
 }
 
 /// Order-of-magnitude stiffness from the observed motion: for each spring, the ratio of the
@@ -110,6 +112,7 @@ pub fn stiffness_scales(structure: &Scene, observations: &Observations) -> Stiff
     let pos = &observations.positions;
     let fps = observations.fps;
     let mut estimates = Vec::new();
+    let mut omegas = Vec::new();
     for s in &structure.springs {
         let [i, j] = [s.ends[0].index(), s.ends[1].index()];
         let mut d = Vec::new();
@@ -141,19 +144,27 @@ pub fn stiffness_scales(structure: &Scene, observations: &Observations) -> Stiff
                 mi * mj / (mi + mj)
             };
             estimates.push(0.5 * mu * sa / sd);
+            omegas.push((sa / sd).sqrt());
         }
     }
+    let fallback_omega = std::f64::consts::TAU * fps / 10.0;
     let spring = if estimates.is_empty() {
         let m = structure.particles.iter().map(|p| p.mass).sum::<f64>() / structure.particles.len().max(1) as f64;
-        let omega = std::f64::consts::TAU * fps / 10.0;
-        0.25 * m * omega * omega
+        0.25 * m * fallback_omega * fallback_omega
     } else {
         estimates.sort_by(|a, b| a.total_cmp(b));
         estimates[estimates.len() / 2]
     };
+    let omega = if omegas.is_empty() {
+        fallback_omega
+    } else {
+        omegas.sort_by(|a, b| a.total_cmp(b));
+        omegas[omegas.len() / 2]
+    };
     StiffnessScales {
         spring,
         torsion_per_px2: spring,
+        omega,
     }
 }
 

@@ -142,8 +142,8 @@ impl OneStepCost {
         }
         // Region p depends on the bonds touching p or a particle within two bonds of it.
         let mut region_params = Vec::with_capacity(n);
-        for p in 0..n {
-            let mut near = within2[p].clone();
+        for (p, near2) in within2.iter().enumerate() {
+            let mut near = near2.clone();
             near.push(p);
             let mut params: Vec<usize> = problem
                 .layout

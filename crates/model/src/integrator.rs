@@ -96,8 +96,12 @@ pub(crate) fn step_substep(
         IntegratorKind::Euler => {
             model.accelerations(state, &mut scratch.acc);
             let free = particles.iter().map(|p| !p.fixed);
-            for (((x, v), a), free) in
-                state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc).zip(free)
+            for (((x, v), a), free) in state
+                .positions
+                .iter_mut()
+                .zip(state.velocities.iter_mut())
+                .zip(&scratch.acc)
+                .zip(free)
             {
                 if free {
                     *v += a * dt;
@@ -115,8 +119,12 @@ pub(crate) fn step_substep(
             }
             scratch.v_old.copy_from_slice(&state.velocities);
             let free = particles.iter().map(|p| !p.fixed);
-            for (((x, v), a), free) in
-                state.positions.iter_mut().zip(state.velocities.iter_mut()).zip(&scratch.acc).zip(free)
+            for (((x, v), a), free) in state
+                .positions
+                .iter_mut()
+                .zip(state.velocities.iter_mut())
+                .zip(&scratch.acc)
+                .zip(free)
             {
                 if free {
                     *x += *v * dt + a * (0.5 * dt * dt);
@@ -158,7 +166,12 @@ pub(crate) fn step_substep(
 /// Advances `state` by one frame: `params.substeps` substeps of `params.dt()`.
 ///
 /// As [`step`], the result depends only on the arguments, not on what `scratch` last held.
-pub fn step_frame(model: &Model, params: &IntegrationParameters, state: &mut State, scratch: &mut StepScratch) {
+pub fn step_frame(
+    model: &Model,
+    params: &IntegrationParameters,
+    state: &mut State,
+    scratch: &mut StepScratch,
+) {
     scratch.acc_valid = false;
     step_frame_continued(model, params, state, scratch);
 }

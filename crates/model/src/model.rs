@@ -35,7 +35,7 @@ impl Potential for Model {
             // Fixed particles are left out of the field energy (they never move), so they
             // are left out of its gradient too.
             for (p, gr) in self.particles.particles.iter().zip(grad.iter_mut()) {
-                if true {
+                if !p.fixed {
                     *gr -= g * p.mass;
                 }
             }
@@ -86,14 +86,23 @@ impl Model {
         let ph = &self.physics;
         ph.drag != 0.0
             || ph.quadratic_drag != 0.0
-            || self.springs.iter().any(|s| s.damping.unwrap_or(ph.spring_damping) != 0.0)
+            || self
+                .springs
+                .iter()
+                .any(|s| s.damping.unwrap_or(ph.spring_damping) != 0.0)
     }
 
     /// Adds the velocity-dependent forces (drag, quadratic drag, dashpots) into `force`.
     pub fn add_dissipative_forces(&self, state: &State, force: &mut [Vec2]) {
         let ph = &self.physics;
         if ph.drag != 0.0 || ph.quadratic_drag != 0.0 {
-            for ((p, v), f) in self.particles.particles.iter().zip(&state.velocities).zip(force.iter_mut()) {
+            for ((p, v), f) in self
+                .particles
+                .particles
+                .iter()
+                .zip(&state.velocities)
+                .zip(force.iter_mut())
+            {
                 *f -= v * (p.mass * (ph.drag + ph.quadratic_drag * v.norm()));
             }
         }
@@ -254,7 +263,7 @@ mod proptests {
     proptest! {
         #[test]
         fn gradient_matches_finite_differences((model, x) in model_and_positions()) {
-            let h = 1e-4 * min_separation(&x);
+            let h = 1e-5 * min_separation(&x);
             let floor = model_floor(&model, &x, h);
             check_gradient(&model, &x, h, &floor)?;
         }

@@ -23,7 +23,7 @@ mod ga;
 mod stopping;
 
 pub use anneal::{anneal, AnnealOptions};
-pub use ga::{genetic, genetic_local, GaOptions};
+pub use ga::{genetic, genetic_local, GaOptions, MutationSchedule};
 
 use crate::{BondGenes, Layout, ParameterKind};
 
@@ -101,3 +101,6 @@ fn is_rest_length(layout: &Layout, p: usize) -> bool {
 
 #[cfg(test)]
 pub(crate) mod testing;
+
+#[cfg(test)]
+mod recovery_tests;

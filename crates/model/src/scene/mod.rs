@@ -9,15 +9,16 @@ mod file;
 
 pub use error::{SceneError, SceneProblem};
 pub use file::{
-    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, SceneFile, SpringFile, TorsionFile, WallFile,
+    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, SceneFile, SpringFile, TorsionFile,
+    WallFile,
 };
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use crate::{
-    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Spring, State, Torsion,
-    Vec2, Wall,
+    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Spring, State,
+    Torsion, Vec2, Wall,
 };
 
 /// Default integration substeps per frame when `[recording]` gives none.
@@ -105,7 +106,12 @@ fn check_finite(key: impl FnOnce() -> String, values: &[f64]) -> Result<(), Scen
     }
 }
 
-fn check_range(key: impl FnOnce() -> String, value: f64, ok: bool, allowed: &'static str) -> Result<(), SceneProblem> {
+fn check_range(
+    key: impl FnOnce() -> String,
+    value: f64,
+    ok: bool,
+    allowed: &'static str,
+) -> Result<(), SceneProblem> {
     if ok {
         Ok(())
     } else {
@@ -143,7 +149,10 @@ impl Scene {
         })?;
         let mut scene = Scene::from_toml_str(&text, &path.display().to_string())?;
         if scene.name.is_empty() {
-            scene.name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            scene.name = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
         }
         Ok(scene)
     }
@@ -151,12 +160,18 @@ impl Scene {
     /// Parses and validates scene text; `file` names it in errors.
     pub fn from_toml_str(text: &str, file: &str) -> Result<Scene, SceneError> {
         let raw: SceneFile = toml::from_str(text).map_err(|e| {
-            let (line, column) = e.span().map(|s| line_column(text, s.start)).unwrap_or((1, 1));
+            let start = e.span().map(|s| s.start);
+            let (line, column) = start.map(|s| line_column(text, s)).unwrap_or((1, 1));
+            let mut message = e.message().to_string();
+            // The parser names a bad value by position only: name its key too.
+            if let Some(key) = start.and_then(|s| key_of_value_at(text, s)) {
+                message = format!("{message} (key `{key}`)");
+            }
             SceneError::Parse {
                 file: file.to_string(),
                 line,
                 column,
-                message: e.message().to_string(),
+                message,
             }
         })?;
         Scene::from_file(raw).map_err(|problem| SceneError::Invalid {
@@ -170,16 +185,41 @@ impl Scene {
         let rec = &raw.recording;
         check_finite(|| "recording.fps".into(), &[rec.fps])?;
         check_range(|| "recording.fps".into(), rec.fps, rec.fps > 0.0, "positive")?;
-        check_range(|| "recording.frames".into(), rec.frames as f64, rec.frames >= 1, "at least 1")?;
+        check_range(
+            || "recording.frames".into(),
+            rec.frames as f64,
+            rec.frames >= 1,
+            "at least 1",
+        )?;
         let substeps = rec.substeps.unwrap_or(DEFAULT_SUBSTEPS);
-        check_range(|| "recording.substeps".into(), substeps as f64, substeps >= 1, "at least 1")?;
+        check_range(
+            || "recording.substeps".into(),
+            substeps as f64,
+            substeps >= 1,
+            "at least 1",
+        )?;
         let render = raw.render.clone().unwrap_or_default();
         check_finite(|| "render.radius".into(), &[render.radius])?;
-        check_range(|| "render.radius".into(), render.radius, render.radius > 0.0, "positive")?;
+        check_range(
+            || "render.radius".into(),
+            render.radius,
+            render.radius > 0.0,
+            "positive",
+        )?;
         check_finite(|| "render.noise".into(), &[render.noise])?;
-        check_range(|| "render.noise".into(), render.noise, render.noise >= 0.0, "zero or positive")?;
+        check_range(
+            || "render.noise".into(),
+            render.noise,
+            render.noise >= 0.0,
+            "zero or positive",
+        )?;
         check_finite(|| "render.blur".into(), &[render.blur])?;
-        check_range(|| "render.blur".into(), render.blur, render.blur >= 0.0, "zero or positive")?;
+        check_range(
+            || "render.blur".into(),
+            render.blur,
+            render.blur >= 0.0,
+            "zero or positive",
+        )?;
         for (key, v) in [("render.width", render.width), ("render.height", render.height)] {
             check_range(|| key.into(), v as f64, v >= 1, "at least 1")?;
         }
@@ -236,7 +276,11 @@ impl Scene {
         for s in &raw.springs {
             let name = || spring_name(&s.between);
             let ends = resolve(&name, &[&s.between[0], &s.between[1]])?;
-            for (key, v) in [("length", s.length), ("stiffness", s.stiffness), ("damping", s.damping)] {
+            for (key, v) in [
+                ("length", s.length),
+                ("stiffness", s.stiffness),
+                ("damping", s.damping),
+            ] {
                 if let Some(v) = v {
                     check_finite(|| format!("{} {key}", name()), &[v])?;
                 }
@@ -259,7 +303,12 @@ impl Scene {
                 }
             }
             if let Some(m) = t.rest_cos {
-                check_range(|| format!("{} rest_cos", name()), m, (-1.0..=1.0).contains(&m), "in [-1, 1]")?;
+                check_range(
+                    || format!("{} rest_cos", name()),
+                    m,
+                    (-1.0..=1.0).contains(&m),
+                    "in [-1, 1]",
+                )?;
             }
             torsions.push(TorsionSpec {
                 center: ids[0],
@@ -307,7 +356,11 @@ impl Scene {
             None
         } else {
             Some(PhysicsFile {
-                gravity: if is_plus_zero2(ph.gravity) { None } else { Some(a2(ph.gravity)) },
+                gravity: if is_plus_zero2(ph.gravity) {
+                    None
+                } else {
+                    Some(a2(ph.gravity))
+                },
                 drag: nz(ph.drag),
                 quadratic_drag: nz(ph.quadratic_drag),
                 spring_damping: nz(ph.spring_damping),
@@ -330,7 +383,11 @@ impl Scene {
                 substeps: Some(self.recording.substeps),
                 integrator: Some(self.recording.integrator),
             },
-            render: if self.has_render_table { Some(self.render.clone()) } else { None },
+            render: if self.has_render_table {
+                Some(self.render.clone())
+            } else {
+                None
+            },
             particles: self
                 .particles
                 .iter()
@@ -338,7 +395,11 @@ impl Scene {
                     id: p.id.clone(),
                     mass: p.mass,
                     position: a2(p.position),
-                    velocity: if is_plus_zero2(p.velocity) { None } else { Some(a2(p.velocity)) },
+                    velocity: if is_plus_zero2(p.velocity) {
+                        None
+                    } else {
+                        Some(a2(p.velocity))
+                    },
                     fixed: p.fixed,
                 })
                 .collect(),
@@ -412,13 +473,19 @@ impl Scene {
 
     /// Index of the particle with this id.
     pub fn particle_id(&self, id: &str) -> Option<ParticleId> {
-        self.particles.iter().position(|p| p.id == id).map(|k| ParticleId(k as u32))
+        self.particles
+            .iter()
+            .position(|p| p.id == id)
+            .map(|k| ParticleId(k as u32))
     }
 
     /// The spring's display name, e.g. `spring p0-p1`.
     pub fn spring_label(&self, k: usize) -> String {
         let s = &self.springs[k];
-        spring_name(&[self.particles[s.ends[0].index()].id.clone(), self.particles[s.ends[1].index()].id.clone()])
+        spring_name(&[
+            self.particles[s.ends[0].index()].id.clone(),
+            self.particles[s.ends[1].index()].id.clone(),
+        ])
     }
 
     /// The torsion's display name, e.g. `torsion p0-p1-p2` (centre in the middle).
@@ -448,7 +515,12 @@ impl Scene {
                     key,
                 })
             };
-            let mut spring = Spring::new(s.ends[0], s.ends[1], need(s.rest_length, "length")?, need(s.stiffness, "stiffness")?);
+            let mut spring = Spring::new(
+                s.ends[0],
+                s.ends[1],
+                need(s.rest_length, "length")?,
+                need(s.stiffness, "stiffness")?,
+            );
             spring.damping = s.damping;
             springs.push(spring);
         }
@@ -480,7 +552,10 @@ impl Scene {
     pub fn initial_state(&self) -> State {
         State::new(
             self.particles.iter().map(|p| p.position).collect(),
-            self.particles.iter().map(|p| if p.fixed { Vec2::zeros() } else { p.velocity }).collect(),
+            self.particles
+                .iter()
+                .map(|p| if p.fixed { Vec2::zeros() } else { p.velocity })
+                .collect(),
         )
     }
 
@@ -502,8 +577,16 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
     }
     for (key, v, slot) in [
         ("physics.drag", ph.drag, &mut out.drag),
-        ("physics.quadratic_drag", ph.quadratic_drag, &mut out.quadratic_drag),
-        ("physics.spring_damping", ph.spring_damping, &mut out.spring_damping),
+        (
+            "physics.quadratic_drag",
+            ph.quadratic_drag,
+            &mut out.quadratic_drag,
+        ),
+        (
+            "physics.spring_damping",
+            ph.spring_damping,
+            &mut out.spring_damping,
+        ),
     ] {
         if let Some(v) = v {
             check_finite(|| key.into(), &[v])?;
@@ -520,7 +603,8 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
             (0.0..=1.0).contains(&w.restitution),
             "in [0, 1]",
         )?;
-        let wall = Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
+        let wall =
+            Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
         out.walls.push(wall);
     }
     Ok(out)
@@ -534,6 +618,17 @@ pub fn spring_name(between: &[String; 2]) -> String {
 /// A torsion's display name: `torsion j-i-k` with the centre `i` in the middle.
 pub fn torsion_name(at: &str, between: &[String; 2]) -> String {
     format!("torsion {}-{}-{}", between[0], at, between[1])
+}
+
+/// The key of a `key = value` line when `offset` points into the value, else `None`.
+fn key_of_value_at(text: &str, offset: usize) -> Option<&str> {
+    let offset = offset.min(text.len());
+    let line_start = text.get(..offset)?.rfind('\n').map_or(0, |k| k + 1);
+    let before = text.get(line_start..offset)?;
+    let (key, _) = before.split_once('=')?;
+    let key = key.trim();
+    let bare = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.' || c == '"';
+    (!key.is_empty() && key.chars().all(bare)).then_some(key)
 }
 
 fn line_column(text: &str, offset: usize) -> (usize, usize) {

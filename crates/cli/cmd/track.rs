@@ -1,0 +1,50 @@
+//! `physfit track FRAMES_DIR --out tracks.csv [--structure S] [--window A..B] [--truth T]`.
+
+use anyhow::Context;
+use physfit_track::{TrackOptions, TrackTable};
+
+use crate::cli::TrackArgs;
+use crate::progress::{self, Verbosity};
+
+/// Tracks a folder of frames.
+pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
+    let named_start = match &args.structure {
+        Some(path) => {
+            let s = super::load_scene(path)?;
+            Some(s.particles.iter().map(|p| (p.id.clone(), [p.position.x, p.position.y])).collect())
+        }
+        None => None,
+    };
+    let options = TrackOptions {
+        window: args.window,
+        named_start,
+        radius: args.radius,
+        ..TrackOptions::default()
+    };
+    let bar = progress::bar(verbosity, "track", 0);
+    let outcome = physfit_track::track_folder(&args.frames, &options, &|done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .with_context(|| format!("tracking frames in {}", args.frames.display()))?;
+    bar.finish_and_clear();
+    if verbosity != Verbosity::Quiet {
+        for w in &outcome.warnings {
+            eprintln!("physfit: warning: {w}");
+        }
+    }
+    outcome
+        .table
+        .write_csv(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    if verbosity != Verbosity::Quiet {
+        println!("{}", outcome.stats);
+        println!("tracks -> {}", args.out.display());
+    }
+    if let Some(truth_path) = &args.truth {
+        let truth = TrackTable::read_csv(truth_path).with_context(|| format!("reading truth {}", truth_path.display()))?;
+        let score = physfit_track::score_tracks(&outcome.table, &truth, outcome.stats.match_radius());
+        println!("{}", score.to_markdown());
+    }
+    Ok(())
+}

@@ -1,0 +1,167 @@
+//! [`Effect`]: the library of candidate physics the diagnosis can add to a model.
+//!
+//! Each effect is a term the model crate simulates ([`physfit_model::Physics`], a per-spring
+//! `damping`, an added spring, an added fixed particle) with a few parameters that the
+//! identifier fits. This module says what each effect's parameters are, their admissible
+//! ranges, and how a parameter vector becomes a model term; nothing here depends on data.
+
+use physfit_model::{Model, ParticleId, Scene, Spring, State, Vec2, Wall};
+use serde::Serialize;
+
+/// A candidate effect, by the structure's particle and spring indices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Effect {
+    /// A uniform acceleration field `[gx, gy]` (px/s²) on every free particle.
+    Gravity,
+    /// Linear drag on every particle, `F = -c m v` (`c` in 1/s).
+    Drag,
+    /// Quadratic drag on every particle, `F = -c m |v| v` (`c` in 1/px).
+    QuadraticDrag,
+    /// A dashpot along every spring, `F_i = c ((v_j - v_i) . u) u` (`c` in mass/s).
+    SpringDamping,
+    /// A dashpot along one spring (`spring` indexes the structure's springs), on top of any
+    /// global one.
+    SpringDashpot {
+        /// Index of the spring in the structure.
+        spring: usize,
+    },
+    /// A spring `S (d - L)^2` between two particles the structure did not join.
+    MissingSpring {
+        /// First particle index.
+        a: usize,
+        /// Second particle index.
+        b: usize,
+    },
+    /// A spring from a particle to a fixed point that is not among the structure's particles
+    /// (a tether or pivot, possibly outside the image).
+    Tether {
+        /// The tethered particle's index.
+        particle: usize,
+    },
+    /// A straight wall that particles' centres bounce off (position, direction, restitution).
+    Wall,
+}
+
+impl Effect {
+    /// The effect's name in `report.json` (`gravity`, `drag`, `quadratic_drag`,
+    /// `spring_damping`, `missing_spring`, `wall`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Gravity => "gravity",
+            Effect::Drag => "drag",
+            Effect::QuadraticDrag => "quadratic_drag",
+            Effect::SpringDamping | Effect::SpringDashpot { .. } => "spring_damping",
+            Effect::MissingSpring { .. } | Effect::Tether { .. } => "missing_spring",
+            Effect::Wall => "wall",
+        }
+    }
+
+    /// A readable label naming the particles or spring involved, e.g. `missing spring a-c`.
+    pub fn label(self, structure: &Scene) -> String {
+        let id = |p: usize| structure.particles.get(p).map_or_else(|| format!("#{p}"), |s| s.id.clone());
+        match self {
+            Effect::Gravity => "uniform field (gravity)".into(),
+            Effect::Drag => "linear drag".into(),
+            Effect::QuadraticDrag => "quadratic drag".into(),
+            Effect::SpringDamping => "dashpots on every spring".into(),
+            Effect::SpringDashpot { spring } => match structure.springs.get(spring) {
+                Some(_) => format!("dashpot on {}", structure.spring_label(spring)),
+                None => format!("dashpot on spring #{spring}"),
+            },
+            Effect::MissingSpring { a, b } => format!("missing spring {}-{}", id(a), id(b)),
+            Effect::Tether { particle } => format!("tether of {} to a fixed point", id(particle)),
+            Effect::Wall => "wall".into(),
+        }
+    }
+
+    /// Names of the effect's parameters, in vector order (scene-file keys where there are).
+    pub fn parameter_names(self) -> &'static [&'static str] {
+        match self {
+            Effect::Gravity => &["gravity_x", "gravity_y"],
+            Effect::Drag => &["drag"],
+            Effect::QuadraticDrag => &["quadratic_drag"],
+            Effect::SpringDamping | Effect::SpringDashpot { .. } => &["damping"],
+            Effect::MissingSpring { .. } => &["length", "stiffness"],
+            Effect::Tether { .. } => &["anchor_x", "anchor_y", "length", "stiffness"],
+            Effect::Wall => &["normal_angle", "offset", "restitution"],
+        }
+    }
+
+    /// Number of parameters the effect adds.
+    pub fn parameter_count(self) -> usize {
+        self.parameter_names().len()
+    }
+
+    /// Admissible range of each parameter (drag, dashpot and stiffness non-negative,
+    /// restitution in [0, 1], lengths positive).
+    pub fn bounds(self) -> Vec<[f64; 2]> {
+        let free = [f64::NEG_INFINITY, f64::INFINITY];
+        let positive = [0.0, f64::INFINITY];
+        match self {
+            Effect::Gravity => vec![free, free],
+            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
+                vec![positive]
+            }
+            Effect::MissingSpring { .. } => vec![[1e-6, f64::INFINITY], positive],
+            Effect::Tether { .. } => vec![free, free, [1e-6, f64::INFINITY], positive],
+            Effect::Wall => vec![free, free, [0.0, 1.0]],
+        }
+    }
+
+    /// Returns true if and only if the effect is a smooth force the weak form can screen
+    /// (every effect but the wall, which acts by impulses).
+    pub fn is_smooth(self) -> bool {
+        !matches!(self, Effect::Wall)
+    }
+}
+
+/// A wall from its parameters `[normal_angle (rad), offset (px), restitution]`: the line
+/// `n . x = offset` with `n = (cos a, sin a)` pointing into the allowed side.
+pub fn wall_from_params(p: &[f64]) -> Option<Wall> {
+    let n = Vec2::new(p[0].cos(), p[0].sin());
+    Wall::new(n * p[1], n, p[2].clamp(0.0, 1.0))
+}
+
+/// Applies `effects` with their parameters (`params`, concatenated in effect order) to a
+/// model of the structure and its state: physics fields, per-spring dashpots, added springs,
+/// and added fixed particles (tether anchors, appended after the structure's particles with
+/// zero velocity). `state` may be `None` when only the model is needed.
+pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut state: Option<&mut State>) {
+    let mut offset = 0;
+    let mut dashpots = Vec::new();
+    for &e in effects {
+        let p = &params[offset..offset + e.parameter_count()];
+        offset += e.parameter_count();
+        match e {
+            Effect::Gravity => model.physics.gravity += Vec2::new(p[0], p[1]),
+            Effect::Drag => model.physics.drag += p[0],
+            Effect::QuadraticDrag => model.physics.quadratic_drag += p[0],
+            Effect::SpringDamping => model.physics.spring_damping += p[0],
+            Effect::SpringDashpot { spring } => dashpots.push((spring, p[0])),
+            Effect::MissingSpring { a, b } => {
+                model.springs.push(Spring::new(ParticleId(a as u32), ParticleId(b as u32), p[0], p[1]));
+            }
+            Effect::Tether { particle } => {
+                let anchor = model.add_particle(1.0, true);
+                model.springs.push(Spring::new(ParticleId(particle as u32), anchor, p[2], p[3]));
+                if let Some(s) = state.as_deref_mut() {
+                    s.positions.push(Vec2::new(p[0], p[1]));
+                    s.velocities.push(Vec2::zeros());
+                }
+            }
+            Effect::Wall => {
+                if let Some(w) = wall_from_params(p) {
+                    model.physics.walls.push(w);
+                }
+            }
+        }
+    }
+    // Per-spring dashpots add to whatever the spring had (its own value or the global one).
+    let global = model.physics.spring_damping;
+    for (k, c) in dashpots {
+        if let Some(s) = model.springs.get_mut(k) {
+            s.damping = Some(s.damping.unwrap_or(global) + c);
+        }
+    }
+}

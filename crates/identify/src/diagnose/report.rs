@@ -1,0 +1,265 @@
+//! [`Diagnosis`]: the `report.json` contract of `physfit diagnose`.
+//!
+//! ```json
+//! {
+//!   "structure": "hanging", "seed": 1, "window": [0, 299], "sequence": [0, 299],
+//!   "track_noise": 0.08, "holdout": {"fraction": 0.25, "block_frames": 19, "held_out": [[19, 37], ...]},
+//!   "findings": [{"effect": "gravity", "label": "uniform field (gravity)",
+//!                 "parameters": [{"name": "gravity_x", "value": 0.3, "std_error": 0.4, "unit": "px/s^2"}, ...],
+//!                 "seen": {"particles": ["b", "c"], "springs": [], "frames": [[0, 299]], "text": "..."},
+//!                 "evidence": {"held_out_cost_before": 812.0, "held_out_cost_after": 41.0, "score": 9100.0, ...}}],
+//!   "rejected": [{"effect": "drag", "label": "linear drag", "round": 1, "screen_score": 0.7, ...}],
+//!   "localisation": {...}, "base": {...}, "final": {...}, "residuals": {...}
+//! }
+//! ```
+//! Costs are in px² (one-step: squared distance errors over pairs at most two bonds apart;
+//! multi-step: squared position errors from a fitted start state, with their RMS in px).
+
+use physfit_model::Scene;
+use serde::Serialize;
+
+use crate::MultiStepFit;
+
+/// One fitted value of a finding.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FittedValue {
+    /// Name (scene-file key where there is one: `drag`, `damping`, `length`, `stiffness`,
+    /// `restitution`; `gravity_x`/`gravity_y`; a wall's `normal_x`/`normal_y`/`offset`; a
+    /// tether's `anchor_x`/`anchor_y`).
+    pub name: String,
+    /// Value, in `unit`.
+    pub value: f64,
+    /// Standard error from the final fit's Jacobian and residuals (`null` if not computed).
+    pub std_error: Option<f64>,
+    /// Unit, e.g. `px/s^2`, `1/s`, `mass/s`, `px`.
+    pub unit: String,
+}
+
+/// Where a finding was seen.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Seen {
+    /// Particles that carry the effect (ids).
+    pub particles: Vec<String>,
+    /// Springs that carry it (`[id, id]`; added springs included).
+    pub springs: Vec<[String; 2]>,
+    /// Frame ranges `[first, last]` where it acts (whole window for smooth forces, the bounce
+    /// frames for a wall).
+    pub frames: Vec<[usize; 2]>,
+    /// Image region `[x_min, y_min, x_max, y_max]`, px, where it acts.
+    pub region: Option<[f64; 4]>,
+    /// In words.
+    pub text: String,
+}
+
+/// Why a term was accepted (or not): its held-out costs and scores.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Evidence {
+    /// Weak-form screening score: held-out weak-form residual explained, over the held-out
+    /// residual variance (`null` for walls, proposed from jolts instead).
+    pub screen_score: Option<f64>,
+    /// Multi-step cost of the model without the term on the held-out frames, px² (`null` if
+    /// the term was not verified by a multi-step fit).
+    pub held_out_cost_before: Option<f64>,
+    /// Multi-step cost with the term, on the held-out frames, px².
+    pub held_out_cost_after: Option<f64>,
+    /// Residual variance used to normalise (the larger of the fitted residual variance and
+    /// the squared track noise), px².
+    pub noise_variance: Option<f64>,
+    /// Penalty: parameters added times `ln(held-out residual count)`.
+    pub penalty: f64,
+    /// `(before - after) / noise_variance - penalty`; accepted when positive and best.
+    pub score: Option<f64>,
+    /// Number of parameters the term adds.
+    pub parameter_count: usize,
+}
+
+/// An accepted effect.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Finding {
+    /// `gravity`, `drag`, `quadratic_drag`, `spring_damping`, `wall` or `missing_spring`.
+    pub effect: String,
+    /// Readable label naming the particles or spring, e.g. `missing spring a-c`.
+    pub label: String,
+    /// True for a spring to a fixed point outside the structure (a tether or pivot).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub tether: bool,
+    /// Fitted values with standard errors (final joint refit).
+    pub parameters: Vec<FittedValue>,
+    /// Where it was seen.
+    pub seen: Seen,
+    /// Why it was accepted.
+    pub evidence: Evidence,
+    /// Greedy round (1-based) in which it was accepted.
+    pub round: usize,
+}
+
+/// A candidate that did not earn its place, with its best scores.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RejectedCandidate {
+    /// Effect name, as in [`Finding::effect`].
+    pub effect: String,
+    /// Readable label.
+    pub label: String,
+    /// Round (1-based) of its last evaluation.
+    pub round: usize,
+    /// Its scores in that round.
+    pub evidence: Evidence,
+}
+
+/// Costs of one model on the whole tracked sequence.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ModelCosts {
+    /// One-step cost, px² (the paper's: predicted vs observed distances of pairs at most two
+    /// bonds apart, one frame ahead from the observed state).
+    pub one_step: f64,
+    /// Multi-step cost from the start state that suits the model best (fitted).
+    pub multi_step: MultiStepFit,
+}
+
+/// Summary of a fitted model (base or final).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ModelSummary {
+    /// Effects in the model (names).
+    pub effects: Vec<String>,
+    /// Number of fitted parameters (bonds plus effects).
+    pub parameter_count: usize,
+    /// Costs on the whole tracked sequence.
+    pub costs: ModelCosts,
+    /// Residual RMS of the fit over the analysed window, px.
+    pub window_rms: f64,
+}
+
+/// How the frames were split for scoring.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Holdout {
+    /// Fraction of frames held out.
+    pub fraction: f64,
+    /// Frames per block.
+    pub block_frames: usize,
+    /// Held-out frame ranges `[first, last]` (absolute).
+    pub held_out: Vec<[usize; 2]>,
+    /// Weak-form test window, frames.
+    pub test_window: usize,
+}
+
+/// A particle's residual summary (base model).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ParticleResidual {
+    /// Particle id.
+    pub particle: String,
+    /// RMS multi-step position residual, px.
+    pub position_rms: f64,
+    /// `position_rms` over the track noise.
+    pub position_rms_over_noise: f64,
+    /// RMS residual acceleration (weak form, observed minus predicted), px/s².
+    pub acceleration_rms: f64,
+    /// RMS of the residual acceleration that track noise alone produces, px/s².
+    pub acceleration_noise: f64,
+    /// Mean residual acceleration `[ax, ay]`, px/s².
+    pub mean_acceleration: [f64; 2],
+    /// Direction of the mean residual, degrees from +x towards +y (image: y down, so 90 is
+    /// straight down).
+    pub direction_deg: f64,
+    /// Correlation of the residual acceleration with the velocity (-1: always against the
+    /// motion, as drag is).
+    pub velocity_correlation: f64,
+    /// True when the residual is beyond what track noise explains.
+    pub significant: bool,
+    /// `steady bias`, `slow trend`, `against the motion`, `isolated jolts`, `oscillating`,
+    /// or `noise`.
+    pub pattern: String,
+    /// Image region `[x_min, y_min, x_max, y_max]` where its residual exceeds three noise
+    /// levels.
+    pub region: Option<[f64; 4]>,
+}
+
+/// A spring's residual summary (base model).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BondResidual {
+    /// The spring's ends.
+    pub between: [String; 2],
+    /// RMS of observed minus predicted length, px.
+    pub length_rms: f64,
+    /// `length_rms` over the noise of a distance (`sqrt(2)` track noise).
+    pub length_rms_over_noise: f64,
+    /// RMS relative residual acceleration along the bond, px/s².
+    pub along_acceleration_rms: f64,
+    /// Same, from track noise alone, px/s².
+    pub along_acceleration_noise: f64,
+    /// True when beyond noise.
+    pub significant: bool,
+}
+
+/// Where the base model and the recording disagree.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Localisation {
+    /// Per particle.
+    pub particles: Vec<ParticleResidual>,
+    /// Per spring.
+    pub bonds: Vec<BondResidual>,
+    /// Frame ranges `[first, last]` where some particle's position residual exceeds three
+    /// noise levels.
+    pub frames: Vec<[usize; 2]>,
+    /// The impulsive events found (bounces).
+    pub jolts: Vec<super::jolts::Jolt>,
+    /// Summary sentences.
+    pub summary: Vec<String>,
+}
+
+/// Per-frame residual series (observed minus predicted, px) for plots.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ResidualSeries {
+    /// Particle ids (the inner index).
+    pub particles: Vec<String>,
+    /// Absolute frame indices (the outer index).
+    pub frames: Vec<usize>,
+    /// Base model: `before[f][p]` = `[dx, dy]` or `null` where untracked.
+    pub before: Vec<Vec<Option<[f64; 2]>>>,
+    /// Final model.
+    pub after: Vec<Vec<Option<[f64; 2]>>>,
+}
+
+/// The diagnosis (the content of `report.json`; the diagnosed scene is [`Diagnosis::final_scene`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct Diagnosis {
+    /// Structure name.
+    pub structure: String,
+    /// Seed used (holdout phase, noise replicas).
+    pub seed: u64,
+    /// Analysed frames `[A, B]`.
+    pub window: [usize; 2],
+    /// Tracked frames `[first, last]`.
+    pub sequence: [usize; 2],
+    /// Track noise measured from the tracks, px per coordinate.
+    pub track_noise: f64,
+    /// The frame split used for scoring.
+    pub holdout: Holdout,
+    /// Accepted effects, in order of acceptance.
+    pub findings: Vec<Finding>,
+    /// Candidates that did not earn their place.
+    pub rejected: Vec<RejectedCandidate>,
+    /// Where the base model's residuals live.
+    pub localisation: Localisation,
+    /// The base model (structure alone).
+    pub base: ModelSummary,
+    /// The diagnosed model (structure plus findings).
+    #[serde(rename = "final")]
+    pub final_model: ModelSummary,
+    /// Residual series before and after.
+    pub residuals: ResidualSeries,
+    /// What went wrong or was worked around.
+    pub warnings: Vec<String>,
+    /// Wall time, s.
+    pub seconds: f64,
+    /// The diagnosed model as a scene: fitted values, `[physics]`, added springs and fixed
+    /// particles; frame-0 state from the fit. Saved by the CLI as `fitted.toml`.
+    #[serde(skip)]
+    pub final_scene: Scene,
+}
+
+impl Diagnosis {
+    /// The names of the accepted effects, in order.
+    pub fn effect_names(&self) -> Vec<&str> {
+        self.findings.iter().map(|f| f.effect.as_str()).collect()
+    }
+}

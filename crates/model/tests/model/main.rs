@@ -1,0 +1,7 @@
+//! Integration tests of physfit-model through its public API: integrators, each physics law
+//! against its closed form, and the scene file contract.
+
+mod common;
+mod integration_laws;
+mod physics_laws;
+mod scene_file;
