@@ -1,4 +1,5 @@
 //! End-to-end tests of the `physfit` binary: one test binary, one module per stage.
 
+mod fit;
 mod render;
 mod util;

@@ -28,6 +28,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Simulate a scene and write the true particle centres as CSV (no images).
     Simulate(SimulateArgs),
+    /// Find particles in a folder of frames and link them into trajectories (tracks.csv).
+    Track(TrackArgs),
     /// Identify every bond's parameters from trajectories and a structure.
     Fit(FitArgs),
     /// Run the default pipeline on a built-in scene (for now: render it).

@@ -34,6 +34,7 @@ fn run() -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Render(args) => cmd::render::run(&args, verbosity)?,
         Command::Simulate(args) => cmd::simulate::run(&args, verbosity)?,
+        Command::Track(args) => cmd::track::run(&args, verbosity)?,
         Command::Fit(args) => cmd::fit::run(&args, verbosity)?,
         Command::Run(args) => cmd::run::run(&args, verbosity)?,
         Command::Bench(args) => bench::run(&args, verbosity)?,

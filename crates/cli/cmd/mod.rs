@@ -4,6 +4,7 @@ pub mod fit;
 pub mod render;
 pub mod run;
 pub mod simulate;
+pub mod track;
 
 use std::path::Path;
 

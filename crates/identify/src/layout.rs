@@ -121,7 +121,9 @@ pub fn stiffness_scales(structure: &Scene, observations: &Observations) -> Stiff
             if let (Some(a), Some(b)) = (pos[k][i], pos[k][j]) {
                 d.push((b - a).norm());
                 if k >= 1 && k + 1 < pos.len() {
-                    if let (Some(a0), Some(b0), Some(a2), Some(b2)) = (pos[k - 1][i], pos[k - 1][j], pos[k + 1][i], pos[k + 1][j]) {
+                    if let (Some(a0), Some(b0), Some(a2), Some(b2)) =
+                        (pos[k - 1][i], pos[k - 1][j], pos[k + 1][i], pos[k + 1][j])
+                    {
                         let rel = ((b2 - a2) - (b - a) * 2.0 + (b0 - a0)) * (fps * fps);
                         let u = SpringGeometry::new(a, b).direction;
                         acc.push(rel.dot(&u));
@@ -149,7 +151,8 @@ pub fn stiffness_scales(structure: &Scene, observations: &Observations) -> Stiff
     }
     let fallback_omega = std::f64::consts::TAU * fps / 10.0;
     let spring = if estimates.is_empty() {
-        let m = structure.particles.iter().map(|p| p.mass).sum::<f64>() / structure.particles.len().max(1) as f64;
+        let m =
+            structure.particles.iter().map(|p| p.mass).sum::<f64>() / structure.particles.len().max(1) as f64;
         0.25 * m * fallback_omega * fallback_omega
     } else {
         estimates.sort_by(|a, b| a.total_cmp(b));
@@ -203,17 +206,20 @@ pub fn layout_for(structure: &Scene, observations: &Observations) -> Layout {
             continue;
         }
         let [i, j] = [s.ends[0].index(), s.ends[1].index()];
-        let observed: Vec<f64> = pos
-            .iter()
-            .filter_map(|f| Some((f[j]? - f[i]?).norm()))
-            .collect();
+        let observed: Vec<f64> = pos.iter().filter_map(|f| Some((f[j]? - f[i]?).norm())).collect();
         let dmax = observed.iter().copied().fold(0.0, f64::max);
         let dmean = mean(&observed);
         let bond = BondRef::Spring(k);
         let mut params = Vec::new();
         if s.rest_length.is_none() {
             let upper = if dmax > 0.0 { 4.0 * dmax } else { 1.0e6 };
-            params.push(push(&mut layout, bond, ParameterKind::RestLength, [upper * 1e-9, upper], dmean.max(upper * 1e-3)));
+            params.push(push(
+                &mut layout,
+                bond,
+                ParameterKind::RestLength,
+                [upper * 1e-9, upper],
+                dmean.max(upper * 1e-3),
+            ));
         }
         if s.stiffness.is_none() {
             params.push(push(
@@ -244,7 +250,11 @@ pub fn layout_for(structure: &Scene, observations: &Observations) -> Layout {
                 arms.push((xj - xi).norm() * (xk - xi).norm());
             }
         }
-        let arm2 = if arms.is_empty() { 1.0 } else { mean(&arms).max(1e-12) };
+        let arm2 = if arms.is_empty() {
+            1.0
+        } else {
+            mean(&arms).max(1e-12)
+        };
         let bond = BondRef::Torsion(k);
         let mut params = Vec::new();
         if t.rest_cos.is_none() {

@@ -67,14 +67,16 @@ impl MultiStepCost {
     /// The cost of simulating `problem`'s model against `observations`, anchored at the first
     /// completely tracked frame. Errors when no frame is completely tracked.
     pub fn new(problem: Problem, observations: &Observations) -> Result<MultiStepCost, IdentifyError> {
-        let anchor = (0..observations.frame_count()).find(|&k| observations.is_complete(k)).ok_or_else(|| {
-            IdentifyError::TooFewFrames {
+        let anchor = (0..observations.frame_count())
+            .find(|&k| observations.is_complete(k))
+            .ok_or_else(|| IdentifyError::TooFewFrames {
                 method: "the multi-step cost".into(),
                 need: 1,
                 have: 0,
-            }
-        })?;
-        let free = (0..observations.particle_count()).filter(|&p| !observations.fixed[p]).collect();
+            })?;
+        let free = (0..observations.particle_count())
+            .filter(|&p| !observations.fixed[p])
+            .collect();
         Ok(MultiStepCost {
             stepping: problem.integration_parameters(),
             problem,
@@ -133,7 +135,13 @@ impl MultiStepCost {
     pub fn residual_count(&self) -> usize {
         let obs = &self.observations;
         (0..obs.frame_count())
-            .map(|k| self.free.iter().filter(|&&p| obs.positions[k][p].is_some()).count() * 2)
+            .map(|k| {
+                self.free
+                    .iter()
+                    .filter(|&&p| obs.positions[k][p].is_some())
+                    .count()
+                    * 2
+            })
             .sum()
     }
 
@@ -172,7 +180,12 @@ impl MultiStepCost {
 
     /// Runs the simulation from `initial` at the anchor, calling `visit(offset, positions)` at
     /// each frame (forward from the anchor, then backward); stops early when `visit` says false.
-    fn simulate(&self, params: &[f64], initial: &State, mut visit: impl FnMut(usize, &[Vec2]) -> bool) -> bool {
+    fn simulate(
+        &self,
+        params: &[f64],
+        initial: &State,
+        mut visit: impl FnMut(usize, &[Vec2]) -> bool,
+    ) -> bool {
         let model = self.problem.model(params);
         let n = initial.len();
         let mut scratch = StepScratch::new(n);
@@ -263,7 +276,9 @@ mod tests {
     #[test]
     fn zero_for_the_true_parameters_on_exact_data() {
         let truth = paper3(Timing::default());
-        let obs = Observations::from_recording(&record(&truth), &truth, 0).restrict(0, 99).unwrap();
+        let obs = Observations::from_recording(&record(&truth), &truth, 0)
+            .restrict(0, 99)
+            .unwrap();
         let problem = Problem::new(&truth.structure(), &obs).unwrap();
         let x = problem.params_of(&truth).unwrap();
         // Anchored mid-sequence (a gap before it), so both directions are exercised.

@@ -90,7 +90,14 @@ impl Observations {
                 let available = if names.is_empty() {
                     "no track at all".to_string()
                 } else {
-                    format!("tracks {}", names.iter().map(|s| format!("\"{s}\"")).collect::<Vec<_>>().join(", "))
+                    format!(
+                        "tracks {}",
+                        names
+                            .iter()
+                            .map(|s| format!("\"{s}\""))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
                 };
                 return Err(IdentifyError::MissingTrack {
                     particle: id.clone(),
@@ -216,9 +223,16 @@ impl Observations {
         let fixed = structure.particles.iter().map(|p| p.fixed).collect();
         let frames = recording.frame_count().saturating_sub(first_frame);
         let positions = (0..frames)
-            .map(|k| recording.frame(first_frame + k).iter().map(|&x| Some(x)).collect())
+            .map(|k| {
+                recording
+                    .frame(first_frame + k)
+                    .iter()
+                    .map(|&x| Some(x))
+                    .collect()
+            })
             .collect();
-        let mut obs = Observations::from_positions(ids, fixed, structure.recording.fps, first_frame, positions);
+        let mut obs =
+            Observations::from_positions(ids, fixed, structure.recording.fps, first_frame, positions);
         for k in 0..frames {
             let s = recording.state(first_frame + k);
             obs.velocities[k] = s.velocities.into_iter().map(Some).collect();
@@ -300,7 +314,12 @@ impl Observations {
             warnings: Vec::new(),
         };
         let gaps = out.gap_warnings();
-        out.warnings = self.warnings.iter().filter(|w| !w.contains("missing in frames")).cloned().collect();
+        out.warnings = self
+            .warnings
+            .iter()
+            .filter(|w| !w.contains("missing in frames"))
+            .cloned()
+            .collect();
         out.warnings.extend(gaps);
         Ok(out)
     }
@@ -309,8 +328,10 @@ impl Observations {
     fn gap_warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
         for (p, id) in self.particle_ids.iter().enumerate() {
-            let missing: Vec<usize> =
-                (0..self.frame_count()).filter(|&k| self.positions[k][p].is_none()).map(|k| k + self.first_frame).collect();
+            let missing: Vec<usize> = (0..self.frame_count())
+                .filter(|&k| self.positions[k][p].is_none())
+                .map(|k| k + self.first_frame)
+                .collect();
             if missing.is_empty() {
                 continue;
             }
@@ -369,7 +390,10 @@ fn local_velocity(track: &[Option<Vec2>], k: usize, fps: f64) -> Option<Vec2> {
     let mut picked: Vec<usize> = Vec::with_capacity(VELOCITY_FIT_POINTS);
     let reach = 2 * VELOCITY_FIT_POINTS;
     for d in 0..=reach {
-        for j in [k.checked_sub(d), if d > 0 { Some(k + d) } else { None }].into_iter().flatten() {
+        for j in [k.checked_sub(d), if d > 0 { Some(k + d) } else { None }]
+            .into_iter()
+            .flatten()
+        {
             if j < track.len() && track[j].is_some() && picked.len() < VELOCITY_FIT_POINTS {
                 picked.push(j);
             }
@@ -440,7 +464,10 @@ mod tests {
             points: (0..10).map(|k| TrackPoint::new(k, "a", k as f64, 0.0)).collect(),
         };
         let e = Observations::from_tracks(&t, &scene(), None).unwrap_err();
-        assert!(matches!(&e, IdentifyError::MissingTrack { particle, .. } if particle == "b"), "{e}");
+        assert!(
+            matches!(&e, IdentifyError::MissingTrack { particle, .. } if particle == "b"),
+            "{e}"
+        );
         assert!(e.to_string().contains("\"b\""), "{e}");
     }
 
@@ -448,18 +475,30 @@ mod tests {
     fn non_finite_position_names_frame_and_particle() {
         let mut points: Vec<TrackPoint> = (0..10).map(|k| TrackPoint::new(k, "a", k as f64, 0.0)).collect();
         points.extend((0..10).map(|k| TrackPoint::new(k, "b", 10.0, if k == 4 { f64::NAN } else { 0.0 })));
-        let e = Observations::from_tracks(&TrackTable { points }, &scene(), None).unwrap_err().to_string();
+        let e = Observations::from_tracks(&TrackTable { points }, &scene(), None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("frame 4") && e.contains("\"b\""), "{e}");
     }
 
     #[test]
     fn gaps_are_warnings_naming_particle_and_frames() {
         let mut points: Vec<TrackPoint> = (0..20).map(|k| TrackPoint::new(k, "a", k as f64, 0.0)).collect();
-        points.extend((0..20).filter(|k| !(5..=7).contains(k)).map(|k| TrackPoint::new(k, "b", 10.0, 0.0)));
+        points.extend(
+            (0..20)
+                .filter(|k| !(5..=7).contains(k))
+                .map(|k| TrackPoint::new(k, "b", 10.0, 0.0)),
+        );
         let o = Observations::from_tracks(&TrackTable { points }, &scene(), None).unwrap();
         assert_eq!(o.frame_count(), 20);
         assert!(o.positions[6][1].is_none());
-        assert!(o.warnings.iter().any(|w| w.contains("\"b\"") && w.contains("5-7")), "{:?}", o.warnings);
+        assert!(
+            o.warnings
+                .iter()
+                .any(|w| w.contains("\"b\"") && w.contains("5-7")),
+            "{:?}",
+            o.warnings
+        );
         assert_eq!(o.complete_frame_count(), 17);
         // Velocities next to the gap still come from the frames that are there.
         assert!((o.velocities[4][0].unwrap().x - 50.0).abs() < 1e-9);
@@ -504,6 +543,9 @@ mod tests {
         assert!((o.positions[0][0].unwrap().x - 5.0).abs() < 1e-12);
         let e = Observations::from_tracks(&t, &scene(), Some((5, 30))).unwrap_err();
         assert!(matches!(e, IdentifyError::BadWindow { .. }));
-        assert!(matches!(o.require_frames("lsq", 8), Err(IdentifyError::TooFewFrames { need: 8, have: 5, .. })));
+        assert!(matches!(
+            o.require_frames("lsq", 8),
+            Err(IdentifyError::TooFewFrames { need: 8, have: 5, .. })
+        ));
     }
 }

@@ -277,7 +277,13 @@ mod tests {
 
     #[test]
     fn a_region_depends_only_on_bonds_near_its_particle() {
-        let truth = crate::testutil::lattice(5, Timing { frames: 10, ..Timing::default() });
+        let truth = crate::testutil::lattice(
+            5,
+            Timing {
+                frames: 10,
+                ..Timing::default()
+            },
+        );
         let obs = Observations::from_recording(&record(&truth), &truth, 0);
         let cost = OneStepCost::new(&truth.structure(), &obs).unwrap();
         let layout = cost.layout();
@@ -299,7 +305,12 @@ mod tests {
         let (mut a, mut b) = (vec![0.0; 25], vec![0.0; 25]);
         cost.local_costs(&x, &mut a);
         cost.local_costs(&y, &mut b);
-        assert!((b[0] - a[0]).abs() < 1e-3 * (b[24] - a[24]).abs(), "{} vs {}", b[0] - a[0], b[24] - a[24]);
+        assert!(
+            (b[0] - a[0]).abs() < 1e-3 * (b[24] - a[24]).abs(),
+            "{} vs {}",
+            b[0] - a[0],
+            b[24] - a[24]
+        );
     }
 
     #[test]

@@ -42,7 +42,12 @@ impl Problem {
             .springs
             .iter()
             .map(|s| {
-                let mut sp = Spring::new(s.ends[0], s.ends[1], s.rest_length.unwrap_or(0.0), s.stiffness.unwrap_or(0.0));
+                let mut sp = Spring::new(
+                    s.ends[0],
+                    s.ends[1],
+                    s.rest_length.unwrap_or(0.0),
+                    s.stiffness.unwrap_or(0.0),
+                );
                 sp.damping = s.damping;
                 sp
             })
@@ -50,7 +55,15 @@ impl Problem {
         let torsions = structure
             .torsions
             .iter()
-            .map(|t| Torsion::new(t.center, t.ends[0], t.ends[1], t.rest_cos.unwrap_or(0.0), t.stiffness.unwrap_or(0.0)))
+            .map(|t| {
+                Torsion::new(
+                    t.center,
+                    t.ends[0],
+                    t.ends[1],
+                    t.rest_cos.unwrap_or(0.0),
+                    t.stiffness.unwrap_or(0.0),
+                )
+            })
             .collect();
         let base = Model {
             particles,

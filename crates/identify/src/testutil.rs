@@ -110,8 +110,17 @@ pub fn paper5(timing: Timing) -> Scene {
             (0.8, [212.0, 126.0]),
             (1.0, [250.0, 110.0]),
         ],
-        &[(0, 1, 40.0, 60.0), (1, 2, 42.0, 45.0), (2, 3, 38.0, 70.0), (3, 4, 40.0, 55.0)],
-        &[(1, 0, 2, -0.8, 50000.0), (2, 1, 3, -0.7, 70000.0), (3, 2, 4, -0.85, 40000.0)],
+        &[
+            (0, 1, 40.0, 60.0),
+            (1, 2, 42.0, 45.0),
+            (2, 3, 38.0, 70.0),
+            (3, 4, 40.0, 55.0),
+        ],
+        &[
+            (1, 0, 2, -0.8, 50000.0),
+            (2, 1, 3, -0.7, 70000.0),
+            (3, 2, 4, -0.85, 40000.0),
+        ],
         timing,
     )
 }
@@ -123,17 +132,31 @@ pub fn paper8(timing: Timing) -> Scene {
     for k in 0..8 {
         let a = std::f64::consts::TAU * k as f64 / 8.0;
         let wobble = [3.0, -2.0, 1.5, 0.0, -2.5, 2.0, -1.0, 1.0][k];
-        particles.push((1.0 + 0.1 * (k % 3) as f64, [200.0 + (r + wobble) * a.cos(), 200.0 + (r - wobble) * a.sin()]));
+        particles.push((
+            1.0 + 0.1 * (k % 3) as f64,
+            [200.0 + (r + wobble) * a.cos(), 200.0 + (r - wobble) * a.sin()],
+        ));
     }
     let side = 2.0 * r * (std::f64::consts::PI / 8.0).sin();
     let mut springs = Vec::new();
     for k in 0..8 {
-        springs.push((k, (k + 1) % 8, side * (1.0 + 0.02 * (k % 3) as f64), 40.0 + 5.0 * k as f64));
+        springs.push((
+            k,
+            (k + 1) % 8,
+            side * (1.0 + 0.02 * (k % 3) as f64),
+            40.0 + 5.0 * k as f64,
+        ));
     }
     let interior = (135.0f64).to_radians().cos();
     let mut torsions = Vec::new();
     for k in 0..8 {
-        torsions.push((k, (k + 7) % 8, (k + 1) % 8, interior + 0.01 * (k % 2) as f64, 30000.0 + 4000.0 * k as f64));
+        torsions.push((
+            k,
+            (k + 7) % 8,
+            (k + 1) % 8,
+            interior + 0.01 * (k % 2) as f64,
+            30000.0 + 4000.0 * k as f64,
+        ));
     }
     torsions.push((0, 2, 6, 0.05, 20000.0));
     torsions.push((4, 2, 6, -0.05, 25000.0));
@@ -149,7 +172,13 @@ pub fn lattice(side: usize, timing: Timing) -> Scene {
     for r in 0..side {
         for c in 0..side {
             let jitter = (((r * 7 + c * 13) % 11) as f64 - 5.0) * 0.4;
-            particles.push((1.0, [50.0 + spacing * c as f64 + jitter, 50.0 + spacing * r as f64 - 0.5 * jitter]));
+            particles.push((
+                1.0,
+                [
+                    50.0 + spacing * c as f64 + jitter,
+                    50.0 + spacing * r as f64 - 0.5 * jitter,
+                ],
+            ));
         }
     }
     let mut springs = Vec::new();
@@ -157,13 +186,29 @@ pub fn lattice(side: usize, timing: Timing) -> Scene {
     for r in 0..side {
         for c in 0..side {
             if c + 1 < side {
-                springs.push((idx(r, c), idx(r, c + 1), spacing, 50.0 + ((r + c) % 5) as f64 * 5.0));
+                springs.push((
+                    idx(r, c),
+                    idx(r, c + 1),
+                    spacing,
+                    50.0 + ((r + c) % 5) as f64 * 5.0,
+                ));
             }
             if r + 1 < side {
-                springs.push((idx(r, c), idx(r + 1, c), spacing, 60.0 + ((r * c) % 4) as f64 * 5.0));
+                springs.push((
+                    idx(r, c),
+                    idx(r + 1, c),
+                    spacing,
+                    60.0 + ((r * c) % 4) as f64 * 5.0,
+                ));
             }
             if c + 1 < side && r + 1 < side {
-                torsions.push((idx(r, c), idx(r, c + 1), idx(r + 1, c), 0.0, 20000.0 + ((r + 2 * c) % 3) as f64 * 3000.0));
+                torsions.push((
+                    idx(r, c),
+                    idx(r, c + 1),
+                    idx(r + 1, c),
+                    0.0,
+                    20000.0 + ((r + 2 * c) % 3) as f64 * 3000.0,
+                ));
             }
         }
     }
@@ -173,7 +218,12 @@ pub fn lattice(side: usize, timing: Timing) -> Scene {
 /// Simulates a scene over its recording.
 pub fn record(scene: &Scene) -> Recording {
     let model = scene.model().expect("complete scene");
-    simulate(&model, &scene.initial_state(), &scene.integration_parameters(), scene.recording.frames)
+    simulate(
+        &model,
+        &scene.initial_state(),
+        &scene.integration_parameters(),
+        scene.recording.frames,
+    )
 }
 
 /// The recording as a track table, with Gaussian position noise `sigma` (px) if positive.
@@ -184,8 +234,17 @@ pub fn tracks(scene: &Scene, sigma: f64, seed: u64) -> TrackTable {
     let mut points = Vec::new();
     for k in 0..rec.frame_count() {
         for (p, x) in rec.frame(k).iter().enumerate() {
-            let (dx, dy) = if sigma > 0.0 { (normal.sample(&mut rng), normal.sample(&mut rng)) } else { (0.0, 0.0) };
-            points.push(TrackPoint::new(k, scene.particles[p].id.clone(), x.x + dx, x.y + dy));
+            let (dx, dy) = if sigma > 0.0 {
+                (normal.sample(&mut rng), normal.sample(&mut rng))
+            } else {
+                (0.0, 0.0)
+            };
+            points.push(TrackPoint::new(
+                k,
+                scene.particles[p].id.clone(),
+                x.x + dx,
+                x.y + dy,
+            ));
         }
     }
     TrackTable { points }

@@ -57,7 +57,11 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
     let (m, n) = (j.nrows(), j.ncols());
     let dim = problem.dimension();
     let ssr: f64 = refinement.residuals.iter().map(|r| r * r).sum();
-    let residual_sigma = if m > n { (ssr / (m - n) as f64).sqrt() } else { f64::NAN };
+    let residual_sigma = if m > n {
+        (ssr / (m - n) as f64).sqrt()
+    } else {
+        f64::NAN
+    };
     let norms: Vec<f64> = (0..n).map(|c| j.column(c).norm()).collect();
     let mut js = j.clone();
     for (c, &s) in norms.iter().enumerate() {
@@ -83,7 +87,13 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
     let mut singular_values: Vec<f64> = eig.eigenvalues.iter().map(|l| l.max(0.0).sqrt()).collect();
     singular_values.sort_by(|a, b| b.total_cmp(a));
     let unit_sd: Vec<f64> = (0..dim)
-        .map(|c| if norms[c] > 0.0 { cov_unit[(c, c)].max(0.0).sqrt() / norms[c] } else { f64::INFINITY })
+        .map(|c| {
+            if norms[c] > 0.0 {
+                cov_unit[(c, c)].max(0.0).sqrt() / norms[c]
+            } else {
+                f64::INFINITY
+            }
+        })
         .collect();
     let std_errors: Vec<f64> = unit_sd.iter().map(|s| s * residual_sigma).collect();
     let cramer_rao: Vec<f64> = unit_sd.iter().map(|s| s * track_noise).collect();
@@ -95,10 +105,18 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
         let label = problem.parameter_label(c);
         let kind = problem.layout.parameters[c].kind;
         let why = match kind {
-            ParameterKind::SpringStiffness => "the spring's length hardly changes, so its force does not reveal its stiffness",
-            ParameterKind::RestLength => "the spring's force is too weak or its length too steady to locate its rest length",
-            ParameterKind::TorsionStiffness => "the torsion's angle hardly changes, so its stiffness is not revealed",
-            ParameterKind::RestCos => "the torsion's energy is flat (too weak, or the angle too steady) to locate its rest angle",
+            ParameterKind::SpringStiffness => {
+                "the spring's length hardly changes, so its force does not reveal its stiffness"
+            }
+            ParameterKind::RestLength => {
+                "the spring's force is too weak or its length too steady to locate its rest length"
+            }
+            ParameterKind::TorsionStiffness => {
+                "the torsion's angle hardly changes, so its stiffness is not revealed"
+            }
+            ParameterKind::RestCos => {
+                "the torsion's energy is flat (too weak, or the angle too steady) to locate its rest angle"
+            }
         };
         if norms[c] == 0.0 || null_weight[c] > 0.5 {
             unidentifiable.push(c);
@@ -133,6 +151,10 @@ pub fn rest_angle_degrees(rest_cos: f64, cos_std_error: f64) -> (f64, f64) {
     let angle = m.acos().to_degrees();
     let s = (1.0 - m * m).sqrt();
     // Near 0 or 180 degrees the cosine is flat in the angle: dM = theta^2 / 2.
-    let err = if s > 1e-6 { (cos_std_error / s).to_degrees() } else { (2.0 * cos_std_error).sqrt().to_degrees() };
+    let err = if s > 1e-6 {
+        (cos_std_error / s).to_degrees()
+    } else {
+        (2.0 * cos_std_error).sqrt().to_degrees()
+    };
     (angle, err)
 }

@@ -15,7 +15,7 @@ use physfit_model::Vec2;
 /// independent coverages (`c = c + a (1 - c)`, like alpha compositing), so coverage never
 /// exceeds 1. Discs partly or wholly outside the plane are clipped; a non-finite centre or a
 /// radius that is not positive draws nothing. Only the disc's bounding box is visited.
-pub(crate) fn add_disc(plane: &mut [f32], width: u32, height: u32, centre: Vec2, radius: f64) {
+pub fn add_disc(plane: &mut [f32], width: u32, height: u32, centre: Vec2, radius: f64) {
     if radius.is_nan()
         || radius <= 0.0
         || !radius.is_finite()

@@ -27,6 +27,7 @@ mod frame;
 mod pixel;
 mod sequence;
 
+pub use coverage::add_disc as add_disc_coverage;
 pub use error::RenderError;
 pub use frame::{is_grey, render_frame, render_frame_mut, RenderScratch};
 pub use sequence::{encode_png, frame_file_name, render_sequence, FRAME_NAME_DIGITS};

@@ -73,7 +73,7 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
         // columns | dummy columns (one per row).
         let (k, l) = (rows.len(), cols.len());
         let n = k + l;
-        let big = 1e18;
+        let big: f64 = 1e18;
         let mut cost = vec![big; n * n];
         let col_index: std::collections::HashMap<usize, usize> =
             cols.iter().enumerate().map(|(i, &c)| (c, i)).collect();

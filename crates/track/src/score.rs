@@ -13,7 +13,7 @@ use crate::assignment::{solve_sparse, SparseProblem};
 use crate::track_table::{PointFlag, TrackTable};
 
 /// How well a track table matches the truth.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct TrackScore {
     /// Frames scored (truth frames within the tracked range).
     pub frame_count: usize,

@@ -59,7 +59,12 @@ impl Effect {
 
     /// A readable label naming the particles or spring involved, e.g. `missing spring a-c`.
     pub fn label(self, structure: &Scene) -> String {
-        let id = |p: usize| structure.particles.get(p).map_or_else(|| format!("#{p}"), |s| s.id.clone());
+        let id = |p: usize| {
+            structure
+                .particles
+                .get(p)
+                .map_or_else(|| format!("#{p}"), |s| s.id.clone())
+        };
         match self {
             Effect::Gravity => "uniform field (gravity)".into(),
             Effect::Drag => "linear drag".into(),
@@ -140,11 +145,18 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
             Effect::SpringDamping => model.physics.spring_damping += p[0],
             Effect::SpringDashpot { spring } => dashpots.push((spring, p[0])),
             Effect::MissingSpring { a, b } => {
-                model.springs.push(Spring::new(ParticleId(a as u32), ParticleId(b as u32), p[0], p[1]));
+                model.springs.push(Spring::new(
+                    ParticleId(a as u32),
+                    ParticleId(b as u32),
+                    p[0],
+                    p[1],
+                ));
             }
             Effect::Tether { particle } => {
                 let anchor = model.add_particle(1.0, true);
-                model.springs.push(Spring::new(ParticleId(particle as u32), anchor, p[2], p[3]));
+                model
+                    .springs
+                    .push(Spring::new(ParticleId(particle as u32), anchor, p[2], p[3]));
                 if let Some(s) = state.as_deref_mut() {
                     s.positions.push(Vec2::new(p[0], p[1]));
                     s.velocities.push(Vec2::zeros());

@@ -38,7 +38,9 @@ impl Family {
             problem,
             known,
             effects: Vec::new(),
-            free: (0..structure.particles.len()).filter(|&p| !structure.particles[p].fixed).collect(),
+            free: (0..structure.particles.len())
+                .filter(|&p| !structure.particles[p].fixed)
+                .collect(),
         })
     }
 
@@ -62,7 +64,11 @@ impl Family {
 
     /// Offset of effect `k`'s first parameter in the vector.
     pub fn effect_offset(&self, k: usize) -> usize {
-        self.bond_dim() + self.effects[..k].iter().map(|e| e.parameter_count()).sum::<usize>()
+        self.bond_dim()
+            + self.effects[..k]
+                .iter()
+                .map(|e| e.parameter_count())
+                .sum::<usize>()
     }
 
     /// The model for `params` (bond then effect values), with `state` (the structure's
@@ -100,7 +106,9 @@ impl Family {
     /// Typical magnitude of every parameter (finite-difference scale), given a data scale:
     /// `length` (px), `time` (s) and the mean particle mass.
     pub fn typical(&self, scales: &DataScales) -> Vec<f64> {
-        let mut t: Vec<f64> = self.problem.as_ref().map_or_else(Vec::new, |p| p.layout.parameters.iter().map(|q| q.scale).collect());
+        let mut t: Vec<f64> = self.problem.as_ref().map_or_else(Vec::new, |p| {
+            p.layout.parameters.iter().map(|q| q.scale).collect()
+        });
         let (l, s, m) = (scales.length, scales.time, scales.mass);
         for e in &self.effects {
             match e {
@@ -167,7 +175,11 @@ impl DataScales {
                 hi = hi.sup(x);
             }
         }
-        let length = if lo.x.is_finite() { (hi - lo).norm().max(1.0) } else { 1.0 };
+        let length = if lo.x.is_finite() {
+            (hi - lo).norm().max(1.0)
+        } else {
+            1.0
+        };
         let n = structure.particles.len().max(1) as f64;
         let sc = crate::stiffness_scales(structure, observations);
         DataScales {

@@ -1,13 +1,15 @@
 //! Jolts: isolated frames where a particle's velocity jumps far beyond what smooth motion and
 //! the track noise allow (a bounce), and the walls they suggest.
 //!
-//! At every frame gap `k -> k + 1` the velocity is estimated from a quadratic fitted to the
-//! [`JOLT_FIT_POINTS`] frames before the gap and from one fitted to those after it, both at
-//! the gap's middle; their difference `J` is the impulse per unit mass. For smooth motion `J`
-//! is noise plus a small misfit; its scale is the larger of the noise propagated from the
-//! measured position noise and a robust spread (median absolute value) of all jumps. A gap
-//! whose jump exceeds [`JOLT_THRESHOLD`] times that scale and is the largest within the fit
-//! span is a jolt.
+//! Across every frame gap `k -> k + 1` the two second differences that contain it sum to
+//! `x[k+2] - x[k+1] - x[k] + x[k-1]`, which is the whole velocity change of an impulse that
+//! happened in the gap, times `dt`; minus what the model's smooth forces account for
+//! (`(a[k] + a[k+1]) dt^2`) it is the unexplained impulse `J`. Its noise is `2 sigma / dt` per
+//! coordinate for position noise `sigma`; the scale used is the larger of that and a robust
+//! spread (median absolute value) of all impulses, so a poor model does not make jolts of its
+//! misfit. A gap whose impulse exceeds [`JOLT_THRESHOLD`] times the scale and is the largest
+//! within two frames is a jolt if the velocity along it reverses (one-sided quadratic fits over
+//! [`JOLT_FIT_POINTS`] frames give the velocities before and after): a bounce, not a kick.
 //!
 //! A wall reverses the normal velocity and keeps the tangential one, so its jolts have jumps
 //! along its normal: jolts are grouped by jump direction, each group gives a normal (mean
@@ -24,7 +26,7 @@ use crate::Observations;
 pub const JOLT_FIT_POINTS: usize = 4;
 
 /// A jump must exceed this many times its noise scale to be a jolt.
-pub const JOLT_THRESHOLD: f64 = 8.0;
+pub const JOLT_THRESHOLD: f64 = 5.0;
 
 /// Largest angle between the jumps of one wall's jolts, degrees.
 pub const WALL_GROUP_DEGREES: f64 = 25.0;
@@ -42,6 +44,8 @@ pub struct Jolt {
     pub before: [f64; 2],
     /// Velocity after the jump, px/s.
     pub after: [f64; 2],
+    /// Impulse per unit mass across the gap, beyond the model's smooth forces, px/s.
+    pub impulse: [f64; 2],
     /// Jump size over its noise scale.
     pub significance: f64,
 }
@@ -69,34 +73,39 @@ fn derivative_weights(taus: &[f64]) -> Vec<f64> {
     }
 }
 
-/// The jolts in `obs` (free particles only) and the noise scale of the jumps (px/s).
-pub fn find_jolts(obs: &Observations) -> (Vec<Jolt>, f64) {
+/// The jolts in `obs` (free particles only) and the noise scale of the impulses (px/s).
+///
+/// `acc[k][p]`, when given, is the model's acceleration of particle `p` at frame offset `k`
+/// (px/s²), removed from the impulses so that smooth forces are not mistaken for jolts.
+pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<Jolt>, f64) {
     let m = JOLT_FIT_POINTS;
     let fps = obs.fps;
+    let dt = obs.frame_dt();
     let left_taus: Vec<f64> = (0..m).map(|i| -(m as f64) + 0.5 + i as f64).collect();
     let right_taus: Vec<f64> = (0..m).map(|i| 0.5 + i as f64).collect();
     let wl = derivative_weights(&left_taus);
     let wr = derivative_weights(&right_taus);
-    let gain = (wl.iter().chain(&wr).map(|w| w * w).sum::<f64>()).sqrt() * fps;
-    let noise_scale = obs.noise * gain;
+    // x[k+2] - x[k+1] - x[k] + x[k-1] has noise 2 sigma per coordinate.
+    let noise_scale = 2.0 * obs.noise * fps;
     let frames = obs.frame_count();
-    // jumps[p][k]: (jump, v-, v+) at gap k -> k+1.
-    let mut jumps: Vec<Vec<Option<(Vec2, Vec2, Vec2)>>> = vec![vec![None; frames]; obs.particle_count()];
+    let model_acc = |k: usize, p: usize| {
+        acc.and_then(|a| a.get(k)?.as_ref()?.get(p).copied())
+            .unwrap_or_else(Vec2::zeros)
+    };
+    // impulses[p][k]: impulse per unit mass across the gap k -> k+1, px/s.
+    let mut impulses: Vec<Vec<Option<Vec2>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
-    for (p, series) in jumps.iter_mut().enumerate() {
+    for (p, series) in impulses.iter_mut().enumerate() {
         if obs.fixed[p] {
             continue;
         }
-        for k in (m - 1)..frames.saturating_sub(m) {
-            let left: Option<Vec<Vec2>> = (0..m).map(|i| obs.positions[k + 1 - m + i][p]).collect();
-            let right: Option<Vec<Vec2>> = (0..m).map(|i| obs.positions[k + 1 + i][p]).collect();
-            if let (Some(l), Some(r)) = (left, right) {
-                let vl: Vec2 = l.iter().zip(&wl).map(|(x, w)| x * *w).sum::<Vec2>() * fps;
-                let vr: Vec2 = r.iter().zip(&wr).map(|(x, w)| x * *w).sum::<Vec2>() * fps;
-                let j = vr - vl;
-                magnitudes.push(j.x.abs());
-                magnitudes.push(j.y.abs());
-                series[k] = Some((j, vl, vr));
+        for (k, slot) in series.iter_mut().enumerate().take(frames.saturating_sub(2)).skip(1) {
+            let x = |q: usize| obs.positions[q][p];
+            if let (Some(a), Some(b), Some(c), Some(d)) = (x(k - 1), x(k), x(k + 1), x(k + 2)) {
+                let i = (d - c - b + a) * fps - (model_acc(k, p) + model_acc(k + 1, p)) * dt;
+                magnitudes.push(i.x.abs());
+                magnitudes.push(i.y.abs());
+                *slot = Some(i);
             }
         }
     }
@@ -105,20 +114,39 @@ pub fn find_jolts(obs: &Observations) -> (Vec<Jolt>, f64) {
     }
     magnitudes.sort_by(|a, b| a.total_cmp(b));
     let robust = 1.4826 * magnitudes[magnitudes.len() / 2];
-    // A jump is 2-D: its norm's scale is about sqrt(2) per-component scales.
-    let scale = noise_scale.max(robust).max(f64::MIN_POSITIVE) * std::f64::consts::SQRT_2;
+    let scale = noise_scale.max(robust).max(f64::MIN_POSITIVE);
     let mut out = Vec::new();
-    for (p, series) in jumps.iter().enumerate() {
+    for (p, series) in impulses.iter().enumerate() {
         for k in 0..frames {
-            let Some((j, vl, vr)) = series[k] else { continue };
-            let size = j.norm();
+            let Some(imp) = series[k] else { continue };
+            let size = imp.norm();
             if size < JOLT_THRESHOLD * scale {
                 continue;
             }
-            let lo = k.saturating_sub(m);
-            let hi = (k + m).min(frames - 1);
-            let is_peak = (lo..=hi).all(|q| q == k || series[q].is_none_or(|(jq, _, _)| jq.norm() < size));
+            let lo = k.saturating_sub(2);
+            let hi = (k + 2).min(frames - 1);
+            let is_peak = (lo..=hi).all(|q| q == k || series[q].map_or(true, |i| i.norm() < size));
             if !is_peak {
+                continue;
+            }
+            // One-sided quadratic fits give the velocities before and after the gap.
+            let side = |first: usize, w: &[f64]| -> Option<Vec2> {
+                let pts: Option<Vec<Vec2>> = (0..m).map(|i| obs.positions.get(first + i)?[p]).collect();
+                Some(pts?.iter().zip(w).map(|(x, w)| x * *w).sum::<Vec2>() * fps)
+            };
+            let before = (k + 1).checked_sub(m).and_then(|f| side(f, &wl));
+            let after = side(k + 1, &wr);
+            let (vb, va) = match (before, after) {
+                (Some(b), Some(a)) => (b, a),
+                // Near the ends: split the impulse around the observed velocity.
+                _ => {
+                    let v = obs.velocities[k][p].unwrap_or_else(Vec2::zeros);
+                    (v - imp * 0.5, v + imp * 0.5)
+                }
+            };
+            // A bounce reverses the velocity along its impulse: approaching, then leaving.
+            let n = imp / size;
+            if !(vb.dot(&n) < 0.0 && va.dot(&n) > 0.0) {
                 continue;
             }
             let x = obs.positions[k][p].unwrap_or_else(Vec2::zeros);
@@ -126,8 +154,9 @@ pub fn find_jolts(obs: &Observations) -> (Vec<Jolt>, f64) {
                 particle: p,
                 frame: obs.first_frame + k,
                 position: [x.x, x.y],
-                before: [vl.x, vl.y],
-                after: [vr.x, vr.y],
+                before: [vb.x, vb.y],
+                after: [va.x, va.y],
+                impulse: [imp.x, imp.y],
                 significance: size / scale,
             });
         }
@@ -139,7 +168,7 @@ pub fn find_jolts(obs: &Observations) -> (Vec<Jolt>, f64) {
 pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
     let cos_limit = WALL_GROUP_DEGREES.to_radians().cos();
     let dir = |j: &Jolt| {
-        let d = Vec2::new(j.after[0] - j.before[0], j.after[1] - j.before[1]);
+        let d = Vec2::new(j.impulse[0], j.impulse[1]);
         d / d.norm().max(f64::MIN_POSITIVE)
     };
     let mut groups: Vec<(Vec2, Vec<usize>)> = Vec::new();
@@ -185,7 +214,10 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
                 })
                 .collect();
             let offset = if offsets.is_empty() {
-                members.iter().map(|&k| n.dot(&Vec2::new(jolts[k].position[0], jolts[k].position[1]))).fold(f64::INFINITY, f64::min)
+                members
+                    .iter()
+                    .map(|&k| n.dot(&Vec2::new(jolts[k].position[0], jolts[k].position[1])))
+                    .fold(f64::INFINITY, f64::min)
             } else {
                 offsets.iter().sum::<f64>() / offsets.len() as f64
             };

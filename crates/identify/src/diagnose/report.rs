@@ -57,6 +57,9 @@ pub struct Evidence {
     /// Weak-form screening score: held-out weak-form residual explained, over the held-out
     /// residual variance (`null` for walls, proposed from jolts instead).
     pub screen_score: Option<f64>,
+    /// Score test on the fitted frames: the multi-step cost one Gauss-Newton step with the
+    /// term would remove, over the noise variance (`null` for walls).
+    pub score_test: Option<f64>,
     /// Multi-step cost of the model without the term on the held-out frames, px² (`null` if
     /// the term was not verified by a multi-step fit).
     pub held_out_cost_before: Option<f64>,

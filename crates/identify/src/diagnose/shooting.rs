@@ -47,12 +47,19 @@ pub struct ShotFit {
 
 impl<'a> Shot<'a> {
     /// A shot over `obs` with the frames of `mask` fitted (all frames when `None`).
-    pub fn new(obs: &'a Observations, family: &Family, mask: Option<Vec<bool>>) -> Result<Shot<'a>, IdentifyError> {
-        let anchor = (0..obs.frame_count()).find(|&k| obs.is_complete(k)).ok_or(IdentifyError::TooFewFrames {
-            method: "the diagnosis".into(),
-            need: 1,
-            have: 0,
-        })?;
+    pub fn new(
+        obs: &'a Observations,
+        family: &Family,
+        mask: Option<Vec<bool>>,
+    ) -> Result<Shot<'a>, IdentifyError> {
+        let anchor =
+            (0..obs.frame_count())
+                .find(|&k| obs.is_complete(k))
+                .ok_or(IdentifyError::TooFewFrames {
+                    method: "the diagnosis".into(),
+                    need: 1,
+                    have: 0,
+                })?;
         Ok(Shot {
             obs,
             anchor,
@@ -61,9 +68,19 @@ impl<'a> Shot<'a> {
         })
     }
 
-    /// The observed state at the anchor.
+    /// The observed state at the anchor, with every pinned particle at the mean of its
+    /// tracked positions (a pinned particle does not move: averaging removes its track noise).
     pub fn observed_state(&self) -> State {
-        self.obs.state(self.anchor).unwrap_or_default()
+        let mut s = self.obs.state(self.anchor).unwrap_or_default();
+        for (p, x) in s.positions.iter_mut().enumerate() {
+            if self.obs.fixed.get(p).copied().unwrap_or(false) {
+                let tracked: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[p]).collect();
+                if !tracked.is_empty() {
+                    *x = tracked.iter().sum::<Vec2>() / tracked.len() as f64;
+                }
+            }
+        }
+        s
     }
 
     /// Simulates `family` at `params` from `initial` at the anchor up to offset `end`
@@ -91,7 +108,14 @@ impl<'a> Shot<'a> {
     }
 
     /// Position residuals (predicted minus tracked, px) of the masked frames before `end`.
-    pub fn residuals(&self, family: &Family, params: &[f64], initial: &State, end: usize, out: &mut Vec<f64>) -> bool {
+    pub fn residuals(
+        &self,
+        family: &Family,
+        params: &[f64],
+        initial: &State,
+        end: usize,
+        out: &mut Vec<f64>,
+    ) -> bool {
         out.clear();
         let obs = self.obs;
         self.simulate(family, params, initial, end, |k, x| {
@@ -114,7 +138,12 @@ impl<'a> Shot<'a> {
 
     /// Predicted positions of the structure's particles at every frame offset from the anchor
     /// on (`None` before it); `None` if the simulation is not finite.
-    pub fn trajectory(&self, family: &Family, params: &[f64], initial: &State) -> Option<Vec<Option<Vec<Vec2>>>> {
+    pub fn trajectory(
+        &self,
+        family: &Family,
+        params: &[f64],
+        initial: &State,
+    ) -> Option<Vec<Option<Vec<Vec2>>>> {
         let n = family.structure.particles.len();
         let mut out = vec![None; self.obs.frame_count()];
         let ok = self.simulate(family, params, initial, usize::MAX, |k, x| {
@@ -164,10 +193,47 @@ pub fn fit_shot(
     max_iterations: usize,
     observer: &dyn Observer,
 ) -> Option<ShotFit> {
+    fit_spans(
+        shot,
+        family,
+        params0,
+        state0,
+        scales,
+        max_iterations,
+        false,
+        observer,
+    )
+}
+
+/// Fits only the start state for fixed `params` (how a given model is judged fairly), over
+/// progressively longer spans as [`fit_shot`].
+pub fn fit_state(
+    shot: &Shot<'_>,
+    family: &Family,
+    params: &[f64],
+    state0: &State,
+    scales: &DataScales,
+) -> Option<ShotFit> {
+    fit_spans(shot, family, params, state0, scales, 30, true, &())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fit_spans(
+    shot: &Shot<'_>,
+    family: &Family,
+    params0: &[f64],
+    state0: &State,
+    scales: &DataScales,
+    max_iterations: usize,
+    state_only: bool,
+    observer: &dyn Observer,
+) -> Option<ShotFit> {
     let frames = shot.obs.frame_count();
     let remaining = frames - shot.anchor;
     let period = std::f64::consts::TAU / scales.omega.max(1e-9) * shot.obs.fps;
-    let mut span = ((3.0 * period).ceil() as usize).clamp(20, remaining.max(1)).min(remaining);
+    let mut span = ((3.0 * period).ceil() as usize)
+        .clamp(20, remaining.max(1))
+        .min(remaining);
     let mut spans = Vec::new();
     loop {
         spans.push(span);
@@ -181,31 +247,43 @@ pub fn fit_shot(
     let nf = family.free.len();
     lower.resize(family.dim() + 4 * nf, f64::NEG_INFINITY);
     upper.resize(family.dim() + 4 * nf, f64::INFINITY);
-    typical.extend(std::iter::repeat_n(1.0, 2 * nf));
-    typical.extend(std::iter::repeat_n(shot.obs.fps, 2 * nf));
+    typical.extend(std::iter::repeat(1.0).take(2 * nf));
+    typical.extend(std::iter::repeat(shot.obs.fps).take(2 * nf));
+    let skip = if state_only { family.dim() } else { 0 };
+    let (lower, upper, typical) = (&lower[skip..], &upper[skip..], &typical[skip..]);
     let lm = LmOptions {
         max_iterations,
         ..LmOptions::default()
     };
-    let mut z = family.pack(params0, state0);
+    let params0: Vec<f64> = params0.to_vec();
+    let mut z = family.pack(&params0, state0)[skip..].to_vec();
     for (k, v) in z.iter_mut().enumerate() {
         *v = v.clamp(lower[k], upper[k]);
     }
+    let full = |z: &[f64]| -> Vec<f64> {
+        if state_only {
+            let mut all = params0.clone();
+            all.extend_from_slice(z);
+            all
+        } else {
+            z.to_vec()
+        }
+    };
     let mut last = None;
     let mut iterations = 0;
     for &span in &spans {
         let end = shot.anchor + span;
         let f = |z: &[f64], out: &mut Vec<f64>| {
-            let (p, s) = family.unpack(z, state0);
+            let (p, s) = family.unpack(&full(z), state0);
             shot.residuals(family, &p, &s, end, out)
         };
-        let outcome = levenberg_marquardt(&f, &z, &lower, &upper, &typical, &lm, observer)?;
+        let outcome = levenberg_marquardt(&f, &z, lower, upper, typical, &lm, observer)?;
         iterations += outcome.iterations;
         z = outcome.x.clone();
         last = Some(outcome);
     }
     let outcome = last?;
-    let (params, state) = family.unpack(&z, state0);
+    let (params, state) = family.unpack(&full(&z), state0);
     Some(ShotFit {
         params,
         state,
@@ -213,45 +291,5 @@ pub fn fit_shot(
         residual_count: outcome.residuals.len(),
         jacobian: outcome.jacobian,
         iterations,
-    })
-}
-
-/// Fits only the start state for fixed `params` (how a given model is judged fairly).
-pub fn fit_state(
-    shot: &Shot<'_>,
-    family: &Family,
-    params: &[f64],
-    state0: &State,
-    scales: &DataScales,
-) -> Option<ShotFit> {
-    let nf = family.free.len();
-    let dim = family.dim();
-    let mut typical = vec![1.0; 2 * nf];
-    typical.extend(std::iter::repeat_n(shot.obs.fps, 2 * nf));
-    let _ = scales;
-    let lower = vec![f64::NEG_INFINITY; 4 * nf];
-    let upper = vec![f64::INFINITY; 4 * nf];
-    let f = |z: &[f64], out: &mut Vec<f64>| {
-        let mut all = params.to_vec();
-        all.extend_from_slice(z);
-        let (p, s) = family.unpack(&all, state0);
-        shot.residuals(family, &p, &s, usize::MAX, out)
-    };
-    let z0 = family.pack(params, state0)[dim..].to_vec();
-    let lm = LmOptions {
-        max_iterations: 30,
-        ..LmOptions::default()
-    };
-    let outcome = levenberg_marquardt(&f, &z0, &lower, &upper, &typical, &lm, &())?;
-    let mut all = params.to_vec();
-    all.extend_from_slice(&outcome.x);
-    let (params, state) = family.unpack(&all, state0);
-    Some(ShotFit {
-        params,
-        state,
-        sum_squares: outcome.cost,
-        residual_count: outcome.residuals.len(),
-        jacobian: outcome.jacobian,
-        iterations: outcome.iterations,
     })
 }

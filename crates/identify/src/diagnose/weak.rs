@@ -71,13 +71,22 @@ pub struct WeakForm {
     phi: Vec<f64>,
     dphi: Vec<f64>,
     masses: Vec<f64>,
+    /// The frames left out and held out, as given.
+    excluded: Vec<bool>,
+    held: Vec<bool>,
 }
 
 impl WeakForm {
     /// The system for `family` (its bond unknowns and known forces) over `obs`, with windows
     /// of `window` frames (even), leaving out windows that touch a frame with `excluded[k]`,
     /// and splitting rows by `held[k]` (frame offset `k` is held out of fits).
-    pub fn new(family: &Family, obs: &Observations, window: usize, excluded: &[bool], held: &[bool]) -> WeakForm {
+    pub fn new(
+        family: &Family,
+        obs: &Observations,
+        window: usize,
+        excluded: &[bool],
+        held: &[bool],
+    ) -> WeakForm {
         let w = (window.max(4) + 1) & !1;
         let n = obs.particle_count();
         let frames = obs.frame_count();
@@ -97,7 +106,9 @@ impl WeakForm {
             let u = 1.0 - s * s;
             phi.push(u.powi(q) * dt);
             dphi.push(-2.0 * qf * s * u.powi(q - 1) / hs * dt);
-            ddphi.push((-2.0 * qf * u.powi(q - 1) + 4.0 * qf * (qf - 1.0) * s * s * u.powi(q - 2)) / (hs * hs) * dt);
+            ddphi.push(
+                (-2.0 * qf * u.powi(q - 1) + 4.0 * qf * (qf - 1.0) * s * s * u.powi(q - 2)) / (hs * hs) * dt,
+            );
         }
         let phi_integral = phi.iter().sum();
 
@@ -107,7 +118,9 @@ impl WeakForm {
         let mut start = 0;
         while start + w < frames {
             let span = start..=start + w;
-            let usable = span.clone().all(|k| states[k].is_some() && !excluded.get(k).copied().unwrap_or(false));
+            let usable = span
+                .clone()
+                .all(|k| states[k].is_some() && !excluded.get(k).copied().unwrap_or(false));
             if usable {
                 let train = span.clone().all(|k| !held.get(k).copied().unwrap_or(false));
                 let is_held = span.clone().all(|k| held.get(k).copied().unwrap_or(false));
@@ -142,6 +155,8 @@ impl WeakForm {
             phi,
             dphi,
             masses,
+            excluded: excluded.to_vec(),
+            held: held.to_vec(),
         };
         // Known forces: the structure's model with every unknown at zero (known values and any
         // physics the structure gives).
@@ -154,9 +169,24 @@ impl WeakForm {
             *r -= k;
         }
         form.bond_kinds = bond_columns(family);
-        form.bond_columns = form.bond_kinds.iter().map(|&c| form.bond_column(family, c)).collect();
+        form.bond_columns = form
+            .bond_kinds
+            .iter()
+            .map(|&c| form.bond_column(family, c))
+            .collect();
         let _ = n;
         form
+    }
+
+    /// The same system (window, left-out and held-out frames) over other observations of the
+    /// same frames, e.g. with extra noise: rows correspond where the same frames are complete.
+    pub fn rebuild(&self, family: &Family, obs: &Observations) -> WeakForm {
+        WeakForm::new(family, obs, self.window, &self.excluded, &self.held)
+    }
+
+    /// The state (positions, velocities) at frame offset `k`, if complete.
+    pub fn state(&self, k: usize) -> Option<&State> {
+        self.states.get(k)?.as_ref()
     }
 
     /// Number of bond columns.
@@ -199,8 +229,8 @@ impl WeakForm {
     fn needed_frames(&self) -> Vec<bool> {
         let mut needed = vec![false; self.states.len()];
         for r in &self.rows {
-            for k in r.start..=r.start + self.window {
-                needed[k] = true;
+            for n in &mut needed[r.start..=r.start + self.window] {
+                *n = true;
             }
         }
         needed
@@ -212,9 +242,15 @@ impl WeakForm {
         self.rows
             .iter()
             .map(|r| {
-                let x = |k: usize| self.states[k].as_ref().map_or(0.0, |s| s.positions[r.particle][r.coord]);
+                let x = |k: usize| {
+                    self.states[k]
+                        .as_ref()
+                        .map_or(0.0, |s| s.positions[r.particle][r.coord])
+                };
                 let centre = x(r.start + self.window / 2);
-                (0..=self.window).map(|i| (x(r.start + i) - centre) * self.dphi[i]).sum()
+                (0..=self.window)
+                    .map(|i| (x(r.start + i) - centre) * self.dphi[i])
+                    .sum()
             })
             .collect()
     }
@@ -241,13 +277,21 @@ impl WeakForm {
             let diff = |a: [Vec2; 3], b: [Vec2; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
             match c {
                 BondColumn::SpringS(k) => spring(k, f, &|g| g.force_on_i(1.0, 0.0)),
-                BondColumn::SpringProduct(k) => spring(k, f, &|g| g.force_on_i(1.0, 1.0) - g.force_on_i(1.0, 0.0)),
+                BondColumn::SpringProduct(k) => {
+                    spring(k, f, &|g| g.force_on_i(1.0, 1.0) - g.force_on_i(1.0, 0.0))
+                }
                 BondColumn::SpringSKnownL(k, l) => spring(k, f, &|g| g.force_on_i(1.0, l)),
-                BondColumn::SpringLKnownS(k, st) => spring(k, f, &|g| g.force_on_i(st, 1.0) - g.force_on_i(st, 0.0)),
+                BondColumn::SpringLKnownS(k, st) => {
+                    spring(k, f, &|g| g.force_on_i(st, 1.0) - g.force_on_i(st, 0.0))
+                }
                 BondColumn::TorsionT(k) => torsion(k, f, &|g| g.forces(1.0, 0.0)),
-                BondColumn::TorsionProduct(k) => torsion(k, f, &|g| diff(g.forces(1.0, 1.0), g.forces(1.0, 0.0))),
+                BondColumn::TorsionProduct(k) => {
+                    torsion(k, f, &|g| diff(g.forces(1.0, 1.0), g.forces(1.0, 0.0)))
+                }
                 BondColumn::TorsionTKnownM(k, m) => torsion(k, f, &|g| g.forces(1.0, m)),
-                BondColumn::TorsionMKnownT(k, t) => torsion(k, f, &|g| diff(g.forces(t, 1.0), g.forces(t, 0.0))),
+                BondColumn::TorsionMKnownT(k, t) => {
+                    torsion(k, f, &|g| diff(g.forces(t, 1.0), g.forces(t, 0.0)))
+                }
             }
         })
     }
@@ -268,7 +312,10 @@ impl WeakForm {
         let pair = |a: usize, b: usize, product: bool| {
             self.column(|state, f| {
                 f.iter_mut().for_each(|v| *v = Vec2::zeros());
-                let fi = law(&SpringGeometry::new(state.positions[a], state.positions[b]), product);
+                let fi = law(
+                    &SpringGeometry::new(state.positions[a], state.positions[b]),
+                    product,
+                );
                 f[a] += fi;
                 f[b] -= fi;
             })
@@ -331,16 +378,27 @@ impl WeakForm {
         let layout = &problem.layout;
         let mut x = fallback.to_vec();
         let find = |bond: BondRef, kind: ParameterKind| {
-            layout.parameters.iter().position(|p| p.bond == bond && p.kind == kind)
+            layout
+                .parameters
+                .iter()
+                .position(|p| p.bond == bond && p.kind == kind)
         };
         let mut k = 0;
         while k < self.bond_kinds.len() {
             match self.bond_kinds[k] {
                 BondColumn::SpringS(b) | BondColumn::TorsionT(b) => {
                     let (bond, sk, rk) = if matches!(self.bond_kinds[k], BondColumn::SpringS(_)) {
-                        (BondRef::Spring(b), ParameterKind::SpringStiffness, ParameterKind::RestLength)
+                        (
+                            BondRef::Spring(b),
+                            ParameterKind::SpringStiffness,
+                            ParameterKind::RestLength,
+                        )
                     } else {
-                        (BondRef::Torsion(b), ParameterKind::TorsionStiffness, ParameterKind::RestCos)
+                        (
+                            BondRef::Torsion(b),
+                            ParameterKind::TorsionStiffness,
+                            ParameterKind::RestCos,
+                        )
                     };
                     if let (Some(si), Some(ri)) = (find(bond, sk), find(bond, rk)) {
                         let (s, prod) = (theta[k], theta[k + 1]);

@@ -78,15 +78,30 @@ impl AnnealOptions {
     /// Checks every option's range; the error names the first option out of range.
     pub fn validate(&self) -> Result<(), SolverError> {
         let positive = |x: f64| x.is_finite() && x > 0.0;
-        check_option("spring_temperature", self.spring_temperature, positive(self.spring_temperature), "finite and > 0")?;
+        check_option(
+            "spring_temperature",
+            self.spring_temperature,
+            positive(self.spring_temperature),
+            "finite and > 0",
+        )?;
         check_option(
             "torsion_temperature",
             self.torsion_temperature,
             positive(self.torsion_temperature),
             "finite and > 0",
         )?;
-        check_option("cooling", self.cooling, self.cooling > 0.0 && self.cooling < 1.0, "in (0, 1)")?;
-        check_option("acceptance", self.acceptance, positive(self.acceptance), "finite and > 0")?;
+        check_option(
+            "cooling",
+            self.cooling,
+            self.cooling > 0.0 && self.cooling < 1.0,
+            "in (0, 1)",
+        )?;
+        check_option(
+            "acceptance",
+            self.acceptance,
+            positive(self.acceptance),
+            "finite and > 0",
+        )?;
         check_option(
             "min_temperature",
             self.min_temperature,
@@ -94,7 +109,12 @@ impl AnnealOptions {
                 && self.min_temperature < self.spring_temperature.min(self.torsion_temperature),
             "> 0 and below both initial temperatures",
         )?;
-        check_option("target_cost", self.target_cost, !self.target_cost.is_nan(), "a number")?;
+        check_option(
+            "target_cost",
+            self.target_cost,
+            !self.target_cost.is_nan(),
+            "a number",
+        )?;
         check_option(
             "stagnation_tolerance",
             self.stagnation_tolerance,
@@ -115,13 +135,22 @@ impl AnnealOptions {
         AnnealOptions {
             spring_temperature,
             torsion_temperature,
-            cooling: if self.cooling > 0.0 && self.cooling < 1.0 { self.cooling } else { d.cooling },
+            cooling: if self.cooling > 0.0 && self.cooling < 1.0 {
+                self.cooling
+            } else {
+                d.cooling
+            },
             acceptance: positive_or(self.acceptance, d.acceptance),
             min_temperature,
             iterations: self.iterations,
-            target_cost: if self.target_cost.is_nan() { d.target_cost } else { self.target_cost },
+            target_cost: if self.target_cost.is_nan() {
+                d.target_cost
+            } else {
+                self.target_cost
+            },
             stagnation: self.stagnation,
-            stagnation_tolerance: if self.stagnation_tolerance.is_finite() && self.stagnation_tolerance >= 0.0 {
+            stagnation_tolerance: if self.stagnation_tolerance.is_finite() && self.stagnation_tolerance >= 0.0
+            {
                 self.stagnation_tolerance
             } else {
                 d.stagnation_tolerance
@@ -188,7 +217,11 @@ pub fn anneal(
         [ParameterKind::RestCos, ParameterKind::TorsionStiffness],
     ]
     .iter()
-    .map(|kinds| (0..layout.dimension()).filter(|&i| kinds.contains(&layout.parameters[i].kind)).collect())
+    .map(|kinds| {
+        (0..layout.dimension())
+            .filter(|&i| kinds.contains(&layout.parameters[i].kind))
+            .collect()
+    })
     .collect();
     let initial_temperature = [options.spring_temperature, options.torsion_temperature];
     let mut temperature = initial_temperature;
@@ -196,7 +229,11 @@ pub fn anneal(
     if active.is_empty() || outcome.best_cost <= options.target_cost {
         return outcome;
     }
-    let mut stagnation = Stagnation::new(options.stagnation, options.stagnation_tolerance, outcome.best_cost);
+    let mut stagnation = Stagnation::new(
+        options.stagnation,
+        options.stagnation_tolerance,
+        outcome.best_cost,
+    );
     let mut candidate = current.clone();
     for step in 0..options.iterations {
         let g = active[step % active.len()];
@@ -256,8 +293,19 @@ mod tests {
     fn recovers_quadratic_couples_of_a_three_particle_object() {
         // 2 springs + 1 torsion: the paper's 3-particle object, 6 unknowns.
         let toy = Toy::new(2, 1, Shape::Quadratic);
-        let out = anneal(&toy, &toy.layout, &start_at_scales(&toy), &AnnealOptions::default(), 1, &());
-        assert!(toy.max_error(&out.best) < 1e-3, "max error {}", toy.max_error(&out.best));
+        let out = anneal(
+            &toy,
+            &toy.layout,
+            &start_at_scales(&toy),
+            &AnnealOptions::default(),
+            1,
+            &(),
+        );
+        assert!(
+            toy.max_error(&out.best) < 1e-3,
+            "max error {}",
+            toy.max_error(&out.best)
+        );
     }
 
     #[test]
@@ -265,15 +313,29 @@ mod tests {
         // A curved valley per bond: the correlated (L, S) couple of a spring under a one-step cost.
         let toy = Toy::new(2, 1, Shape::Rosenbrock);
         for seed in 0..3 {
-            let out = anneal(&toy, &toy.layout, &start_at_scales(&toy), &AnnealOptions::default(), seed, &());
-            assert!(toy.max_error(&out.best) < 0.02, "seed {seed}: max error {}", toy.max_error(&out.best));
+            let out = anneal(
+                &toy,
+                &toy.layout,
+                &start_at_scales(&toy),
+                &AnnealOptions::default(),
+                seed,
+                &(),
+            );
+            assert!(
+                toy.max_error(&out.best) < 0.02,
+                "seed {seed}: max error {}",
+                toy.max_error(&out.best)
+            );
         }
     }
 
     #[test]
     fn same_seed_is_bitwise_identical_and_another_seed_differs() {
         let toy = Toy::new(2, 1, Shape::Rosenbrock);
-        let options = AnnealOptions { iterations: 3000, ..Default::default() };
+        let options = AnnealOptions {
+            iterations: 3000,
+            ..Default::default()
+        };
         let start = start_at_scales(&toy);
         let a = anneal(&toy, &toy.layout, &start, &options, 7, &());
         let b = anneal(&toy, &toy.layout, &start, &options, 7, &());
@@ -292,10 +354,24 @@ mod tests {
         toy.layout.parameters[1].bounds = [0.0, upper];
         let checked = Checked::new(&toy);
         let recorder = Recorder::default();
-        let out = anneal(&checked, &toy.layout, &start_at_scales(&toy), &AnnealOptions::default(), 3, &recorder);
+        let out = anneal(
+            &checked,
+            &toy.layout,
+            &start_at_scales(&toy),
+            &AnnealOptions::default(),
+            3,
+            &recorder,
+        );
         assert!(!checked.out_of_bounds.load(std::sync::atomic::Ordering::Relaxed));
-        assert_eq!(out.cost_count, checked.evaluations.load(std::sync::atomic::Ordering::Relaxed));
-        assert!((out.best[1] - upper).abs() < 1e-3 * upper, "{} vs bound {upper}", out.best[1]);
+        assert_eq!(
+            out.cost_count,
+            checked.evaluations.load(std::sync::atomic::Ordering::Relaxed)
+        );
+        assert!(
+            (out.best[1] - upper).abs() < 1e-3 * upper,
+            "{} vs bound {upper}",
+            out.best[1]
+        );
         // The observer saw every step, and the history never rises.
         let seen = recorder.0.lock().map(|v| v.len()).unwrap_or(0);
         assert_eq!(seen, out.iteration_count);
@@ -305,9 +381,17 @@ mod tests {
     #[test]
     fn rest_lengths_start_at_the_observed_mean_and_others_at_start() {
         let toy = Toy::new(2, 1, Shape::Quadratic);
-        let start: Vec<f64> =
-            toy.layout.parameters.iter().enumerate().map(|(i, p)| 0.5 * p.scale + 0.01 * i as f64).collect();
-        let options = AnnealOptions { iterations: 0, ..Default::default() };
+        let start: Vec<f64> = toy
+            .layout
+            .parameters
+            .iter()
+            .enumerate()
+            .map(|(i, p)| 0.5 * p.scale + 0.01 * i as f64)
+            .collect();
+        let options = AnnealOptions {
+            iterations: 0,
+            ..Default::default()
+        };
         let out = anneal(&toy, &toy.layout, &start, &options, 0, &());
         for bond in &toy.layout.bonds {
             let mean = bond.observed.iter().sum::<f64>() / bond.observed.len() as f64;
@@ -326,14 +410,20 @@ mod tests {
     fn stops_on_target_and_on_stagnation() {
         let toy = Toy::new(2, 1, Shape::Quadratic);
         let start = start_at_scales(&toy);
-        let options = AnnealOptions { target_cost: 1e-2, ..Default::default() };
+        let options = AnnealOptions {
+            target_cost: 1e-2,
+            ..Default::default()
+        };
         let out = anneal(&toy, &toy.layout, &start, &options, 4, &());
         assert!(out.best_cost <= 1e-2);
         assert!(out.history[..out.iteration_count - 1].iter().all(|&c| c > 1e-2));
         assert!(out.iteration_count < options.iterations);
 
         let flat = Flat(toy.layout.dimension());
-        let options = AnnealOptions { stagnation: 50, ..Default::default() };
+        let options = AnnealOptions {
+            stagnation: 50,
+            ..Default::default()
+        };
         let out = anneal(&flat, &toy.layout, &start, &options, 4, &());
         assert_eq!(out.iteration_count, 50);
         assert_eq!(out.cost_count, 51);
@@ -343,13 +433,34 @@ mod tests {
     fn validate_names_the_bad_option() {
         assert!(AnnealOptions::default().validate().is_ok());
         let cases = [
-            AnnealOptions { spring_temperature: 0.0, ..Default::default() },
-            AnnealOptions { torsion_temperature: -1.0, ..Default::default() },
-            AnnealOptions { cooling: 1.0, ..Default::default() },
-            AnnealOptions { acceptance: f64::NAN, ..Default::default() },
-            AnnealOptions { min_temperature: 0.5, ..Default::default() },
+            AnnealOptions {
+                spring_temperature: 0.0,
+                ..Default::default()
+            },
+            AnnealOptions {
+                torsion_temperature: -1.0,
+                ..Default::default()
+            },
+            AnnealOptions {
+                cooling: 1.0,
+                ..Default::default()
+            },
+            AnnealOptions {
+                acceptance: f64::NAN,
+                ..Default::default()
+            },
+            AnnealOptions {
+                min_temperature: 0.5,
+                ..Default::default()
+            },
         ];
-        let names = ["spring_temperature", "torsion_temperature", "cooling", "acceptance", "min_temperature"];
+        let names = [
+            "spring_temperature",
+            "torsion_temperature",
+            "cooling",
+            "acceptance",
+            "min_temperature",
+        ];
         for (options, name) in cases.iter().zip(names) {
             let err = options.validate().unwrap_err();
             assert!(err.to_string().contains(name), "{err} should name {name}");

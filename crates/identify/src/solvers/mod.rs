@@ -4,7 +4,7 @@
 //!
 //! A key design decision made in this module is that a solver sees only a
 //! [`CostFunction`](crate::CostFunction) (or [`LocalCostFunction`](crate::LocalCostFunction))
-//! and the [`Layout`](crate::Layout) of the parameter vector: what each entry is, its bounds and
+//! and the [`Layout`] of the parameter vector: what each entry is, its bounds and
 //! typical scale, how entries pair into bonds and what the data say about each bond (observed
 //! distances and cosines). Solvers never see particles or frames, so any cost built on the same
 //! layout (one-step prediction, multi-step prediction, a test function) runs unchanged.
@@ -48,7 +48,11 @@ fn check_option(name: &'static str, value: f64, ok: bool, expected: &'static str
     if ok {
         Ok(())
     } else {
-        Err(SolverError::InvalidOption { name, value, expected })
+        Err(SolverError::InvalidOption {
+            name,
+            value,
+            expected,
+        })
     }
 }
 
@@ -96,7 +100,10 @@ fn observed_range(bond: &BondGenes) -> Option<[f64; 2]> {
 
 /// True if and only if the parameter is a spring's rest length.
 fn is_rest_length(layout: &Layout, p: usize) -> bool {
-    layout.parameters.get(p).is_some_and(|info| info.kind == ParameterKind::RestLength)
+    layout
+        .parameters
+        .get(p)
+        .is_some_and(|info| info.kind == ParameterKind::RestLength)
 }
 
 #[cfg(test)]

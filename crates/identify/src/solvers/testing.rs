@@ -1,7 +1,9 @@
 //! Toy problems for the solver tests: bond-like parameter couples with a known optimum and a
 //! local decomposition, plus a wrapper that checks every evaluated point.
 
-use crate::{BondGenes, BondRef, CostFunction, Layout, LocalCostFunction, Observer, Parameter, ParameterKind};
+use crate::{
+    BondGenes, BondRef, CostFunction, Layout, LocalCostFunction, Observer, Parameter, ParameterKind,
+};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
@@ -78,13 +80,18 @@ impl Toy {
             layout.bonds.push(BondGenes {
                 bond,
                 params: vec![first, first + 1],
-                particles: if is_spring { vec![k, k + 1] } else { vec![k, k + 1, k + 2] },
+                particles: if is_spring {
+                    vec![k, k + 1]
+                } else {
+                    vec![k, k + 1, k + 2]
+                },
                 observed,
             });
         }
         let bonds = layout.bonds.len();
-        let region_bonds: Vec<Vec<usize>> =
-            (0..bonds).map(|r| (r.saturating_sub(1)..(r + 2).min(bonds)).collect()).collect();
+        let region_bonds: Vec<Vec<usize>> = (0..bonds)
+            .map(|r| (r.saturating_sub(1)..(r + 2).min(bonds)).collect())
+            .collect();
         let regions = region_bonds
             .iter()
             .map(|bs| bs.iter().flat_map(|&b| layout.bonds[b].params.clone()).collect())
@@ -101,7 +108,11 @@ impl Toy {
     fn bond_cost(&self, b: usize, x: &[f64]) -> f64 {
         let [i, j] = [self.layout.bonds[b].params[0], self.layout.bonds[b].params[1]];
         let is_cos = self.layout.parameters[i].kind == ParameterKind::RestCos;
-        let l = if is_cos { x[i] - self.truth[i] + 1.0 } else { x[i] / self.truth[i] };
+        let l = if is_cos {
+            x[i] - self.truth[i] + 1.0
+        } else {
+            x[i] / self.truth[i]
+        };
         let s = x[j] / self.truth[j];
         match self.shape {
             Shape::Quadratic => (l - 1.0).powi(2) + (s - 1.0).powi(2),

@@ -1,0 +1,475 @@
+//! Diagnosis: where the fitted model and the recording disagree, which physics the model left
+//! out, and the model with it added (issue 5).
+//!
+//! A key design decision made in this module is to *screen* cheaply and *judge* expensively:
+//!
+//! 1. **Jolts** (bounces) are found in the tracks alone ([`jolts`]); they suggest walls and
+//!    their frames are left out of the smooth analysis.
+//! 2. The frames are split into interleaved blocks; a fraction is **held out** of every fit.
+//! 3. The **base fit** (structure alone: weak-form estimate, then multi-step least squares
+//!    with the start state free) gives the residuals that are **localised** per particle, per
+//!    bond and per frame against the noise measured from the tracks ([`localise`]).
+//! 4. **Greedy search** ([`search`]): every candidate [`Effect`] is screened by the residual
+//!    it explains in the weak-form linear system (held-out rows); the best few, and every wall
+//!    proposed by jolts, are fitted by multi-step least squares with everything else, and
+//!    scored by the held-out multi-step cost they remove over the noise variance, minus a
+//!    `k ln N` penalty. The best positive score is accepted; repeat until none is positive.
+//! 5. The accepted model is **refitted** on all analysed frames (warm start), with standard
+//!    errors from its Jacobian, and written as a scene ([`Diagnosis::final_scene`]).
+
+mod costs;
+mod effect;
+mod family;
+mod jolts;
+mod localise;
+mod outcome;
+mod report;
+mod score_test;
+mod search;
+mod shooting;
+#[cfg(test)]
+mod tests;
+mod weak;
+
+pub use costs::scene_costs;
+pub use effect::Effect;
+pub use jolts::Jolt;
+pub use report::{
+    BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
+    ParticleResidual, RejectedCandidate, ResidualSeries, Seen,
+};
+
+use std::time::Instant;
+
+use physfit_model::Scene;
+use physfit_track::TrackTable;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+
+use crate::{IdentifyError, Observations, Observer};
+use family::{DataScales, Family};
+use search::{smooth_candidates, wall_proposals, Context, Current, Proposal};
+use shooting::Shot;
+use weak::WeakForm;
+
+/// Settings of [`diagnose`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiagnoseOptions {
+    /// Seed (which blocks are held out, noise replicas for localisation).
+    pub seed: u64,
+    /// Analysed frames `(A, B)`, inclusive; all tracked frames when `None`.
+    pub window: Option<(usize, usize)>,
+    /// Fraction of frames held out of the fits for scoring, in `(0, 0.5]`.
+    pub holdout_fraction: f64,
+    /// Most effects added.
+    pub max_effects: usize,
+    /// Weak-form test window, frames (`None`: about one typical period).
+    pub test_window: Option<usize>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            seed: 1,
+            window: None,
+            holdout_fraction: 0.25,
+            max_effects: 6,
+            test_window: None,
+        }
+    }
+}
+
+/// Diagnoses `structure` against `tracks` (see the module doc).
+pub fn diagnose(
+    structure: &Scene,
+    tracks: &TrackTable,
+    options: &DiagnoseOptions,
+    observer: &dyn Observer,
+) -> Result<Diagnosis, IdentifyError> {
+    let sequence = Observations::from_tracks(tracks, structure, None)?;
+    diagnose_observations(structure, &sequence, options, observer)
+}
+
+/// Most rounds repeated because a better fit of the current model was found on the way.
+const MAX_RESTARTS: usize = 3;
+
+/// The smallest number of analysed frames the diagnosis accepts.
+pub const MIN_DIAGNOSIS_FRAMES: usize = 10;
+
+/// As [`diagnose`], from observations of the whole tracked sequence.
+pub fn diagnose_observations(
+    structure: &Scene,
+    sequence: &Observations,
+    options: &DiagnoseOptions,
+    observer: &dyn Observer,
+) -> Result<Diagnosis, IdentifyError> {
+    let t0 = Instant::now();
+    if !(options.holdout_fraction > 0.0 && options.holdout_fraction <= 0.5) {
+        return Err(IdentifyError::InvalidOption(format!(
+            "holdout fraction {} is not in (0, 0.5]",
+            options.holdout_fraction
+        )));
+    }
+    let obs = match options.window {
+        Some((a, b)) => sequence.restrict(a, b)?,
+        None => sequence.clone(),
+    };
+    obs.require_frames("the diagnosis", MIN_DIAGNOSIS_FRAMES)?;
+    let mut warnings = obs.warnings.clone();
+    let family0 = Family::new(structure, &obs)?;
+    let scales = DataScales::of(structure, &obs);
+    let frames = obs.frame_count();
+
+    // 1. Held-out blocks.
+    let w = options.test_window.unwrap_or_else(|| test_window(&scales, &obs));
+    let w = (w.max(4) + 1) & !1;
+    let (held, holdout) = holdout_blocks(&obs, w, options);
+    let train_mask: Vec<bool> = held.iter().map(|h| !h).collect();
+    let shot = Shot::new(&obs, &family0, Some(train_mask))?;
+    let start = shot.observed_state();
+
+    // 2. Jolts, and the frames the smooth analysis leaves out: first without a model, then
+    // with the structure's weak-form estimate removing its smooth forces.
+    let exclusion = |jolts: &[jolts::Jolt]| {
+        let mut excluded = vec![false; frames];
+        for j in jolts {
+            let k = j.frame - obs.first_frame;
+            for e in &mut excluded[k.saturating_sub(1)..=(k + 2).min(frames - 1)] {
+                *e = true;
+            }
+        }
+        excluded
+    };
+    let (rough, _) = jolts::find_jolts(&obs, None);
+    let weak = WeakForm::new(&family0, &obs, w, &exclusion(&rough), &held);
+    let rough_params = Context {
+        obs: &obs,
+        weak: &weak,
+        shot: &shot,
+        held: &held,
+        start: &start,
+        scales: &scales,
+    }
+    .joint_estimate(&family0, &[]);
+    let rough_model = family0.model(&rough_params, None);
+    let model_acc: Vec<Option<Vec<physfit_model::Vec2>>> = (0..frames)
+        .map(|k| {
+            let s = obs.state(k)?;
+            let mut a = vec![physfit_model::Vec2::zeros(); s.len()];
+            rough_model.accelerations(&s, &mut a);
+            Some(a)
+        })
+        .collect();
+    let (jolt_list, _) = jolts::find_jolts(&obs, Some(&model_acc));
+    let excluded = exclusion(&jolt_list);
+    let guesses = jolts::propose_walls(&jolt_list, &obs);
+    let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
+    let ctx = Context {
+        obs: &obs,
+        weak: &weak,
+        shot: &shot,
+        held: &held,
+        start: &start,
+        scales: &scales,
+    };
+
+    // 3. Base fit on the fitted frames.
+    let base_params = ctx.joint_estimate(&family0, &[]);
+    let base = ctx
+        .fit(&family0, &base_params, &start)
+        .ok_or_else(|| IdentifyError::NoFiniteCost {
+            method: "diagnosis base fit".into(),
+            detail: "the structure's model from the weak-form estimate cannot be simulated".into(),
+        })?;
+    observer.observe(0, base.fit.sum_squares);
+
+    // 4. Greedy search.
+    let candidates = smooth_candidates(&family0, &obs);
+    let mut current = base.clone();
+    let mut accepted: Vec<(Proposal, report::Evidence, usize)> = Vec::new();
+    let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
+    let mut walls_left = wall_proposals(&guesses);
+    let mut round = 0;
+    let mut restarts = 0;
+    while accepted.len() < options.max_effects {
+        round += 1;
+        let debug = std::env::var_os("PHYSFIT_DEBUG").is_some();
+        let tq = Instant::now();
+        let mut screened = ctx.screen(&current, &candidates);
+        if debug {
+            eprintln!(" screen {:.2}s", tq.elapsed().as_secs_f64());
+        }
+        let tq = Instant::now();
+        score_test::score_tests(&ctx, &current, &mut screened);
+        if debug {
+            eprintln!(" score tests {:.2}s", tq.elapsed().as_secs_f64());
+        }
+        let rank = |p: &Proposal| {
+            p.score_test.unwrap_or(0.0) - ctx.train_penalty(&current, p.effect.parameter_count())
+        };
+        screened.sort_by(|a, b| rank(b).total_cmp(&rank(a)));
+        if debug {
+            for p in screened.iter().take(8) {
+                eprintln!(
+                    "   {:?} test {:?} screen {:?} init {:?}",
+                    p.effect, p.score_test, p.screen, p.init
+                );
+            }
+        }
+        let mut to_verify: Vec<Vec<Proposal>> = Vec::new();
+        for p in &screened {
+            // Lenient gate: the score test is a local approximation of what the fit can gain.
+            let gate = 0.5 * ctx.train_penalty(&current, p.effect.parameter_count());
+            if p.score_test.is_some_and(|s| s > gate) && to_verify.len() < search::VERIFIED_PER_ROUND {
+                to_verify.push(vec![p.clone()]);
+            }
+        }
+        // The weak form's favourites too: the score test is only as good as the current fit,
+        // which is poor when a strong term is missing. Walls are also tried with them: a wall
+        // and a smooth force can each be useless to a multi-step fit without the other (a ball
+        // under gravity falls through a floor), while the weak form leaves the bounces out.
+        let mut by_screen: Vec<&Proposal> = screened
+            .iter()
+            .filter(|p| {
+                p.screen
+                    .is_some_and(|s| s > search::SCREEN_PER_PARAMETER * p.effect.parameter_count() as f64)
+            })
+            .collect();
+        by_screen.sort_by(|a, b| {
+            let key = |p: &Proposal| p.screen.unwrap_or(0.0) / p.effect.parameter_count() as f64;
+            key(b).total_cmp(&key(a))
+        });
+        for p in by_screen.iter().take(search::VERIFIED_PER_ROUND - 1) {
+            if !to_verify.iter().any(|v| v[0].effect == p.effect) {
+                to_verify.push(vec![(*p).clone()]);
+            }
+        }
+        for wall in walls_left.iter().take(3) {
+            to_verify.push(vec![wall.clone()]);
+            for p in by_screen.iter().take(1) {
+                to_verify.push(vec![wall.clone(), (*p).clone()]);
+            }
+        }
+        let mut verified: Vec<search::Verified> = to_verify.iter().map(|p| ctx.verify(&current, p)).collect();
+        if debug {
+            for v in &verified {
+                let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();
+                eprintln!("   verified {effects:?}: {:?}", v.evidence);
+            }
+        }
+        verified.sort_by(|a, b| {
+            b.evidence
+                .score
+                .unwrap_or(f64::NEG_INFINITY)
+                .total_cmp(&a.evidence.score.unwrap_or(f64::NEG_INFINITY))
+        });
+        // Record this round's losers (and unverified screened ones).
+        let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
+        for p in &screened {
+            if !to_verify.iter().any(|v| v.iter().any(|q| q.effect == p.effect)) {
+                round_rejects.push(rejected_entry(&family0, p, None, round));
+            }
+        }
+        let best = verified
+            .first()
+            .filter(|v| v.evidence.score.is_some_and(|s| s > 0.0))
+            .cloned();
+        for v in verified.iter().skip(usize::from(best.is_some())) {
+            if v.proposals.len() == 1 {
+                round_rejects.push(rejected_entry(
+                    &family0,
+                    &v.proposals[0],
+                    Some(v.evidence.clone()),
+                    round,
+                ));
+            }
+        }
+        let Some(best) = best else {
+            merge_rejects(&mut rejected, round_rejects);
+            break;
+        };
+        let Some(next) = best.current.clone() else { break };
+        // Guard against a better optimum of the model without the terms: refit it from the
+        // new fit's values (terms removed) and rescore.
+        let mut evidence = best.evidence.clone();
+        let o = next.family.effect_offset(current.family.effects.len());
+        let without = next.fit.params[..o].to_vec();
+        let alt = if ctx.at_noise_level(&current) {
+            None
+        } else {
+            ctx.fit(&current.family, &without, &next.fit.state)
+        };
+        if let Some(alt) = alt {
+            if alt.fit.sum_squares < current.fit.sum_squares {
+                current = alt;
+                evidence = ctx.evidence(&current, Some(&next), &best.proposals);
+            }
+        }
+        if !evidence.score.is_some_and(|s| s > 0.0) {
+            // The model without the terms was only badly fitted: with its better fit, screen
+            // again (a bounded number of times).
+            merge_rejects(&mut rejected, round_rejects);
+            restarts += 1;
+            if restarts > MAX_RESTARTS {
+                break;
+            }
+            continue;
+        }
+        merge_rejects(&mut rejected, round_rejects);
+        for p in &best.proposals {
+            if p.effect == Effect::Wall {
+                walls_left.retain(|w| w.jolts != p.jolts);
+            }
+            accepted.push((p.clone(), evidence.clone(), round));
+        }
+        observer.observe(round, next.fit.sum_squares);
+        current = next;
+    }
+    rejected.retain(|r| !accepted.iter().any(|(p, _, _)| rejected_matches(&family0, r, p)));
+
+    // 5. Final refit on every analysed frame, and the base model's for comparison.
+    let all_shot = Shot::new(&obs, &family0, None)?;
+    let refit = |c: &Current| {
+        shooting::fit_shot(
+            &all_shot,
+            &c.family,
+            &c.fit.params,
+            &c.fit.state,
+            &scales,
+            search::SHOT_ITERATIONS,
+            &(),
+        )
+    };
+    let final_fit = refit(&current).unwrap_or_else(|| {
+        warnings
+            .push("the final refit on all frames failed; the fit on the fitted frames is reported".into());
+        current.fit.clone()
+    });
+    let base_fit = refit(&base).unwrap_or_else(|| base.fit.clone());
+    let tq = Instant::now();
+    let outcome = outcome::assemble(outcome::Inputs {
+        structure,
+        obs: &obs,
+        sequence,
+        scales: &scales,
+        base_family: &family0,
+        base_fit: &base_fit,
+        final_family: &current.family,
+        final_fit: &final_fit,
+        anchor: all_shot.anchor,
+        accepted: &accepted,
+        jolts: &jolt_list,
+        weak: &weak,
+        seed: options.seed,
+    });
+    if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+        eprintln!(
+            " assemble {:.2}s (total {:.2}s)",
+            tq.elapsed().as_secs_f64(),
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    warnings.extend(outcome.warnings);
+    Ok(Diagnosis {
+        structure: structure.name.clone(),
+        seed: options.seed,
+        window: [obs.first_frame, obs.last_frame()],
+        sequence: [sequence.first_frame, sequence.last_frame()],
+        track_noise: obs.noise,
+        holdout,
+        findings: outcome.findings,
+        rejected,
+        localisation: outcome.localisation,
+        base: outcome.base,
+        final_model: outcome.final_model,
+        residuals: outcome.residuals,
+        warnings,
+        seconds: t0.elapsed().as_secs_f64(),
+        final_scene: outcome.scene,
+    })
+}
+
+fn rejected_entry(
+    structure_family: &Family,
+    p: &Proposal,
+    evidence: Option<report::Evidence>,
+    round: usize,
+) -> report::RejectedCandidate {
+    let evidence = evidence.unwrap_or(report::Evidence {
+        screen_score: p.screen,
+        score_test: p.score_test,
+        held_out_cost_before: None,
+        held_out_cost_after: None,
+        noise_variance: None,
+        penalty: 0.0,
+        score: None,
+        parameter_count: p.effect.parameter_count(),
+    });
+    report::RejectedCandidate {
+        effect: p.effect.name().into(),
+        label: p.effect.label(&structure_family.structure),
+        round,
+        evidence,
+    }
+}
+
+fn rejected_matches(family: &Family, r: &report::RejectedCandidate, p: &Proposal) -> bool {
+    r.label == p.effect.label(&family.structure) && p.effect != Effect::Wall
+}
+
+/// Keeps one entry per candidate (its latest round).
+fn merge_rejects(all: &mut Vec<report::RejectedCandidate>, round: Vec<report::RejectedCandidate>) {
+    for r in round {
+        all.retain(|q| q.label != r.label || r.effect == "wall");
+        all.push(r);
+    }
+}
+
+/// About one typical oscillation period, within `[8, 64]` frames and the data.
+fn test_window(scales: &DataScales, obs: &Observations) -> usize {
+    let period = std::f64::consts::TAU / scales.omega.max(1e-9) * obs.fps;
+    let w = if period.is_finite() {
+        period.round() as usize
+    } else {
+        16
+    };
+    let max = (obs.frame_count() / 4).clamp(4, 64);
+    w.clamp(8.min(max), max)
+}
+
+/// The held-out mask (by frame offset) and its description: blocks of at least `w + 2`
+/// frames, about four held-out blocks, every `round(1 / fraction)`-th block held out, the
+/// phase drawn from the seed.
+fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (Vec<bool>, Holdout) {
+    let frames = obs.frame_count();
+    let cycle = (1.0 / options.holdout_fraction).round().max(2.0) as usize;
+    let block = (w + 2).max((frames as f64 * options.holdout_fraction / 4.0).ceil() as usize);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(options.seed);
+    // The first block keeps the start state constrained: never hold it out.
+    let phase = rng.gen_range(0..cycle - 1);
+    let mut held = vec![false; frames];
+    let mut ranges = Vec::new();
+    if frames >= 2 * block {
+        let mut b = 1;
+        while b * block < frames {
+            if (b + phase) % cycle == 0 {
+                let lo = b * block;
+                let hi = ((b + 1) * block).min(frames) - 1;
+                for h in &mut held[lo..=hi] {
+                    *h = true;
+                }
+                ranges.push([obs.first_frame + lo, obs.first_frame + hi]);
+            }
+            b += 1;
+        }
+    }
+    (
+        held,
+        Holdout {
+            fraction: options.holdout_fraction,
+            block_frames: block,
+            held_out: ranges,
+            test_window: w,
+        },
+    )
+}

@@ -1,0 +1,380 @@
+//! Turning the search's fits into the [`super::Diagnosis`] parts: findings with standard
+//! errors, the diagnosed scene, whole-sequence costs and residual series.
+
+use physfit_model::scene::{ParticleSpec, SpringSpec};
+use physfit_model::{ParticleId, Scene, Vec2};
+
+use super::costs::{model_costs, standard_errors};
+use super::effect::Effect;
+use super::family::{DataScales, Family};
+use super::jolts::Jolt;
+use super::localise::localise;
+use super::report::{Evidence, Finding, FittedValue, Localisation, ModelSummary, ResidualSeries, Seen};
+use super::search::Proposal;
+use super::shooting::{Shot, ShotFit};
+use super::weak::WeakForm;
+use crate::Observations;
+
+/// What [`assemble`] needs.
+pub struct Inputs<'a> {
+    pub structure: &'a Scene,
+    pub obs: &'a Observations,
+    pub sequence: &'a Observations,
+    pub scales: &'a DataScales,
+    pub base_family: &'a Family,
+    pub base_fit: &'a ShotFit,
+    pub final_family: &'a Family,
+    pub final_fit: &'a ShotFit,
+    pub anchor: usize,
+    pub accepted: &'a [(Proposal, Evidence, usize)],
+    pub jolts: &'a [Jolt],
+    pub weak: &'a WeakForm,
+    pub seed: u64,
+}
+
+/// The assembled parts.
+pub struct Outcome {
+    pub findings: Vec<Finding>,
+    pub scene: Scene,
+    pub base: ModelSummary,
+    pub final_model: ModelSummary,
+    pub residuals: ResidualSeries,
+    pub localisation: Localisation,
+    pub warnings: Vec<String>,
+}
+
+fn unit(effect: Effect, name: &str) -> &'static str {
+    match (effect, name) {
+        (Effect::Gravity, _) => "px/s^2",
+        (Effect::Drag, _) => "1/s",
+        (Effect::QuadraticDrag, _) => "1/px",
+        (Effect::SpringDamping | Effect::SpringDashpot { .. }, _) => "mass/s",
+        (_, "stiffness") => "energy/px^2",
+        (_, "restitution") => "1",
+        (_, "normal_x" | "normal_y") => "1",
+        _ => "px",
+    }
+}
+
+fn summary(
+    family: &Family,
+    fit: &ShotFit,
+    anchor_frame: usize,
+    sequence: &Observations,
+    scales: &DataScales,
+) -> (ModelSummary, Option<(ShotFit, usize)>) {
+    let (costs, seq_fit) = model_costs(
+        family,
+        &fit.params,
+        sequence,
+        scales,
+        Some((&fit.state, anchor_frame)),
+    );
+    (
+        ModelSummary {
+            effects: family.effects.iter().map(|e| e.name().to_string()).collect(),
+            parameter_count: family.dim(),
+            costs,
+            window_rms: (fit.sum_squares / fit.residual_count.max(1) as f64).sqrt(),
+        },
+        seq_fit,
+    )
+}
+
+/// Observed minus predicted positions over the whole sequence, `[frame][particle]`.
+fn residual_series(
+    family: &Family,
+    seq: Option<&(ShotFit, usize)>,
+    sequence: &Observations,
+) -> Vec<Vec<Option<[f64; 2]>>> {
+    let n = sequence.particle_count();
+    let frames = sequence.frame_count();
+    let mut out = vec![vec![None; n]; frames];
+    let Some((fit, _)) = seq else { return out };
+    let Ok(shot) = Shot::new(sequence, family, None) else {
+        return out;
+    };
+    let Some(traj) = shot.trajectory(family, &fit.params, &fit.state) else {
+        return out;
+    };
+    for k in 0..frames {
+        if let Some(pred) = &traj[k] {
+            for p in 0..n {
+                if let (Some(o), false) = (sequence.positions[k][p], sequence.fixed[p]) {
+                    let e = o - pred[p];
+                    out[k][p] = Some([e.x, e.y]);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Assembles findings, scene, summaries and residuals.
+pub fn assemble(inp: Inputs<'_>) -> Outcome {
+    let mut warnings = Vec::new();
+    let fam = inp.final_family;
+    let fit = inp.final_fit;
+    let errors = standard_errors(&fit.jacobian, fit.sum_squares, fam.dim());
+    let id = |p: usize| {
+        inp.structure
+            .particles
+            .get(p)
+            .map_or_else(|| format!("#{p}"), |s| s.id.clone())
+    };
+    let window = [inp.obs.first_frame, inp.obs.last_frame()];
+
+    // Findings, in acceptance order (the family's effects are in that order too).
+    let mut findings = Vec::new();
+    for (k, (proposal, evidence, round)) in inp.accepted.iter().enumerate() {
+        let effect = fam.effects[k];
+        let o = fam.effect_offset(k);
+        let values = &fit.params[o..o + effect.parameter_count()];
+        let errs: Vec<Option<f64>> = (0..effect.parameter_count())
+            .map(|i| errors.get(o + i).copied().flatten())
+            .collect();
+        let mut parameters: Vec<FittedValue> = Vec::new();
+        let mut push = |name: &str, value: f64, std_error: Option<f64>| {
+            parameters.push(FittedValue {
+                name: name.into(),
+                value,
+                std_error,
+                unit: unit(effect, name).into(),
+            })
+        };
+        let mut seen = Seen::default();
+        let all_free: Vec<String> = fam.free.iter().map(|&p| id(p)).collect();
+        match effect {
+            Effect::Wall => {
+                let n = Vec2::new(values[0].cos(), values[0].sin());
+                push("normal_x", n.x, errs[0].map(|e| e * n.y.abs()));
+                push("normal_y", n.y, errs[0].map(|e| e * n.x.abs()));
+                push("offset", values[1], errs[1]);
+                push("restitution", values[2], errs[2]);
+                let contacts: Vec<&Jolt> = proposal.jolts.iter().filter_map(|&j| inp.jolts.get(j)).collect();
+                let mut particles: Vec<String> = contacts.iter().map(|j| id(j.particle)).collect();
+                particles.sort();
+                particles.dedup();
+                seen.particles = particles;
+                seen.frames = contacts.iter().map(|j| [j.frame, j.frame + 1]).collect();
+                seen.region = bbox(contacts.iter().map(|j| Vec2::new(j.position[0], j.position[1])));
+                seen.text = format!(
+                    "{} bounce(s) where the normal velocity reverses, on the line n.x = {:.2} px with n = ({:.3}, {:.3})",
+                    contacts.len(),
+                    values[1],
+                    n.x,
+                    n.y
+                );
+            }
+            Effect::Gravity => {
+                push("gravity_x", values[0], errs[0]);
+                push("gravity_y", values[1], errs[1]);
+                seen.particles = all_free;
+                seen.frames = vec![window];
+                let g = Vec2::new(values[0], values[1]);
+                seen.text = format!(
+                    "a steady acceleration of {:.2} px/s^2 towards {:.0} degrees (image axes, y down) on every free particle",
+                    g.norm(),
+                    g.y.atan2(g.x).to_degrees()
+                );
+            }
+            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping => {
+                push(
+                    effect.parameter_names()[0].trim_start_matches("spring_"),
+                    values[0],
+                    errs[0],
+                );
+                seen.particles = all_free;
+                seen.frames = vec![window];
+                if effect == Effect::SpringDamping {
+                    seen.springs = inp
+                        .structure
+                        .springs
+                        .iter()
+                        .map(|s| [id(s.ends[0].index()), id(s.ends[1].index())])
+                        .collect();
+                }
+                seen.text = format!(
+                    "{} acting throughout, against the motion",
+                    effect.label(inp.structure)
+                );
+            }
+            Effect::SpringDashpot { spring } => {
+                push("damping", values[0], errs[0]);
+                if let Some(s) = inp.structure.springs.get(spring) {
+                    let [a, b] = [s.ends[0].index(), s.ends[1].index()];
+                    seen.particles = vec![id(a), id(b)];
+                    seen.springs = vec![[id(a), id(b)]];
+                }
+                seen.frames = vec![window];
+                seen.text = format!("{} only", effect.label(inp.structure));
+            }
+            Effect::MissingSpring { a, b } => {
+                push("length", values[0], errs[0]);
+                push("stiffness", values[1], errs[1]);
+                seen.particles = vec![id(a), id(b)];
+                seen.springs = vec![[id(a), id(b)]];
+                seen.frames = vec![window];
+                seen.text = format!(
+                    "a force along the line between {} and {} that the structure does not join",
+                    id(a),
+                    id(b)
+                );
+            }
+            Effect::Tether { particle } => {
+                push("anchor_x", values[0], errs[0]);
+                push("anchor_y", values[1], errs[1]);
+                push("length", values[2], errs[2]);
+                push("stiffness", values[3], errs[3]);
+                seen.particles = vec![id(particle)];
+                seen.springs = vec![[id(particle), anchor_id(inp.structure, k)]];
+                seen.frames = vec![window];
+                seen.region = Some([values[0], values[1], values[0], values[1]]);
+                seen.text = format!(
+                    "{} is pulled towards a fixed point at ({:.1}, {:.1}) px that is not among the structure's particles",
+                    id(particle),
+                    values[0],
+                    values[1]
+                );
+            }
+        }
+        findings.push(Finding {
+            effect: effect.name().into(),
+            label: effect.label(inp.structure),
+            tether: matches!(effect, Effect::Tether { .. }),
+            parameters,
+            seen,
+            evidence: evidence.clone(),
+            round: *round,
+        });
+    }
+
+    // Costs on the whole sequence and residual series.
+    let anchor_frame = inp.obs.first_frame + inp.anchor;
+    let (base, base_seq) = summary(
+        inp.base_family,
+        inp.base_fit,
+        anchor_frame,
+        inp.sequence,
+        inp.scales,
+    );
+    let (final_model, final_seq) = summary(fam, fit, anchor_frame, inp.sequence, inp.scales);
+    let frames: Vec<usize> = (0..inp.sequence.frame_count())
+        .map(|k| inp.sequence.first_frame + k)
+        .collect();
+    let residuals = ResidualSeries {
+        particles: inp.structure.particles.iter().map(|p| p.id.clone()).collect(),
+        frames,
+        before: residual_series(inp.base_family, base_seq.as_ref(), inp.sequence),
+        after: residual_series(fam, final_seq.as_ref(), inp.sequence),
+    };
+    let localisation = localise(
+        inp.base_family,
+        inp.base_fit,
+        inp.obs,
+        inp.weak,
+        &residuals,
+        inp.jolts,
+        inp.seed,
+    );
+
+    let scene = final_scene(inp.structure, fam, fit, inp.anchor, inp.obs, &mut warnings);
+    Outcome {
+        findings,
+        scene,
+        base,
+        final_model,
+        residuals,
+        localisation,
+        warnings,
+    }
+}
+
+fn bbox(points: impl Iterator<Item = Vec2>) -> Option<[f64; 4]> {
+    let mut b: Option<[f64; 4]> = None;
+    for p in points {
+        b = Some(match b {
+            None => [p.x, p.y, p.x, p.y],
+            Some(r) => [r[0].min(p.x), r[1].min(p.y), r[2].max(p.x), r[3].max(p.y)],
+        });
+    }
+    b
+}
+
+/// The id of the fixed particle a tether (effect `k`) adds: `anchor`, `anchor-2`, ... avoiding
+/// the structure's ids.
+fn anchor_id(structure: &Scene, k: usize) -> String {
+    let mut name = if k == 0 {
+        "anchor".to_string()
+    } else {
+        format!("anchor-{}", k + 1)
+    };
+    while structure.particles.iter().any(|p| p.id == name) {
+        name.push('_');
+    }
+    name
+}
+
+/// The diagnosed model as a scene (see [`super::Diagnosis::final_scene`]).
+fn final_scene(
+    structure: &Scene,
+    fam: &Family,
+    fit: &ShotFit,
+    anchor: usize,
+    obs: &Observations,
+    warnings: &mut Vec<String>,
+) -> Scene {
+    let nb = fam.bond_dim();
+    let mut scene = match &fam.problem {
+        Some(p) => p.fitted_scene(&fit.params[..nb]),
+        None => structure.clone(),
+    };
+    let mut state = fit.state.clone();
+    let model = fam.model(&fit.params, Some(&mut state));
+    scene.physics = model.physics.clone();
+    for (k, s) in scene.springs.iter_mut().enumerate() {
+        s.damping = model.springs[k].damping;
+    }
+    for (k, &e) in fam.effects.iter().enumerate() {
+        let o = fam.effect_offset(k);
+        let v = &fit.params[o..o + e.parameter_count()];
+        match e {
+            Effect::MissingSpring { a, b } => scene.springs.push(SpringSpec {
+                ends: [ParticleId(a as u32), ParticleId(b as u32)],
+                rest_length: Some(v[0]),
+                stiffness: Some(v[1]),
+                damping: None,
+            }),
+            Effect::Tether { particle } => {
+                let id = anchor_id(structure, k);
+                scene.particles.push(ParticleSpec {
+                    id,
+                    mass: 1.0,
+                    position: Vec2::new(v[0], v[1]),
+                    velocity: Vec2::zeros(),
+                    fixed: true,
+                });
+                let pid = ParticleId((scene.particles.len() - 1) as u32);
+                scene.springs.push(SpringSpec {
+                    ends: [ParticleId(particle as u32), pid],
+                    rest_length: Some(v[2]),
+                    stiffness: Some(v[3]),
+                    damping: None,
+                });
+            }
+            _ => {}
+        }
+    }
+    if obs.first_frame + anchor == 0 {
+        for p in &fam.free {
+            scene.particles[*p].position = fit.state.positions[*p];
+            scene.particles[*p].velocity = fit.state.velocities[*p];
+        }
+    } else {
+        warnings.push(format!(
+            "the fit starts at frame {}; the scene's frame-0 state is the structure's (dissipative models cannot be run backwards)",
+            obs.first_frame + anchor
+        ));
+    }
+    scene
+}

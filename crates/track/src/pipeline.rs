@@ -1,0 +1,404 @@
+//! [`track_folder`]: the whole tracking stage, from a folder of frames to a track table.
+//!
+//! Every threshold is measured from the frames themselves: the background model and pixel
+//! noise from a sample of frames ([`crate::estimate_background`]), the particle radius from
+//! the radius of gyration of the blobs found (unless given), and the expected blob area
+//! from the components at that radius. Frames are decoded, filtered and located in
+//! parallel; linking is sequential.
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::{
+    estimate_background, find_blobs, link_detections, list_frames, load_frame, refine_centroids, Ambiguity,
+    AmbiguityKind, Background, BackgroundChoice, BackgroundModel, DetectParameters, Frame, FrameDetections,
+    LinkOptions, PointFlag, TrackError, TrackTable,
+};
+
+/// Frames sampled (evenly over the window) to estimate the background and noise.
+const BACKGROUND_SAMPLES: usize = 25;
+/// Frames sampled to estimate the particle radius.
+const RADIUS_SAMPLES: usize = 5;
+/// Radius, px, the estimation starts from; three rounds make it independent of this.
+const START_RADIUS: f64 = 3.0;
+
+/// How to track a folder of frames. `TrackOptions::default()` derives everything from the data.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackOptions {
+    /// First and last frame tracked, inclusive (indices in natural name order); all when `None`.
+    pub window: Option<(usize, usize)>,
+    /// Named particles and their positions (px) in the first tracked frame: tracks take these
+    /// names and only these particles are followed. `None` tracks every blob.
+    pub named_start: Option<Vec<(String, [f64; 2])>>,
+    /// Particle radius, px; estimated from the frames when `None`.
+    pub radius: Option<f64>,
+    /// Worker threads; rayon's default (one per core) when `None`.
+    pub threads: Option<usize>,
+    /// Background model; chosen automatically by default.
+    pub background: BackgroundChoice,
+    /// Frames a particle may go unseen and still be bridged (named) or kept (unnamed).
+    pub memory: usize,
+}
+
+impl Default for TrackOptions {
+    fn default() -> Self {
+        TrackOptions {
+            window: None,
+            named_start: None,
+            radius: None,
+            threads: None,
+            background: BackgroundChoice::Auto,
+            memory: 5,
+        }
+    }
+}
+
+/// What tracking measured and had to do.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackStats {
+    /// Frames tracked.
+    pub frame_count: usize,
+    /// First and last tracked frame (inclusive).
+    pub frames: (usize, usize),
+    /// Tracks written.
+    pub track_count: usize,
+    /// Points written.
+    pub point_count: usize,
+    /// Detections located, over all frames.
+    pub detection_count: usize,
+    /// Points bridged from motion prediction (`flag = interpolated`).
+    pub interpolated_count: usize,
+    /// Points split from merged blobs (`flag = split`).
+    pub split_count: usize,
+    /// Every ambiguity bridged, in frame order.
+    pub ambiguities: Vec<Ambiguity>,
+    /// Measured pixel noise, grey levels.
+    pub noise_sigma: f64,
+    /// Particle radius used, px.
+    pub radius: f64,
+    /// True if and only if the radius was estimated from the frames.
+    pub radius_estimated: bool,
+    /// Background model chosen.
+    pub background: BackgroundModel,
+    /// True if and only if particles are darker than the background.
+    pub dark_on_light: bool,
+    /// Median estimated position error `ep` of detected points, px.
+    pub median_ep: f64,
+}
+
+impl TrackStats {
+    /// Distance within which a track point counts as matching a true centre when scoring, px:
+    /// the particle radius (a point farther than that is on another particle's disc or none).
+    pub fn match_radius(&self) -> f64 {
+        self.radius
+    }
+}
+
+impl std::fmt::Display for TrackStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(
+            f,
+            "tracked frames {}..{} ({} frames): {} tracks, {} points ({} interpolated, {} split)",
+            self.frames.0,
+            self.frames.1,
+            self.frame_count,
+            self.track_count,
+            self.point_count,
+            self.interpolated_count,
+            self.split_count
+        )?;
+        write!(
+            f,
+            "background {} ({}), pixel noise {:.2} grey levels, radius {:.2} px ({}), median position error {:.4} px",
+            match self.background {
+                BackgroundModel::Constant => "constant",
+                BackgroundModel::PerPixel => "per-pixel median",
+            },
+            if self.dark_on_light { "dark on light" } else { "bright on dark" },
+            self.noise_sigma,
+            self.radius,
+            if self.radius_estimated { "estimated" } else { "given" },
+            self.median_ep
+        )
+    }
+}
+
+/// The result of [`track_folder`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrackOutcome {
+    /// The trajectories.
+    pub table: TrackTable,
+    /// What the user should know (empty frames, lost particles, ambiguities bridged).
+    pub warnings: Vec<String>,
+    /// Measured figures.
+    pub stats: TrackStats,
+}
+
+/// Tracks the frames of `dir` (PNG or JPEG, natural name order). `progress(done, total)` is
+/// called as frames are located.
+pub fn track_folder(
+    dir: &Path,
+    options: &TrackOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TrackOutcome, TrackError> {
+    match options.threads {
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n.max(1))
+                .build()
+                .map_err(|e| TrackError::Option(format!("cannot start {n} threads: {e}")))?;
+            pool.install(|| track_paths(dir, options, progress))
+        }
+        None => track_paths(dir, options, progress),
+    }
+}
+
+fn track_paths(
+    dir: &Path,
+    options: &TrackOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TrackOutcome, TrackError> {
+    let all = list_frames(dir)?;
+    if all.is_empty() {
+        return Err(TrackError::NoFrames { dir: dir.to_path_buf() });
+    }
+    let (first, last) = options.window.unwrap_or((0, all.len() - 1));
+    if first > last || last >= all.len() {
+        return Err(TrackError::Window {
+            start: first,
+            end: last,
+            count: all.len(),
+        });
+    }
+    if let Some(r) = options.radius {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(TrackError::Option(format!("radius {r} px must be a positive number")));
+        }
+    }
+    if let Some(named) = &options.named_start {
+        if let Some((id, p)) = named.iter().find(|(_, p)| !(p[0].is_finite() && p[1].is_finite())) {
+            return Err(TrackError::Option(format!("start position of \"{id}\" ({}, {}) is not finite", p[0], p[1])));
+        }
+    }
+    let paths: Vec<(usize, PathBuf)> = (first..=last).map(|k| (k, all[k].clone())).collect();
+
+    // Background and noise from an even sample of the window.
+    let samples = load_sample(&paths, BACKGROUND_SAMPLES)?;
+    let size = (samples[0].1.width, samples[0].1.height);
+    let reference = &samples[0].0;
+    for (path, frame) in &samples {
+        check_size(path, frame, reference, size)?;
+    }
+    let sample_frames: Vec<Frame> = samples.iter().map(|(_, f)| f.clone()).collect();
+    let background = estimate_background(&sample_frames, options.background);
+
+    let (radius, radius_estimated) = match options.radius {
+        Some(r) => (r, false),
+        None => (estimate_radius(&background, &sample_frames[..sample_frames.len().min(RADIUS_SAMPLES)]), true),
+    };
+    let expected_area = expected_area(&background, &sample_frames[..sample_frames.len().min(RADIUS_SAMPLES)], radius);
+    let params = DetectParameters {
+        radius,
+        noise_sigma: background.noise_sigma,
+        expected_area,
+    };
+    let window = locate_window(radius);
+
+    // Locate every frame, in parallel.
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let total = paths.len();
+    let located: Result<Vec<FrameDetections>, TrackError> = paths
+        .par_iter()
+        .map(|(k, path)| {
+            let frame = load_frame(path)?;
+            check_size(path, &frame, reference, size)?;
+            let signal = background.signal(&frame);
+            let blobs = find_blobs(&signal, size.0, size.1, &params);
+            let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
+            let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
+            let detections =
+                refine_centroids(&signal, size.0, size.1, &seeds, &areas, window, background.noise_sigma);
+            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(n, total);
+            Ok(FrameDetections { frame: *k, detections })
+        })
+        .collect();
+    let located = located?;
+
+    let mut warnings = Vec::new();
+    let empty: Vec<usize> = located.iter().filter(|f| f.detections.is_empty()).map(|f| f.frame).collect();
+    if !empty.is_empty() {
+        warnings.push(format!("no particle found in {} frame(s): {}", empty.len(), frame_list(&empty)));
+    }
+    let detection_count = located.iter().map(|f| f.detections.len()).sum();
+    let mut eps: Vec<f64> = located
+        .iter()
+        .flat_map(|f| f.detections.iter().map(|d| d.ep))
+        .filter(|e| e.is_finite())
+        .collect();
+
+    let linked = link_detections(
+        &located,
+        &LinkOptions {
+            named_start: options.named_start.clone(),
+            radius,
+            width: size.0,
+            height: size.1,
+            memory: options.memory,
+        },
+    );
+    warnings.extend(linked.warnings.iter().cloned());
+    warnings.extend(
+        linked
+            .ambiguities
+            .iter()
+            .filter(|a| a.kind != AmbiguityKind::Merged || options.named_start.is_some())
+            .map(|a| a.to_string()),
+    );
+    let table = linked.table;
+    let stats = TrackStats {
+        frame_count: total,
+        frames: (first, last),
+        track_count: table.particle_ids().len(),
+        point_count: table.points.len(),
+        detection_count,
+        interpolated_count: table.points.iter().filter(|p| p.flag == PointFlag::Interpolated).count(),
+        split_count: table.points.iter().filter(|p| p.flag == PointFlag::Split).count(),
+        ambiguities: linked.ambiguities,
+        noise_sigma: background.noise_sigma,
+        radius,
+        radius_estimated,
+        background: background.model,
+        dark_on_light: background.is_dark_on_light(),
+        median_ep: median(&mut eps),
+    };
+    Ok(TrackOutcome { table, warnings, stats })
+}
+
+/// Centroid window radius for particles of radius `radius`, px: the disc plus its
+/// anti-aliased edge and a margin for blur, yet short of a touching neighbour's centre.
+fn locate_window(radius: f64) -> f64 {
+    radius * 1.25 + 1.0
+}
+
+/// Loads up to `count` frames spread evenly over `paths`.
+fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<Vec<(PathBuf, Frame)>, TrackError> {
+    let n = paths.len();
+    let picks: Vec<usize> = if n <= count {
+        (0..n).collect()
+    } else {
+        let mut v: Vec<usize> = (0..count).map(|i| i * (n - 1) / (count - 1)).collect();
+        v.dedup();
+        v
+    };
+    picks
+        .par_iter()
+        .map(|&i| load_frame(&paths[i].1).map(|f| (paths[i].1.clone(), f)))
+        .collect()
+}
+
+fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)) -> Result<(), TrackError> {
+    if (frame.width, frame.height) == size {
+        return Ok(());
+    }
+    Err(TrackError::FrameSize {
+        path: path.to_path_buf(),
+        first: reference.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default(),
+        width: size.0,
+        height: size.1,
+        found_width: frame.width,
+        found_height: frame.height,
+    })
+}
+
+/// Estimates the particle radius, px, from the blobs of a few frames: a uniform disc of
+/// radius `R` has radius of gyration `R / sqrt(2)`, so `R = sqrt(2)` times the median
+/// measured gyration radius. Three rounds (detect and locate with the current estimate,
+/// re-measure) make the answer independent of the starting value.
+fn estimate_radius(background: &Background, frames: &[Frame]) -> f64 {
+    let mut radius = START_RADIUS;
+    for _ in 0..3 {
+        let params = DetectParameters {
+            radius,
+            noise_sigma: background.noise_sigma,
+            expected_area: None,
+        };
+        let mut sizes: Vec<f64> = Vec::new();
+        for frame in frames {
+            let signal = background.signal(frame);
+            let blobs = find_blobs(&signal, frame.width, frame.height, &params);
+            let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
+            let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
+            let found = refine_centroids(
+                &signal,
+                frame.width,
+                frame.height,
+                &seeds,
+                &areas,
+                locate_window(radius),
+                background.noise_sigma,
+            );
+            sizes.extend(found.iter().filter(|d| !d.clipped && d.size.is_finite()).map(|d| d.size));
+        }
+        if sizes.is_empty() {
+            break;
+        }
+        let next = (median(&mut sizes) * std::f64::consts::SQRT_2).clamp(1.0, 200.0);
+        if (next - radius).abs() < 0.01 {
+            radius = next;
+            break;
+        }
+        radius = next;
+    }
+    radius
+}
+
+/// The median component area of one particle at `radius`, px², from a few frames; `None`
+/// when no blob is found (size rejection is then off).
+fn expected_area(background: &Background, frames: &[Frame], radius: f64) -> Option<f64> {
+    let params = DetectParameters {
+        radius,
+        noise_sigma: background.noise_sigma,
+        expected_area: None,
+    };
+    let mut areas: Vec<f64> = frames
+        .iter()
+        .flat_map(|frame| {
+            let signal = background.signal(frame);
+            find_blobs(&signal, frame.width, frame.height, &params)
+                .blobs
+                .into_iter()
+                .filter(|b| !b.at_border)
+                .map(|b| b.area)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    if areas.is_empty() {
+        None
+    } else {
+        Some(median(&mut areas))
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+fn frame_list(frames: &[usize]) -> String {
+    let shown: Vec<String> = frames.iter().take(10).map(|f| f.to_string()).collect();
+    if frames.len() > 10 {
+        format!("{} and {} more", shown.join(", "), frames.len() - 10)
+    } else {
+        shown.join(", ")
+    }
+}
