@@ -50,7 +50,10 @@ fn lsq_fit_of_exact_tracks_recovers_every_parameter_and_writes_the_contract() {
         let rel = p["relative_error"].as_f64().unwrap();
         assert!(rel.abs() < 1e-3, "{p}");
     }
-    let torsion = params.iter().find(|p| p["bond"]["at"].is_string()).expect("a torsion parameter");
+    let torsion = params
+        .iter()
+        .find(|p| p["bond"]["at"].is_string())
+        .expect("a torsion parameter");
     assert_eq!(torsion["bond"]["between"].as_array().unwrap().len(), 2);
     assert!(json["costs"]["multi_step_sequence"]["rms"].as_f64().unwrap() < 1e-3);
     assert!(json["history"].is_array() && json["seconds"].is_f64() && json["settings"].is_object());
@@ -71,7 +74,11 @@ fn a_structure_particle_without_a_track_is_named() {
     let dir = tempdir();
     rendered("paper3", dir.path());
     let truth = std::fs::read_to_string(dir.path().join("truth.csv")).unwrap();
-    let ids: Vec<String> = truth.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().to_string()).collect();
+    let ids: Vec<String> = truth
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().to_string())
+        .collect();
     let dropped = ids[1].clone();
     let kept: String = truth
         .lines()
@@ -88,7 +95,10 @@ fn a_structure_particle_without_a_track_is_named() {
         .arg(dir.path().join("f.toml"))
         .assert()
         .failure()
-        .stderr(predicate::str::contains(format!("\"{dropped}\"")).or(predicate::str::contains(format!("{dropped} "))));
+        .stderr(
+            predicate::str::contains(format!("\"{dropped}\""))
+                .or(predicate::str::contains(format!("{dropped} "))),
+        );
     assert!(!dir.path().join("f.toml").exists());
 }
 
@@ -96,7 +106,11 @@ fn a_structure_particle_without_a_track_is_named() {
 fn a_malformed_track_file_is_named_with_its_line() {
     let dir = tempdir();
     rendered("paper3", dir.path());
-    let tracks = write(dir.path(), "bad.csv", "frame,particle,x,y\n0,p0,1.0,2.0\n1,p0,oops,2.0\n");
+    let tracks = write(
+        dir.path(),
+        "bad.csv",
+        "frame,particle,x,y\n0,p0,1.0,2.0\n1,p0,oops,2.0\n",
+    );
     physfit()
         .arg("fit")
         .arg(&tracks)

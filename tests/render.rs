@@ -36,9 +36,18 @@ fn render_writes_frames_truth_structure_and_scene() {
     let dir = tempdir();
     let scene = write(dir.path(), "two.toml", TWO_DISCS);
     let out = dir.path().join("out");
-    physfit().arg("render").arg(&scene).arg("--out").arg(&out).assert().success();
+    physfit()
+        .arg("render")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
 
-    let frames: Vec<_> = std::fs::read_dir(out.join("frames")).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let frames: Vec<_> = std::fs::read_dir(out.join("frames"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(frames.len(), 5);
     let img = image::open(out.join("frames/000000.png")).unwrap().to_luma8();
     assert_eq!(img.dimensions(), (64, 48));
@@ -64,7 +73,10 @@ fn render_writes_frames_truth_structure_and_scene() {
 
     // structure.toml keeps topology and positions but no values; scene.toml keeps values.
     let structure = std::fs::read_to_string(out.join("structure.toml")).unwrap();
-    assert!(structure.contains("between = [\"a\", \"b\"]") && !structure.contains("stiffness"), "{structure}");
+    assert!(
+        structure.contains("between = [\"a\", \"b\"]") && !structure.contains("stiffness"),
+        "{structure}"
+    );
     let full = std::fs::read_to_string(out.join("scene.toml")).unwrap();
     assert!(full.contains("stiffness = 50.0"), "{full}");
     // No staging leftovers.
@@ -81,7 +93,13 @@ fn render_is_deterministic_for_a_seed() {
     let noisy = TWO_DISCS.replace("foreground = 220", "foreground = 220\nnoise = 8.0\nseed = 3");
     let scene = write(dir.path(), "noisy.toml", &noisy);
     for out in ["o1", "o2"] {
-        physfit().arg("render").arg(&scene).arg("--out").arg(dir.path().join(out)).assert().success();
+        physfit()
+            .arg("render")
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.path().join(out))
+            .assert()
+            .success();
     }
     let a = std::fs::read(dir.path().join("o1/frames/000003.png")).unwrap();
     let b = std::fs::read(dir.path().join("o2/frames/000003.png")).unwrap();
@@ -110,14 +128,27 @@ fn simulate_matches_render_truth() {
         .arg(dir.path().join("t.csv"))
         .assert()
         .success();
-    physfit().arg("render").arg(&scene).arg("--out").arg(dir.path().join("r")).assert().success();
-    assert_eq!(read_xy(&dir.path().join("t.csv")), read_xy(&dir.path().join("r/truth.csv")));
+    physfit()
+        .arg("render")
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path().join("r"))
+        .assert()
+        .success();
+    assert_eq!(
+        read_xy(&dir.path().join("t.csv")),
+        read_xy(&dir.path().join("r/truth.csv"))
+    );
 }
 
 #[test]
 fn bad_scene_names_the_file_and_key_and_fails() {
     let dir = tempdir();
-    let scene = write(dir.path(), "bad.toml", &TWO_DISCS.replace("mass = 2.0", "mass = -2.0"));
+    let scene = write(
+        dir.path(),
+        "bad.toml",
+        &TWO_DISCS.replace("mass = 2.0", "mass = -2.0"),
+    );
     physfit()
         .arg("render")
         .arg(&scene)
@@ -125,10 +156,16 @@ fn bad_scene_names_the_file_and_key_and_fails() {
         .arg(dir.path().join("out"))
         .assert()
         .failure()
-        .stderr(predicate::str::contains("bad.toml").and(predicate::str::contains("particle \"b\" has mass -2")));
+        .stderr(
+            predicate::str::contains("bad.toml").and(predicate::str::contains("particle \"b\" has mass -2")),
+        );
     assert!(!dir.path().join("out/frames").exists());
 
-    let typo = write(dir.path(), "typo.toml", &TWO_DISCS.replace("stiffness = 50.0", "stifness = 50.0"));
+    let typo = write(
+        dir.path(),
+        "typo.toml",
+        &TWO_DISCS.replace("stiffness = 50.0", "stifness = 50.0"),
+    );
     physfit()
         .arg("simulate")
         .arg(&typo)

@@ -2,4 +2,5 @@
 
 mod fit;
 mod render;
+mod track;
 mod util;

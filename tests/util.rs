@@ -18,7 +18,10 @@ pub fn scenes_dir() -> PathBuf {
 
 /// A fresh temporary folder, removed when dropped.
 pub fn tempdir() -> tempfile::TempDir {
-    tempfile::Builder::new().prefix("physfit-test-").tempdir().expect("temporary folder")
+    tempfile::Builder::new()
+        .prefix("physfit-test-")
+        .tempdir()
+        .expect("temporary folder")
 }
 
 /// Writes `text` to `dir/name` and returns the path.
@@ -32,12 +35,22 @@ pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 pub fn read_xy(path: &Path) -> Vec<(usize, String, f64, f64)> {
     let mut rdr = csv::Reader::from_path(path).expect("open csv");
     let headers = rdr.headers().expect("headers").clone();
-    let col = |name: &str| headers.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let col = |name: &str| {
+        headers
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    };
     let (f, p, x, y) = (col("frame"), col("particle"), col("x"), col("y"));
     rdr.records()
         .map(|r| {
             let r = r.expect("record");
-            (r[f].parse().unwrap(), r[p].to_string(), r[x].parse().unwrap(), r[y].parse().unwrap())
+            (
+                r[f].parse().unwrap(),
+                r[p].to_string(),
+                r[x].parse().unwrap(),
+                r[y].parse().unwrap(),
+            )
         })
         .collect()
 }

@@ -175,8 +175,14 @@ pub fn parse_window(s: &str) -> Result<(usize, usize), String> {
     let (a, b) = s
         .split_once("..")
         .ok_or_else(|| format!("window `{s}` is not of the form A..B (first and last frame, inclusive)"))?;
-    let a: usize = a.trim().parse().map_err(|_| format!("window `{s}`: `{a}` is not a frame number"))?;
-    let b: usize = b.trim().parse().map_err(|_| format!("window `{s}`: `{b}` is not a frame number"))?;
+    let a: usize = a
+        .trim()
+        .parse()
+        .map_err(|_| format!("window `{s}`: `{a}` is not a frame number"))?;
+    let b: usize = b
+        .trim()
+        .parse()
+        .map_err(|_| format!("window `{s}`: `{b}` is not a frame number"))?;
     if b < a {
         return Err(format!("window `{s}`: last frame {b} is before first frame {a}"));
     }

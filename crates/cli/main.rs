@@ -4,6 +4,7 @@ mod bench;
 mod cli;
 mod cmd;
 mod progress;
+mod report;
 
 use std::process::ExitCode;
 

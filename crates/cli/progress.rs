@@ -17,10 +17,15 @@ pub enum Verbosity {
 
 /// A progress bar for `total` steps of `stage`, hidden unless stderr is a terminal.
 pub fn bar(verbosity: Verbosity, stage: &str, total: u64) -> ProgressBar {
-    let visible = verbosity != Verbosity::Quiet && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+    let visible =
+        verbosity != Verbosity::Quiet && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
     let bar = ProgressBar::with_draw_target(
         Some(total),
-        if visible { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() },
+        if visible {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
     );
     if let Ok(style) = ProgressStyle::with_template("{msg:>10} [{bar:30}] {pos}/{len} {elapsed_precise}") {
         bar.set_style(style.progress_chars("=> "));

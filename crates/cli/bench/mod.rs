@@ -1,6 +1,5 @@
 //! `physfit bench`: speed measurements, reported as Markdown tables (never timed assertions).
 
-
 pub mod fit;
 pub mod render;
 
@@ -22,7 +21,8 @@ pub fn run(args: &BenchArgs, _verbosity: Verbosity) -> anyhow::Result<()> {
     }
     print!("{report}");
     if let Some(path) = &args.out {
-        physfit_model::write_atomic(path, report.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+        physfit_model::write_atomic(path, report.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }

@@ -31,7 +31,8 @@ impl physfit_identify::Observer for BarObserver {
 /// Fits a structure to tracks.
 pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let structure = super::load_scene(&args.structure)?;
-    let tracks = TrackTable::read_csv(&args.tracks).with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let tracks = TrackTable::read_csv(&args.tracks)
+        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
     let mut options = FitOptions {
         method: method(args.method),
         seed: args.seed,
@@ -50,7 +51,13 @@ pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     };
     let bar = progress::bar(verbosity, "fit", options.generations as u64);
     let mut result = physfit_identify::fit(&structure, &tracks, &options, &BarObserver(bar.clone()))
-        .with_context(|| format!("fitting {} to {}", args.structure.display(), args.tracks.display()))?;
+        .with_context(|| {
+            format!(
+                "fitting {} to {}",
+                args.structure.display(),
+                args.tracks.display()
+            )
+        })?;
     bar.finish_and_clear();
     if let Some(truth) = &truth {
         result.report.compare_truth(truth);
@@ -60,10 +67,14 @@ pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             eprintln!("physfit: warning: {w}");
         }
     }
-    result.fitted.save(&args.out).with_context(|| format!("writing {}", args.out.display()))?;
+    result
+        .fitted
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
     if let Some(path) = &args.report {
         let json = serde_json::to_string_pretty(&result.report).context("serialising the fit report")?;
-        physfit_model::write_atomic(path, json.as_bytes()).with_context(|| format!("writing {}", path.display()))?;
+        physfit_model::write_atomic(path, json.as_bytes())
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     if verbosity != Verbosity::Quiet {
         print!("{}", summary(&result.report));
@@ -77,14 +88,21 @@ pub fn summary(report: &physfit_identify::FitReport) -> String {
     use physfit_identify::BondKeys;
     let mut out = format!(
         "{} fitted by {} on frames {}..{} in {:.3} s ({} cost evaluations)\n",
-        report.structure, report.method_used, report.window[0], report.window[1], report.seconds, report.cost_count
+        report.structure,
+        report.method_used,
+        report.window[0],
+        report.window[1],
+        report.seconds,
+        report.cost_count
     );
     for p in &report.parameters {
         let bond = match &p.bond {
             BondKeys::Spring { between } => format!("spring {}-{}", between[0], between[1]),
             BondKeys::Torsion { at, between } => format!("torsion {}-{}-{}", between[0], at, between[1]),
         };
-        let err = p.std_error.map_or_else(|| "?".to_string(), |e| format!("{e:.3e}"));
+        let err = p
+            .std_error
+            .map_or_else(|| "?".to_string(), |e| format!("{e:.3e}"));
         let mut line = format!("  {bond:<24} {:<9} = {:>12.6} +- {err}", p.name, p.value);
         if let (Some(a), Some(e)) = (p.rest_angle_deg, p.rest_angle_std_error_deg) {
             line.push_str(&format!("  ({a:.3} +- {e:.3} deg)"));

@@ -39,7 +39,12 @@ pub fn run(args: &RenderArgs, verbosity: Verbosity) -> anyhow::Result<()> {
 /// Simulates and renders `scene` into `out`: `frames/`, `truth.csv`, `structure.toml` and
 /// `scene.toml`. Everything is written into a staging folder first and moved into place at
 /// the end, so a failed render never leaves outputs that look complete.
-pub fn render_scene(scene: &Scene, source: &Path, out: &Path, verbosity: Verbosity) -> anyhow::Result<Rendered> {
+pub fn render_scene(
+    scene: &Scene,
+    source: &Path,
+    out: &Path,
+    verbosity: Verbosity,
+) -> anyhow::Result<Rendered> {
     let recording = super::simulate_scene(scene, source)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating output folder {}", out.display()))?;
     let staging = out.join(format!(".physfit-render-{}", std::process::id()));
@@ -53,8 +58,13 @@ pub fn render_scene(scene: &Scene, source: &Path, out: &Path, verbosity: Verbosi
         super::truth_table(scene, &recording)
             .write_csv(&staging.join("truth.csv"))
             .context("writing truth.csv")?;
-        scene.structure().save(&staging.join("structure.toml")).context("writing structure.toml")?;
-        scene.save(&staging.join("scene.toml")).context("writing scene.toml")?;
+        scene
+            .structure()
+            .save(&staging.join("structure.toml"))
+            .context("writing structure.toml")?;
+        scene
+            .save(&staging.join("scene.toml"))
+            .context("writing scene.toml")?;
         Ok(())
     })();
     if let Err(e) = result {
@@ -63,7 +73,8 @@ pub fn render_scene(scene: &Scene, source: &Path, out: &Path, verbosity: Verbosi
     }
     let frames_dir = out.join("frames");
     if frames_dir.exists() {
-        std::fs::remove_dir_all(&frames_dir).with_context(|| format!("replacing {}", frames_dir.display()))?;
+        std::fs::remove_dir_all(&frames_dir)
+            .with_context(|| format!("replacing {}", frames_dir.display()))?;
     }
     for name in ["frames", "truth.csv", "structure.toml", "scene.toml"] {
         std::fs::rename(staging.join(name), out.join(name))

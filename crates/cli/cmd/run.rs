@@ -41,7 +41,8 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let (scene, source) = match &args.scene {
         Some(path) => (super::load_scene(path)?, path.clone()),
         None => (
-            Scene::from_toml_str(DEFAULT_SCENE, "<built-in default scene>").context("the built-in default scene")?,
+            Scene::from_toml_str(DEFAULT_SCENE, "<built-in default scene>")
+                .context("the built-in default scene")?,
             PathBuf::from("<built-in default scene>"),
         ),
     };
@@ -57,16 +58,29 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     }
 
     let rendered = super::render::render_scene(&scene, &source, out, verbosity).context("stage render")?;
-    say(format!("render: {} frames of {} -> {}", rendered.frame_count, scene.name, rendered.frames_dir.display()));
+    say(format!(
+        "render: {} frames of {} -> {}",
+        rendered.frame_count,
+        scene.name,
+        rendered.frames_dir.display()
+    ));
 
     let structure = scene.structure();
     let options = TrackOptions {
-        named_start: Some(structure.particles.iter().map(|p| (p.id.clone(), [p.position.x, p.position.y])).collect()),
+        named_start: Some(
+            structure
+                .particles
+                .iter()
+                .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
+                .collect(),
+        ),
         ..TrackOptions::default()
     };
     let bar = progress::bar(verbosity, "track", rendered.frame_count as u64);
-    let tracked = physfit_track::track_folder(&rendered.frames_dir, &options, &|done, _| bar.set_position(done as u64))
-        .with_context(|| format!("stage track: frames in {}", rendered.frames_dir.display()))?;
+    let tracked = physfit_track::track_folder(&rendered.frames_dir, &options, &|done, _| {
+        bar.set_position(done as u64)
+    })
+    .with_context(|| format!("stage track: frames in {}", rendered.frames_dir.display()))?;
     bar.finish_and_clear();
     let tracks_path = out.join("tracks.csv");
     tracked
@@ -87,7 +101,10 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let mut fitted = physfit_identify::fit(&structure, &tracked.table, &FitOptions::default(), &())
         .context("stage fit: tracks.csv against the scene's structure")?;
     fitted.report.compare_truth(&scene);
-    fitted.fitted.save(&out.join("fitted.toml")).context("stage fit: writing fitted.toml")?;
+    fitted
+        .fitted
+        .save(&out.join("fitted.toml"))
+        .context("stage fit: writing fitted.toml")?;
     say(super::fit::summary(&fitted.report));
 
     let report = RunReport {

@@ -11,7 +11,12 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let named_start = match &args.structure {
         Some(path) => {
             let s = super::load_scene(path)?;
-            Some(s.particles.iter().map(|p| (p.id.clone(), [p.position.x, p.position.y])).collect())
+            Some(
+                s.particles
+                    .iter()
+                    .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
+                    .collect(),
+            )
         }
         None => None,
     };
@@ -42,7 +47,8 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         println!("tracks -> {}", args.out.display());
     }
     if let Some(truth_path) = &args.truth {
-        let truth = TrackTable::read_csv(truth_path).with_context(|| format!("reading truth {}", truth_path.display()))?;
+        let truth = TrackTable::read_csv(truth_path)
+            .with_context(|| format!("reading truth {}", truth_path.display()))?;
         let score = physfit_track::score_tracks(&outcome.table, &truth, outcome.stats.match_radius());
         println!("{}", score.to_markdown());
     }

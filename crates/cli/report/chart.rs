@@ -59,7 +59,12 @@ pub struct Series {
 impl Series {
     /// A solid series in the colour of its position in the chart.
     pub fn new(name: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
-        Series { name: name.into(), points, style: LineStyle::Solid, colour: None }
+        Series {
+            name: name.into(),
+            points,
+            style: LineStyle::Solid,
+            colour: None,
+        }
     }
 
     /// The same series drawn in `style`.
@@ -196,7 +201,11 @@ pub(crate) fn linear_range(bounds: Option<(f64, f64)>, pad: f64) -> Range<f64> {
 fn log_range(bounds: Option<(f64, f64)>) -> Range<f64> {
     let (lo, hi) = bounds.unwrap_or((0.1, 10.0));
     let (l0, l1) = (lo.log10(), hi.log10());
-    let (l0, l1) = if l1 - l0 > 1e-9 { (l0 - 0.05 * (l1 - l0), l1 + 0.05 * (l1 - l0)) } else { (l0 - 0.5, l1 + 0.5) };
+    let (l0, l1) = if l1 - l0 > 1e-9 {
+        (l0 - 0.05 * (l1 - l0), l1 + 0.05 * (l1 - l0))
+    } else {
+        (l0 - 0.5, l1 + 0.5)
+    };
     10f64.powf(l0)..10f64.powf(l1)
 }
 
@@ -206,7 +215,7 @@ pub(crate) fn linear_tick_label(v: f64, span: f64) -> String {
     let step = span / 10.0;
     let v = if v.abs() < step * 1e-6 { 0.0 } else { v };
     let magnitude = v.abs().max(step);
-    if magnitude >= 1e5 || magnitude < 1e-3 {
+    if !(1e-3..1e5).contains(&magnitude) {
         return trim_exponent(&format!("{v:.1e}"));
     }
     // Enough decimals for the tick spacing, more if the tick itself needs them (2.5 on an axis ticked in 1s).
@@ -236,16 +245,28 @@ fn series_colour(series: &Series, position: usize) -> [u8; 3] {
 pub(crate) fn render_with_mapping(chart: &LineChart) -> anyhow::Result<(RgbImage, PlotMapping)> {
     font::ensure_registered()?;
     let (width, height) = chart.size;
-    anyhow::ensure!(width >= 200 && height >= 150, "a chart needs at least 200 x 150 pixels, not {width} x {height}");
+    anyhow::ensure!(
+        width >= 200 && height >= 150,
+        "a chart needs at least 200 x 150 pixels, not {width} x {height}"
+    );
     let log_y = chart.log_y;
-    let all = || chart.series.iter().flat_map(|s| s.points.iter().copied()).filter(|&p| drawable(p, log_y));
+    let all = || {
+        chart
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter().copied())
+            .filter(|&p| drawable(p, log_y))
+    };
     let x_range = linear_range(finite_bounds(all().map(|p| p.0)), 0.0);
     let y_bounds = finite_bounds(all().map(|p| p.1));
     let entries: Vec<LegendEntry> = chart
         .series
         .iter()
         .enumerate()
-        .map(|(i, s)| LegendEntry { label: s.name.clone(), swatch: Swatch::Line(series_colour(s, i), s.style) })
+        .map(|(i, s)| LegendEntry {
+            label: s.name.clone(),
+            swatch: Swatch::Line(series_colour(s, i), s.style),
+        })
         .collect();
     let mut buffer = vec![255u8; width as usize * height as usize * 3];
     let mapping = {
@@ -266,9 +287,17 @@ pub(crate) fn render_with_mapping(chart: &LineChart) -> anyhow::Result<(RgbImage
         };
         draw_legend(&side, &entries, mapping.py.start)?;
         if y_bounds.is_none() {
-            let note = if log_y { "no positive data to draw" } else { "no data to draw" };
-            let at = ((mapping.px.start + mapping.px.end) / 2 - 60, (mapping.py.start + mapping.py.end) / 2);
-            root.draw(&Text::new(note, at, font::text(16.0))).map_err(draw_err)?;
+            let note = if log_y {
+                "no positive data to draw"
+            } else {
+                "no data to draw"
+            };
+            let at = (
+                (mapping.px.start + mapping.px.end) / 2 - 60,
+                (mapping.py.start + mapping.py.end) / 2,
+            );
+            root.draw(&Text::new(note, at, font::text(16.0)))
+                .map_err(draw_err)?;
         }
         root.present().map_err(draw_err)?;
         mapping
@@ -327,13 +356,19 @@ where
                 // A lone sample between gaps would be invisible as a line: mark it with a dot.
                 (1, _) => plot.draw(&Circle::new(run[0], 2, style.filled())),
                 (_, (0, _)) => plot.draw(&PathElement::new(run, style)),
-                (_, (dash, gap)) => plot.draw(&DashedPathElement::new(run.into_iter(), dash, gap, style)),
+                (_, (dash, gap)) => plot.draw(&DashedPathElement::new(run, dash, gap, style)),
             };
             result.map_err(draw_err)?;
         }
     }
     let (px, py) = plot.get_pixel_range();
-    Ok(PlotMapping { x: x_range, y: y_range, log_y: chart.log_y, px, py })
+    Ok(PlotMapping {
+        x: x_range,
+        y: y_range,
+        log_y: chart.log_y,
+        px,
+        py,
+    })
 }
 
 #[cfg(test)]
@@ -349,7 +384,12 @@ mod tests {
                     && y >= 0
                     && (x as u32) < image.width()
                     && (y as u32) < image.height()
-                    && image.get_pixel(x as u32, y as u32).0.iter().zip(colour).all(|(&a, b)| a.abs_diff(b) <= 40)
+                    && image
+                        .get_pixel(x as u32, y as u32)
+                        .0
+                        .iter()
+                        .zip(colour)
+                        .all(|(&a, b)| a.abs_diff(b) <= 40)
             })
         })
     }
@@ -363,7 +403,11 @@ mod tests {
         }
         let after: Vec<(f64, f64)> = (20..=40).map(|k| (f64::from(k) * 0.25, -1.0)).collect();
         chart.series.push(Series::new("p0 before", before).with_colour(0));
-        chart.series.push(Series::new("p0 after", after).with_colour(1).with_style(LineStyle::Dashed));
+        chart.series.push(
+            Series::new("p0 after", after)
+                .with_colour(1)
+                .with_style(LineStyle::Dashed),
+        );
         chart
     }
 
@@ -388,26 +432,43 @@ mod tests {
         let solid = palette_colour(0);
         let dashed = palette_colour(1);
         // The plot rectangle is a sensible part of the picture (axes and labels left/below, legend right).
-        assert!(map.px.start > 40 && map.px.end < 900 && map.py.start > 20 && map.py.end < 400, "{map:?}");
+        assert!(
+            map.px.start > 40 && map.px.end < 900 && map.py.start > 20 && map.py.end < 400,
+            "{map:?}"
+        );
         // The solid series is drawn where it has samples ...
         for t in [0.5, 2.0, 3.5, 7.0, 9.5] {
-            assert!(colour_near(&image, map.to_pixel(t, 1.0), 2, solid), "no solid line at t = {t}");
+            assert!(
+                colour_near(&image, map.to_pixel(t, 1.0), 2, solid),
+                "no solid line at t = {t}"
+            );
         }
         // ... and not inside its NaN gap, nor where no series goes (y = 0).
         for t in [4.75, 5.0, 5.25] {
-            assert!(!colour_near(&image, map.to_pixel(t, 1.0), 2, solid), "line drawn across the gap at t = {t}");
+            assert!(
+                !colour_near(&image, map.to_pixel(t, 1.0), 2, solid),
+                "line drawn across the gap at t = {t}"
+            );
         }
         for t in [1.0, 5.0, 9.0] {
             let p = map.to_pixel(t, 0.0);
-            assert!(!colour_near(&image, p, 3, solid) && !colour_near(&image, p, 3, dashed), "stray ink at t = {t}");
+            assert!(
+                !colour_near(&image, p, 3, solid) && !colour_near(&image, p, 3, dashed),
+                "stray ink at t = {t}"
+            );
         }
         // The dashed series starts at t = 5: nothing before it, dashes (some ink, some gaps) after it.
         assert!(!colour_near(&image, map.to_pixel(2.0, -1.0), 3, dashed));
         let row = map.to_pixel(7.0, -1.0).1;
         let (c0, c1) = (map.to_pixel(5.5, -1.0).0, map.to_pixel(9.5, -1.0).0);
-        let inked = (c0..c1).filter(|&c| colour_near(&image, (c, row), 1, dashed)).count();
+        let inked = (c0..c1)
+            .filter(|&c| colour_near(&image, (c, row), 1, dashed))
+            .count();
         let total = (c1 - c0) as usize;
-        assert!(inked > total / 3 && inked < total, "dashed line covers {inked} of {total} columns");
+        assert!(
+            inked > total / 3 && inked < total,
+            "dashed line covers {inked} of {total} columns"
+        );
     }
 
     #[test]
@@ -415,7 +476,9 @@ mod tests {
         let mut chart = LineChart::new("Cost history", "iteration", "cost (px²)");
         chart.log_y = true;
         // 1e2 down to 1e-8 over 101 iterations, with a zero and a negative cost in the middle.
-        let mut cost: Vec<(f64, f64)> = (0..=100).map(|k| (f64::from(k), 10f64.powf(2.0 - 0.1 * f64::from(k)))).collect();
+        let mut cost: Vec<(f64, f64)> = (0..=100)
+            .map(|k| (f64::from(k), 10f64.powf(2.0 - 0.1 * f64::from(k))))
+            .collect();
         cost[50].1 = 0.0;
         cost[51].1 = -3.0;
         chart.series.push(Series::new("cost", cost));
@@ -425,7 +488,10 @@ mod tests {
         // Points at both ends of the range and in the middle decade are drawn where a log axis puts them.
         for k in [2.0, 30.0, 70.0, 98.0] {
             let y = 10f64.powf(2.0 - 0.1 * k);
-            assert!(colour_near(&image, map.to_pixel(k, y), 2, c), "cost {y:e} at iteration {k} not drawn");
+            assert!(
+                colour_near(&image, map.to_pixel(k, y), 2, c),
+                "cost {y:e} at iteration {k} not drawn"
+            );
         }
         // The curve is a straight line on a log axis: halfway in iterations is halfway in pixels.
         let (_, r0) = map.to_pixel(0.0, 1e2);
@@ -434,14 +500,20 @@ mod tests {
         assert!((f64::from(rm) - (0.7 * f64::from(r0) + 0.3 * f64::from(r1))).abs() <= 1.0);
         // The non-positive samples are skipped: the line breaks around them.
         let gap = map.to_pixel(50.5, 10f64.powf(2.0 - 5.05));
-        assert!(!colour_near(&image, gap, 1, c), "the line crosses the skipped samples");
+        assert!(
+            !colour_near(&image, gap, 1, c),
+            "the line crosses the skipped samples"
+        );
     }
 
     #[test]
     fn all_non_positive_on_log_axis_still_draws_an_empty_chart() {
         let mut chart = LineChart::new("Cost", "iteration", "cost");
         chart.log_y = true;
-        chart.series.push(Series::new("cost", vec![(0.0, 0.0), (1.0, -1.0), (2.0, f64::NAN)]));
+        chart.series.push(Series::new(
+            "cost",
+            vec![(0.0, 0.0), (1.0, -1.0), (2.0, f64::NAN)],
+        ));
         let image = render_line_chart(&chart).unwrap();
         assert_eq!(image.dimensions(), (900, 420));
     }
@@ -456,9 +528,19 @@ mod tests {
 
     #[test]
     fn segments_break_at_nan_and_non_positive_on_log() {
-        let pts = [(0.0, 1.0), (1.0, f64::NAN), (2.0, 2.0), (3.0, 3.0), (4.0, -1.0), (5.0, 5.0)];
+        let pts = [
+            (0.0, 1.0),
+            (1.0, f64::NAN),
+            (2.0, 2.0),
+            (3.0, 3.0),
+            (4.0, -1.0),
+            (5.0, 5.0),
+        ];
         assert_eq!(segments(&pts, false).len(), 2);
-        assert_eq!(segments(&pts, true), vec![vec![(0.0, 1.0)], vec![(2.0, 2.0), (3.0, 3.0)], vec![(5.0, 5.0)]]);
+        assert_eq!(
+            segments(&pts, true),
+            vec![vec![(0.0, 1.0)], vec![(2.0, 2.0), (3.0, 3.0)], vec![(5.0, 5.0)]]
+        );
     }
 
     #[test]

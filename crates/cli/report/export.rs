@@ -86,7 +86,9 @@ pub fn write_reports(doc: &ReportDocument, exporters: &[&dyn Exporter]) -> anyho
     let mut outputs = Vec::with_capacity(exporters.len());
     for exporter in exporters {
         let path = doc.dir.join(exporter.file_name());
-        let bytes = exporter.serialize(doc).with_context(|| format!("preparing {}", path.display()))?;
+        let bytes = exporter
+            .serialize(doc)
+            .with_context(|| format!("preparing {}", path.display()))?;
         outputs.push((path, bytes));
     }
     for (path, bytes) in &outputs {
@@ -114,12 +116,17 @@ mod tests {
             dir: dir.path().to_path_buf(),
         };
         let written = write_reports(&doc, &[&MarkdownExporter, &HtmlExporter, &JsonExporter]).unwrap();
-        let names: Vec<_> = written.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        let names: Vec<_> = written
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
         assert_eq!(names, ["report.md", "report.html", "report.json"]);
         let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
         assert!(md.starts_with("# Fit") && md.ends_with('\n'));
         let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
-        assert!(html.contains("<h1>Fit</h1>") && html.contains("<td>0.5</td>") && html.contains("data:image/png"));
+        assert!(
+            html.contains("<h1>Fit</h1>") && html.contains("<td>0.5</td>") && html.contains("data:image/png")
+        );
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap()).unwrap();
         assert!((json["cost"].as_f64().unwrap() - 0.5).abs() < 1e-12);
@@ -136,7 +143,14 @@ mod tests {
         };
         let err = write_reports(&doc, &[&MarkdownExporter, &HtmlExporter]).unwrap_err();
         let text = format!("{err:#}");
-        assert!(text.contains("report.html") && text.contains("gone.png"), "{text}");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "report.md was written anyway");
+        assert!(
+            text.contains("report.html") && text.contains("gone.png"),
+            "{text}"
+        );
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "report.md was written anyway"
+        );
     }
 }

@@ -42,15 +42,35 @@ pub fn markdown_to_html_page(markdown: &str, title: &str, base_dir: &Path) -> an
     let mut open_links: Vec<bool> = Vec::new();
     for event in Parser::new_ext(markdown, options) {
         match event {
-            Event::Start(Tag::Image { link_type, dest_url, title, id }) => {
+            Event::Start(Tag::Image {
+                link_type,
+                dest_url,
+                title,
+                id,
+            }) => {
                 let dest_url = CowStr::from(inline_image(&dest_url, base_dir)?);
-                events.push(Event::Start(Tag::Image { link_type, dest_url, title, id }));
+                events.push(Event::Start(Tag::Image {
+                    link_type,
+                    dest_url,
+                    title,
+                    id,
+                }));
             }
-            Event::Start(Tag::Link { link_type, dest_url, title, id }) => {
+            Event::Start(Tag::Link {
+                link_type,
+                dest_url,
+                title,
+                id,
+            }) => {
                 let keep = is_web_or_anchor(&dest_url);
                 open_links.push(!keep);
                 if keep {
-                    events.push(Event::Start(Tag::Link { link_type, dest_url, title, id }));
+                    events.push(Event::Start(Tag::Link {
+                        link_type,
+                        dest_url,
+                        title,
+                        id,
+                    }));
                 }
             }
             Event::End(TagEnd::Link) => {
@@ -76,7 +96,10 @@ pub fn markdown_to_html_page(markdown: &str, title: &str, base_dir: &Path) -> an
 /// True if and only if `url` is a web address or an anchor in the page (a link the page may keep).
 fn is_web_or_anchor(url: &str) -> bool {
     let lower = url.to_ascii_lowercase();
-    url.starts_with('#') || ["http://", "https://", "mailto:"].iter().any(|s| lower.starts_with(s))
+    url.starts_with('#')
+        || ["http://", "https://", "mailto:"]
+            .iter()
+            .any(|s| lower.starts_with(s))
 }
 
 /// The `data:` URI of the image at `url` (relative to `base_dir`), or the URL itself if it already is one.
@@ -89,9 +112,14 @@ fn inline_image(url: &str, base_dir: &Path) -> anyhow::Result<String> {
         "image {url} is a web address; report.html inlines every picture, so it must be a file beside the report"
     );
     let path = base_dir.join(percent_decode(url));
-    let bytes = std::fs::read(&path).with_context(|| format!("reading image {} for the HTML report", path.display()))?;
-    let mime = image_mime(&bytes)
-        .with_context(|| format!("image {} for the HTML report is not a PNG, JPEG or GIF file", path.display()))?;
+    let bytes = std::fs::read(&path)
+        .with_context(|| format!("reading image {} for the HTML report", path.display()))?;
+    let mime = image_mime(&bytes).with_context(|| {
+        format!(
+            "image {} for the HTML report is not a PNG, JPEG or GIF file",
+            path.display()
+        )
+    })?;
     let encoded = base64::engine::general_purpose::STANDARD.encode(&bytes);
     Ok(format!("data:{mime};base64,{encoded}"))
 }
@@ -168,7 +196,10 @@ mod tests {
         }
         assert!(!lower.contains("src='"), "single-quoted src");
         for href in attributes(&lower, "href") {
-            assert!(href.starts_with('#') || href.starts_with("https://"), "href to a file: {href}");
+            assert!(
+                href.starts_with('#') || href.starts_with("https://"),
+                "href to a file: {href}"
+            );
         }
         assert!(!lower.contains("<link"), "a <link> element");
         assert!(!lower.contains("<script"), "a <script> element");
@@ -199,19 +230,33 @@ mod tests {
         assert!(html.contains("<title>physfit &lt;report&gt;</title>"));
         assert!(html.contains("<h1>Lab note: pendulum</h1>") && html.contains("<h2>Residuals</h2>"));
         assert!(html.contains("<table>") && html.contains("<th>parameter</th>"));
-        assert!(html.contains("<td style=\"text-align: right\">2.01</td>"), "right-aligned numbers");
+        assert!(
+            html.contains("<td style=\"text-align: right\">2.01</td>"),
+            "right-aligned numbers"
+        );
         assert!(html.contains("<li>first item</li>") && html.contains("physfit run --seed 7"));
         // The picture is the very PNG beside the report, base64-encoded.
         let srcs = attributes(&html, "src");
         assert_eq!(srcs.len(), 1, "{srcs:?}");
-        let data = srcs[0].strip_prefix("data:image/png;base64,").expect("a PNG data URI");
-        assert_eq!(base64::engine::general_purpose::STANDARD.decode(data).unwrap(), png);
+        let data = srcs[0]
+            .strip_prefix("data:image/png;base64,")
+            .expect("a PNG data URI");
+        assert_eq!(
+            base64::engine::general_purpose::STANDARD.decode(data).unwrap(),
+            png
+        );
         assert!(html.contains("alt=\"residuals before and after\""));
         // The link to a file became plain text; the anchor and the web link stay.
-        assert!(html.contains("see the JSON and <a href=\"#residuals\">section</a>"), "{html}");
+        assert!(
+            html.contains("see the JSON and <a href=\"#residuals\">section</a>"),
+            "{html}"
+        );
         assert!(html.contains("href=\"https://example.invalid/docs\""));
         // Raw HTML is shown as text, never executed or loaded.
-        assert!(html.contains("&lt;img src=&quot;http://example.invalid/x.png&quot;&gt;&lt;script&gt;"), "{html}");
+        assert!(
+            html.contains("&lt;img src=&quot;http://example.invalid/x.png&quot;&gt;&lt;script&gt;"),
+            "{html}"
+        );
     }
 
     #[test]
@@ -221,9 +266,15 @@ mod tests {
         let text = format!("{err:#}");
         assert!(text.contains("missing-chart.png"), "{text}");
         std::fs::write(dir.path().join("notes.png"), b"not a picture").unwrap();
-        let text = format!("{:#}", markdown_to_html_page("![x](notes.png)", "t", dir.path()).unwrap_err());
+        let text = format!(
+            "{:#}",
+            markdown_to_html_page("![x](notes.png)", "t", dir.path()).unwrap_err()
+        );
         assert!(text.contains("notes.png") && text.contains("not a PNG"), "{text}");
-        let text = format!("{:#}", markdown_to_html_page("![x](https://e.invalid/a.png)", "t", dir.path()).unwrap_err());
+        let text = format!(
+            "{:#}",
+            markdown_to_html_page("![x](https://e.invalid/a.png)", "t", dir.path()).unwrap_err()
+        );
         assert!(text.contains("https://e.invalid/a.png"), "{text}");
     }
 

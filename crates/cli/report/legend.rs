@@ -43,7 +43,10 @@ pub(crate) fn legend_width(entries: &[LegendEntry], max_width: u32) -> anyhow::R
     let style = font::text(FONT_SIZE);
     let mut widest = 0;
     for entry in entries {
-        let (w, _) = style.font.box_size(&entry.label).map_err(|e| anyhow::anyhow!("measuring legend text: {e}"))?;
+        let (w, _) = style
+            .font
+            .box_size(&entry.label)
+            .map_err(|e| anyhow::anyhow!("measuring legend text: {e}"))?;
         widest = widest.max(w);
     }
     let needed = widest + (SWATCH_LENGTH + 3 * PADDING) as u32;
@@ -63,7 +66,7 @@ pub(crate) fn draw_polyline<DB: DrawingBackend>(
     let result = if dash == 0 {
         area.draw(&PathElement::new(points, style))
     } else {
-        area.draw(&DashedPathElement::new(points.into_iter(), dash, gap, style))
+        area.draw(&DashedPathElement::new(points, dash, gap, style))
     };
     result.map_err(|e| anyhow::anyhow!("drawing a legend line: {e}"))
 }
@@ -77,26 +80,37 @@ pub(crate) fn draw_legend<DB: DrawingBackend>(
 ) -> anyhow::Result<()> {
     let (_, height) = area.dim_in_pixel();
     let fits = ((height as i32 - top - PADDING) / ROW_HEIGHT).max(0) as usize;
-    let shown = if entries.len() > fits { fits.saturating_sub(1) } else { entries.len() };
+    let shown = if entries.len() > fits {
+        fits.saturating_sub(1)
+    } else {
+        entries.len()
+    };
     let style = font::text(FONT_SIZE);
-    let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("drawing the legend: {e}");
+    let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| {
+        anyhow::anyhow!("drawing the legend: {e}")
+    };
     for (row, entry) in entries.iter().take(shown).enumerate() {
         let y = top + row as i32 * ROW_HEIGHT + ROW_HEIGHT / 2;
         let x0 = PADDING;
         match entry.swatch {
-            Swatch::Line(colour, line) => draw_polyline(area, vec![(x0, y), (x0 + SWATCH_LENGTH, y)], colour, line, 2)?,
+            Swatch::Line(colour, line) => {
+                draw_polyline(area, vec![(x0, y), (x0 + SWATCH_LENGTH, y)], colour, line, 2)?
+            }
             Swatch::Circle(colour) => {
                 let style = RGBColor(colour[0], colour[1], colour[2]).stroke_width(2);
-                area.draw(&Circle::new((x0 + SWATCH_LENGTH / 2, y), 6, style)).map_err(err)?;
+                area.draw(&Circle::new((x0 + SWATCH_LENGTH / 2, y), 6, style))
+                    .map_err(err)?;
             }
         }
         let text_pos = (x0 + SWATCH_LENGTH + PADDING / 2, y - FONT_SIZE as i32 / 2);
-        area.draw(&Text::new(entry.label.clone(), text_pos, style.clone())).map_err(err)?;
+        area.draw(&Text::new(entry.label.clone(), text_pos, style.clone()))
+            .map_err(err)?;
     }
     if shown < entries.len() {
         let y = top + shown as i32 * ROW_HEIGHT;
         let more = format!("… and {} more", entries.len() - shown);
-        area.draw(&Text::new(more, (PADDING, y), style.clone())).map_err(err)?;
+        area.draw(&Text::new(more, (PADDING, y), style.clone()))
+            .map_err(err)?;
     }
     // A hairline frame so the panel reads as a key, not as more data.
     let frame = RGBColor(200, 200, 200).stroke_width(1);
@@ -104,7 +118,13 @@ pub(crate) fn draw_legend<DB: DrawingBackend>(
     let bottom = top + rows * ROW_HEIGHT + 4;
     let (width, _) = area.dim_in_pixel();
     let right = width as i32 - PADDING / 2;
-    let corners = vec![(2, top - 4), (right, top - 4), (right, bottom), (2, bottom), (2, top - 4)];
+    let corners = vec![
+        (2, top - 4),
+        (right, top - 4),
+        (right, bottom),
+        (2, bottom),
+        (2, top - 4),
+    ];
     area.draw(&PathElement::new(corners, frame)).map_err(err)?;
     Ok(())
 }

@@ -6,7 +6,12 @@
 pub fn markdown_table(header: &[&str], rows: &[Vec<String>]) -> String {
     let cell = |s: &str| s.replace('|', "\\|").replace(['\n', '\r'], " ");
     let numeric = |col: usize| {
-        let mut cells = rows.iter().filter_map(|r| r.get(col)).map(|c| c.trim()).filter(|c| !c.is_empty()).peekable();
+        let mut cells = rows
+            .iter()
+            .filter_map(|r| r.get(col))
+            .map(|c| c.trim())
+            .filter(|c| !c.is_empty())
+            .peekable();
         cells.peek().is_some() && cells.all(looks_numeric)
     };
     let mut out = String::new();
@@ -64,7 +69,10 @@ mod tests {
             vec!["T".to_owned(), "-1e-3".to_owned()],
         ];
         let table = markdown_table(&["name", "value", "note"], &rows);
-        assert_eq!(table, "| name | value | note |\n|---|---:|---|\n| S | 2.00 | a\\|b |\n| T | -1e-3 |  |\n");
+        assert_eq!(
+            table,
+            "| name | value | note |\n|---|---:|---|\n| S | 2.00 | a\\|b |\n| T | -1e-3 |  |\n"
+        );
     }
 
     #[test]

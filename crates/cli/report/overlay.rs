@@ -90,13 +90,18 @@ pub fn overlay_frame(frame: &DynamicImage, marks: &Overlay) -> RgbImage {
     let radius = marks.detection_radius.max(1.5) as f32;
     for &(x, y) in &marks.detections {
         if let Some(circle) = finite(x, y).and_then(|(x, y)| PathBuilder::from_circle(x, y, radius)) {
-            let stroke = Stroke { width: 1.0, ..Stroke::default() };
+            let stroke = Stroke {
+                width: 1.0,
+                ..Stroke::default()
+            };
             pixmap.stroke_path(&circle, &paint(DETECTION_COLOUR, 1.0), &stroke, to_output, None);
         }
     }
     let arm = marks.cross_half_size.max(1.0) as f32;
     for prediction in &marks.predictions {
-        let Some((x, y)) = finite(prediction.position.0, prediction.position.1) else { continue };
+        let Some((x, y)) = finite(prediction.position.0, prediction.position.1) else {
+            continue;
+        };
         let mut pb = PathBuilder::new();
         pb.move_to(x - arm, y);
         pb.line_to(x + arm, y);
@@ -104,8 +109,18 @@ pub fn overlay_frame(frame: &DynamicImage, marks: &Overlay) -> RgbImage {
         pb.line_to(x, y + arm);
         if let Some(cross) = pb.finish() {
             // One frame pixel wide with square caps: the arms cover whole pixels, so the cross is crisp.
-            let stroke = Stroke { width: 1.0, line_cap: LineCap::Square, ..Stroke::default() };
-            pixmap.stroke_path(&cross, &paint(palette_colour(prediction.colour), 1.0), &stroke, to_output, None);
+            let stroke = Stroke {
+                width: 1.0,
+                line_cap: LineCap::Square,
+                ..Stroke::default()
+            };
+            pixmap.stroke_path(
+                &cross,
+                &paint(palette_colour(prediction.colour), 1.0),
+                &stroke,
+                to_output,
+                None,
+            );
         }
     }
 
@@ -121,16 +136,28 @@ pub fn overlay_frame(frame: &DynamicImage, marks: &Overlay) -> RgbImage {
 /// Draws one tail, each segment more opaque than the one before it.
 fn draw_tail(pixmap: &mut Pixmap, tail: &Tail, to_output: Transform) {
     let n = tail.points.len();
-    let stroke = Stroke { width: 1.5, line_cap: LineCap::Butt, ..Stroke::default() };
+    let stroke = Stroke {
+        width: 1.5,
+        line_cap: LineCap::Butt,
+        ..Stroke::default()
+    };
     for (k, pair) in tail.points.windows(2).enumerate() {
-        let (Some(a), Some(b)) = (finite(pair[0].0, pair[0].1), finite(pair[1].0, pair[1].1)) else { continue };
+        let (Some(a), Some(b)) = (finite(pair[0].0, pair[0].1), finite(pair[1].0, pair[1].1)) else {
+            continue;
+        };
         let newness = (k + 1) as f32 / (n - 1) as f32;
         let opacity = TAIL_OLDEST_OPACITY + (1.0 - TAIL_OLDEST_OPACITY) * newness;
         let mut pb = PathBuilder::new();
         pb.move_to(a.0, a.1);
         pb.line_to(b.0, b.1);
         if let Some(segment) = pb.finish() {
-            pixmap.stroke_path(&segment, &paint(palette_colour(tail.colour), opacity), &stroke, to_output, None);
+            pixmap.stroke_path(
+                &segment,
+                &paint(palette_colour(tail.colour), opacity),
+                &stroke,
+                to_output,
+                None,
+            );
         }
     }
 }
@@ -143,7 +170,12 @@ fn finite(x: f64, y: f64) -> Option<(f32, f32)> {
 /// An anti-aliased solid paint of `colour` at `opacity` (0..=1).
 fn paint(colour: [u8; 3], opacity: f32) -> Paint<'static> {
     let mut paint = Paint::default();
-    paint.set_color_rgba8(colour[0], colour[1], colour[2], (opacity.clamp(0.0, 1.0) * 255.0).round() as u8);
+    paint.set_color_rgba8(
+        colour[0],
+        colour[1],
+        colour[2],
+        (opacity.clamp(0.0, 1.0) * 255.0).round() as u8,
+    );
     paint.anti_alias = true;
     paint
 }
@@ -173,15 +205,23 @@ mod tests {
 
     #[test]
     fn detection_circle_is_centred_on_the_pixel_centre_y_down() {
-        let marks = Overlay { detections: vec![(20.0, 30.0)], detection_radius: 5.0, ..Overlay::default() };
+        let marks = Overlay {
+            detections: vec![(20.0, 30.0)],
+            detection_radius: 5.0,
+            ..Overlay::default()
+        };
         let out = overlay_frame(&grey_frame(64, 48), &marks);
         assert_eq!(out.dimensions(), (64, 48));
         // The ring passes through the four pixels 5 px from (20, 30), row 30 counted from the top.
         // (Anti-aliased: each of these pixels is mostly, not wholly, covered by the 1 px wide ring.)
-        let coverage = |p: [u8; 3]| (f64::from(p[0]) - f64::from(GREY[0])) / f64::from(DETECTION_COLOUR[0] - GREY[0]);
+        let coverage =
+            |p: [u8; 3]| (f64::from(p[0]) - f64::from(GREY[0])) / f64::from(DETECTION_COLOUR[0] - GREY[0]);
         for (x, y) in [(25, 30), (15, 30), (20, 25), (20, 35)] {
             let p = px(&out, x, y);
-            assert!(p[0] >= GREY[0] && coverage(p) > 0.6 && p[2] <= GREY[2], "ring missing at ({x}, {y}): {p:?}");
+            assert!(
+                p[0] >= GREY[0] && coverage(p) > 0.6 && p[2] <= GREY[2],
+                "ring missing at ({x}, {y}): {p:?}"
+            );
         }
         // Inside and far outside the ring the frame is untouched; nothing at the y-flipped place (row 17).
         for (x, y) in [(20, 30), (22, 31), (20, 17), (20, 12), (40, 30)] {
@@ -192,7 +232,10 @@ mod tests {
             for dx in -6i32..=6 {
                 let a = coverage(px(&out, (20 + dx) as u32, (30 + dy) as u32));
                 let b = coverage(px(&out, (20 - dx) as u32, (30 - dy) as u32));
-                assert!((a - b).abs() < 0.06, "ring not symmetric at offset ({dx}, {dy}): {a} vs {b}");
+                assert!(
+                    (a - b).abs() < 0.06,
+                    "ring not symmetric at offset ({dx}, {dy}): {a} vs {b}"
+                );
             }
         }
     }
@@ -200,16 +243,39 @@ mod tests {
     #[test]
     fn prediction_cross_covers_whole_pixels_at_integer_positions() {
         let marks = Overlay {
-            predictions: vec![Prediction { colour: 2, position: (40.0, 20.0) }],
+            predictions: vec![Prediction {
+                colour: 2,
+                position: (40.0, 20.0),
+            }],
             cross_half_size: 4.0,
             ..Overlay::default()
         };
         let out = overlay_frame(&grey_frame(64, 48), &marks);
         let c = palette_colour(2);
-        for (x, y) in [(40, 20), (36, 20), (44, 20), (40, 16), (40, 24), (38, 20), (40, 23)] {
-            assert!(close(px(&out, x, y), c, 2), "cross missing at ({x}, {y}): {:?}", px(&out, x, y));
+        for (x, y) in [
+            (40, 20),
+            (36, 20),
+            (44, 20),
+            (40, 16),
+            (40, 24),
+            (38, 20),
+            (40, 23),
+        ] {
+            assert!(
+                close(px(&out, x, y), c, 2),
+                "cross missing at ({x}, {y}): {:?}",
+                px(&out, x, y)
+            );
         }
-        for (x, y) in [(45, 20), (35, 20), (40, 25), (40, 15), (41, 21), (39, 19), (43, 17)] {
+        for (x, y) in [
+            (45, 20),
+            (35, 20),
+            (40, 25),
+            (40, 15),
+            (41, 21),
+            (39, 19),
+            (43, 17),
+        ] {
             assert_eq!(px(&out, x, y), GREY, "cross bleeds into ({x}, {y})");
         }
     }
@@ -217,7 +283,10 @@ mod tests {
     #[test]
     fn enlarged_frame_keeps_marks_on_their_pixels() {
         let marks = Overlay {
-            predictions: vec![Prediction { colour: 2, position: (40.0, 20.0) }],
+            predictions: vec![Prediction {
+                colour: 2,
+                position: (40.0, 20.0),
+            }],
             cross_half_size: 4.0,
             scale: 3,
             ..Overlay::default()
@@ -226,8 +295,20 @@ mod tests {
         assert_eq!(out.dimensions(), (192, 144));
         let c = palette_colour(2);
         // Frame pixel (40, 20) is output pixels 120..123 x 60..63; the arm to x = 44 ends at output column 134.
-        for (x, y) in [(120, 60), (122, 62), (121, 61), (134, 61), (108, 61), (121, 48), (121, 74)] {
-            assert!(close(px(&out, x, y), c, 2), "cross missing at ({x}, {y}): {:?}", px(&out, x, y));
+        for (x, y) in [
+            (120, 60),
+            (122, 62),
+            (121, 61),
+            (134, 61),
+            (108, 61),
+            (121, 48),
+            (121, 74),
+        ] {
+            assert!(
+                close(px(&out, x, y), c, 2),
+                "cross missing at ({x}, {y}): {:?}",
+                px(&out, x, y)
+            );
         }
         for (x, y) in [(119, 58), (123, 58), (135, 61), (107, 61), (121, 47), (121, 75)] {
             assert_eq!(px(&out, x, y), GREY, "cross bleeds into ({x}, {y})");
@@ -236,11 +317,24 @@ mod tests {
 
     #[test]
     fn tail_fades_towards_its_oldest_point() {
-        let tail = Tail { colour: 0, points: vec![(5.0, 10.0), (15.0, 10.0), (25.0, 10.0), (35.0, 10.0)] };
-        let marks = Overlay { tails: vec![tail], ..Overlay::default() };
+        let tail = Tail {
+            colour: 0,
+            points: vec![(5.0, 10.0), (15.0, 10.0), (25.0, 10.0), (35.0, 10.0)],
+        };
+        let marks = Overlay {
+            tails: vec![tail],
+            ..Overlay::default()
+        };
         let out = overlay_frame(&grey_frame(64, 48), &marks);
-        let (old, mid, new) = (ink(px(&out, 10, 10)), ink(px(&out, 20, 10)), ink(px(&out, 30, 10)));
-        assert!(old > 0 && old < mid && mid < new, "tail ink old {old}, middle {mid}, newest {new}");
+        let (old, mid, new) = (
+            ink(px(&out, 10, 10)),
+            ink(px(&out, 20, 10)),
+            ink(px(&out, 30, 10)),
+        );
+        assert!(
+            old > 0 && old < mid && mid < new,
+            "tail ink old {old}, middle {mid}, newest {new}"
+        );
         assert_eq!(px(&out, 20, 14), GREY);
     }
 
@@ -248,8 +342,14 @@ mod tests {
     fn non_finite_marks_are_skipped_and_empty_frames_give_empty_images() {
         let marks = Overlay {
             detections: vec![(f64::NAN, 3.0)],
-            predictions: vec![Prediction { colour: 0, position: (f64::INFINITY, 1.0) }],
-            tails: vec![Tail { colour: 0, points: vec![(1.0, 1.0), (f64::NAN, 2.0), (3.0, 3.0)] }],
+            predictions: vec![Prediction {
+                colour: 0,
+                position: (f64::INFINITY, 1.0),
+            }],
+            tails: vec![Tail {
+                colour: 0,
+                points: vec![(1.0, 1.0), (f64::NAN, 2.0), (3.0, 3.0)],
+            }],
             ..Overlay::default()
         };
         let out = overlay_frame(&grey_frame(8, 8), &marks);

@@ -10,7 +10,12 @@ use image::{ExtendedColorType, ImageEncoder, RgbImage};
 pub fn write_png(path: &Path, image: &RgbImage) -> anyhow::Result<()> {
     let mut bytes = Vec::new();
     image::codecs::png::PngEncoder::new(&mut bytes)
-        .write_image(image.as_raw(), image.width(), image.height(), ExtendedColorType::Rgb8)
+        .write_image(
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            ExtendedColorType::Rgb8,
+        )
         .with_context(|| format!("encoding {}", path.display()))?;
     physfit_model::write_atomic(path, &bytes).with_context(|| format!("writing {}", path.display()))
 }

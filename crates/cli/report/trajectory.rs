@@ -7,7 +7,7 @@ use anyhow::Context;
 use image::RgbImage;
 use plotters::chart::ChartBuilder;
 use plotters::coord::ReverseCoordTranslate;
-use plotters::element::{Circle, DashedPathElement, EmptyElement, PathElement, Text};
+use plotters::element::{Circle, DashedPathElement, PathElement, Text};
 use plotters::prelude::{BitMapBackend, IntoDrawingArea};
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{Color, RGBColor, ShapeStyle, TRANSPARENT, WHITE};
@@ -101,7 +101,8 @@ const MAX_TRACK_ROWS: usize = 12;
 
 /// Draws `plot` and writes it to `path` as a PNG (atomically). Errors name the file.
 pub fn trajectory_plot(path: &Path, plot: &TrajectoryPlot) -> anyhow::Result<()> {
-    let image = render_trajectory_plot(plot).with_context(|| format!("drawing trajectory plot {}", path.display()))?;
+    let image = render_trajectory_plot(plot)
+        .with_context(|| format!("drawing trajectory plot {}", path.display()))?;
     super::write_png(path, &image)
 }
 
@@ -119,39 +120,66 @@ fn legend_entries(plot: &TrajectoryPlot) -> Vec<LegendEntry> {
     let mut entries = Vec::new();
     if plot.tracks.len() <= MAX_TRACK_ROWS {
         for (i, t) in plot.tracks.iter().enumerate() {
-            entries.push(LegendEntry { label: t.name.clone(), swatch: Swatch::Line(palette_colour(i), LineStyle::Solid) });
+            entries.push(LegendEntry {
+                label: t.name.clone(),
+                swatch: Swatch::Line(palette_colour(i), LineStyle::Solid),
+            });
         }
     } else {
         let label = format!("{} observed tracks", plot.tracks.len());
-        entries.push(LegendEntry { label, swatch: Swatch::Line([90, 90, 90], LineStyle::Solid) });
+        entries.push(LegendEntry {
+            label,
+            swatch: Swatch::Line([90, 90, 90], LineStyle::Solid),
+        });
     }
     if !plot.models.is_empty() {
-        entries.push(LegendEntry { label: "observed".into(), swatch: Swatch::Line([60, 60, 60], LineStyle::Solid) });
+        entries.push(LegendEntry {
+            label: "observed".into(),
+            swatch: Swatch::Line([60, 60, 60], LineStyle::Solid),
+        });
     }
     for (m, model) in plot.models.iter().enumerate() {
         let label = format!("{} (predicted)", model.name);
-        entries.push(LegendEntry { label, swatch: Swatch::Line([60, 60, 60], model_style(m)) });
+        entries.push(LegendEntry {
+            label,
+            swatch: Swatch::Line([60, 60, 60], model_style(m)),
+        });
     }
     if !plot.mismatches.is_empty() {
-        entries.push(LegendEntry { label: "located mismatch".into(), swatch: Swatch::Circle([20, 20, 20]) });
+        entries.push(LegendEntry {
+            label: "located mismatch".into(),
+            swatch: Swatch::Circle([20, 20, 20]),
+        });
     }
     entries
 }
 
 /// The region of the image plane shown (x range, y range in px, y down), before matching the plot's aspect.
 fn shown_region(plot: &TrajectoryPlot) -> (Range<f64>, Range<f64>) {
-    let frame = plot.background.as_ref().map(|b| b.dimensions()).or(plot.frame_size);
+    let frame = plot
+        .background
+        .as_ref()
+        .map(|b| b.dimensions())
+        .or(plot.frame_size);
     if let Some((w, h)) = frame {
         // Pixel centres are at integers, so the frame's edges are half a pixel outside them.
         return (-0.5..f64::from(w) - 0.5, -0.5..f64::from(h) - 0.5);
     }
-    let paths = plot.tracks.iter().map(|t| &t.points).chain(plot.models.iter().flat_map(|m| m.paths.iter()));
+    let paths = plot
+        .tracks
+        .iter()
+        .map(|t| &t.points)
+        .chain(plot.models.iter().flat_map(|m| m.paths.iter()));
     let points: Vec<(f64, f64)> = paths.flat_map(|p| p.iter().copied()).collect();
     let circles = plot.mismatches.iter().flat_map(|m| {
         let (x, y, r) = (m.position.0, m.position.1, m.radius.max(0.0));
         [(x - r, y - r), (x + r, y + r)]
     });
-    let all: Vec<(f64, f64)> = points.into_iter().chain(circles).filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
+    let all: Vec<(f64, f64)> = points
+        .into_iter()
+        .chain(circles)
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .collect();
     (
         linear_range(finite_bounds(all.iter().map(|p| p.0)), 0.05),
         linear_range(finite_bounds(all.iter().map(|p| p.1)), 0.05),
@@ -167,18 +195,31 @@ fn widen(range: Range<f64>, length: f64) -> Range<f64> {
 /// Draws `plot` into an RGB image (what [`trajectory_plot`] writes).
 pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage> {
     font::ensure_registered()?;
-    anyhow::ensure!(plot.models.len() <= 2, "a trajectory plot shows at most two models, not {}", plot.models.len());
+    anyhow::ensure!(
+        plot.models.len() <= 2,
+        "a trajectory plot shows at most two models, not {}",
+        plot.models.len()
+    );
     let width = plot.width;
     let entries = legend_entries(plot);
     let legend_w = legend_width(&entries, width / 3)?;
     let fixed_w = legend_w + 2 * MARGIN + Y_LABEL_AREA;
-    anyhow::ensure!(width >= fixed_w + 160, "a trajectory plot needs at least {} pixels of width, not {width}", fixed_w + 160);
+    anyhow::ensure!(
+        width >= fixed_w + 160,
+        "a trajectory plot needs at least {} pixels of width, not {width}",
+        fixed_w + 160
+    );
     let plot_w = f64::from(width - fixed_w);
     let (xs, ys) = shown_region(plot);
     let aspect = (ys.end - ys.start) / (xs.end - xs.start);
-    let plot_h = (plot_w * aspect).clamp(PLOT_HEIGHT_RANGE.0, PLOT_HEIGHT_RANGE.1).round();
+    let plot_h = (plot_w * aspect)
+        .clamp(PLOT_HEIGHT_RANGE.0, PLOT_HEIGHT_RANGE.1)
+        .round();
     // Square pixels: widen whichever range is short for the plot box.
-    let (xs, ys) = (widen(xs.clone(), (ys.end - ys.start) * plot_w / plot_h), widen(ys.clone(), (xs.end - xs.start) * plot_h / plot_w));
+    let (xs, ys) = (
+        widen(xs.clone(), (ys.end - ys.start) * plot_w / plot_h),
+        widen(ys.clone(), (xs.end - xs.start) * plot_h / plot_w),
+    );
     let height = plot_h as u32 + TITLE_HEIGHT + 2 * MARGIN + X_LABEL_AREA;
 
     let mut buffer = vec![255u8; width as usize * height as usize * 3];
@@ -188,7 +229,9 @@ pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage>
         let (title_area, body) = root.split_vertically(TITLE_HEIGHT);
         let title_style = font::text(18.0).pos(Pos::new(HPos::Center, VPos::Center));
         let centre = ((width / 2) as i32, (TITLE_HEIGHT / 2) as i32 + 2);
-        title_area.draw(&Text::new(plot.title.clone(), centre, title_style)).map_err(draw_err)?;
+        title_area
+            .draw(&Text::new(plot.title.clone(), centre, title_style))
+            .map_err(draw_err)?;
         let (main, side) = body.split_horizontally(width - legend_w);
         // The y axis shows -y so that image rows grow downwards; tick labels undo the sign.
         let mut ctx = ChartBuilder::on(&main)
@@ -202,21 +245,33 @@ pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage>
             let coords = ctx.as_coord_spec().clone();
             for row in py.clone() {
                 for col in px.clone() {
-                    let Some((x, minus_y)) = coords.reverse_translate((col, row)) else { continue };
+                    let Some((x, minus_y)) = coords.reverse_translate((col, row)) else {
+                        continue;
+                    };
                     let (fx, fy) = (x.round(), (-minus_y).round());
-                    if fx < 0.0 || fy < 0.0 || fx >= f64::from(frame.width()) || fy >= f64::from(frame.height()) {
+                    if fx < 0.0
+                        || fy < 0.0
+                        || fx >= f64::from(frame.width())
+                        || fy >= f64::from(frame.height())
+                    {
                         continue;
                     }
                     let p = frame.get_pixel(fx as u32, fy as u32).0;
-                    let faded = p.map(|c| (255.0 - (255.0 - f64::from(c)) * BACKGROUND_CONTRAST).round() as u8);
-                    root.draw_pixel((col, row), &RGBColor(faded[0], faded[1], faded[2])).map_err(draw_err)?;
+                    let faded =
+                        p.map(|c| (255.0 - (255.0 - f64::from(c)) * BACKGROUND_CONTRAST).round() as u8);
+                    root.draw_pixel((col, row), &RGBColor(faded[0], faded[1], faded[2]))
+                        .map_err(draw_err)?;
                 }
             }
         }
         let (x_span, y_span) = (xs.end - xs.start, ys.end - ys.start);
         let x_fmt = move |v: &f64| linear_tick_label(*v, x_span);
         let y_fmt = move |v: &f64| linear_tick_label(-*v, y_span);
-        let grid = if plot.background.is_some() { TRANSPARENT } else { RGBColor(230, 230, 230).to_rgba() };
+        let grid = if plot.background.is_some() {
+            TRANSPARENT
+        } else {
+            RGBColor(230, 230, 230).to_rgba()
+        };
         ctx.configure_mesh()
             .x_desc("x (px)")
             .y_desc("y (px, down)")
@@ -251,7 +306,8 @@ pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage>
                 let c = darken(palette_colour(i), 0.35);
                 let style = ShapeStyle::from(RGBColor(c[0], c[1], c[2])).stroke_width(2);
                 for run in segments(path, false) {
-                    area.draw(&DashedPathElement::new(flip(run).into_iter(), dash, gap, style)).map_err(draw_err)?;
+                    area.draw(&DashedPathElement::new(flip(run), dash, gap, style))
+                        .map_err(draw_err)?;
                 }
             }
         }
@@ -262,12 +318,16 @@ pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage>
             if !(x.is_finite() && y.is_finite()) {
                 continue;
             }
-            let r = (mismatch.radius * px_per_unit).max(8.0).min(f64::from(px.end - px.start)) as i32;
+            let r = (mismatch.radius * px_per_unit)
+                .max(8.0)
+                .min(f64::from(px.end - px.start)) as i32;
             let label_style = font::text(13.0).color(&ink);
-            let marker = EmptyElement::at((x, -y))
-                + Circle::new((0, 0), r, ink.stroke_width(2))
-                + Text::new(mismatch.label.clone(), (r * 7 / 10 + 3, -(r * 7 / 10) - 15), label_style);
-            area.draw(&marker).map_err(draw_err)?;
+            let (col, row) = ctx.backend_coord(&(x, -y));
+            root.draw(&Circle::new((col, row), r, ink.stroke_width(2)))
+                .map_err(draw_err)?;
+            let label_at = (col + r * 7 / 10 + 3, row - r * 7 / 10 - 15);
+            root.draw(&Text::new(mismatch.label.clone(), label_at, label_style))
+                .map_err(draw_err)?;
         }
         draw_legend(&side, &entries, py.start - TITLE_HEIGHT as i32)?;
         root.present().map_err(draw_err)?;
@@ -327,8 +387,14 @@ mod tests {
         let mut plot = TrajectoryPlot::new("Trajectories");
         plot.background = Some(frame);
         // Track 0 runs along row y = 100 (near the bottom of the frame), left to right.
-        plot.tracks.push(Track { name: "p0".into(), points: (20..=140).map(|x| (f64::from(x), 100.0)).collect() });
-        plot.models.push(ModelPaths { name: "springs".into(), paths: vec![(20..=140).map(|x| (f64::from(x), 60.0)).collect()] });
+        plot.tracks.push(Track {
+            name: "p0".into(),
+            points: (20..=140).map(|x| (f64::from(x), 100.0)).collect(),
+        });
+        plot.models.push(ModelPaths {
+            name: "springs".into(),
+            paths: vec![(20..=140).map(|x| (f64::from(x), 60.0)).collect()],
+        });
         let image = render_trajectory_plot(&plot).unwrap();
         assert_eq!(image.width(), 900);
         let b = plot_box(&plot, &image);
@@ -338,33 +404,62 @@ mod tests {
         let track = palette_colour(0);
         // The track is near the bottom of the plot, not the top: y grows downwards.
         assert!(count_near(&image, to_pixel(&b, (160, 120), (80.0, 100.0)), 3, track, 30) > 0);
-        assert_eq!(count_near(&image, to_pixel(&b, (160, 120), (80.0, 20.0)), 3, track, 30), 0);
+        assert_eq!(
+            count_near(&image, to_pixel(&b, (160, 120), (80.0, 20.0)), 3, track, 30),
+            0
+        );
         // The model's path is drawn dashed in a darker shade along y = 60.
         let model = darken(track, 0.35);
         let row = to_pixel(&b, (160, 120), (0.0, 60.0)).1;
-        let (c0, c1) = (to_pixel(&b, (160, 120), (30.0, 0.0)).0, to_pixel(&b, (160, 120), (130.0, 0.0)).0);
-        let inked = (c0..c1).filter(|&c| count_near(&image, (c, row), 1, model, 30) > 0).count();
-        assert!(inked > (c1 - c0) as usize / 3 && inked < (c1 - c0) as usize, "dashes cover {inked} columns");
+        let (c0, c1) = (
+            to_pixel(&b, (160, 120), (30.0, 0.0)).0,
+            to_pixel(&b, (160, 120), (130.0, 0.0)).0,
+        );
+        let inked = (c0..c1)
+            .filter(|&c| count_near(&image, (c, row), 1, model, 30) > 0)
+            .count();
+        assert!(
+            inked > (c1 - c0) as usize / 3 && inked < (c1 - c0) as usize,
+            "dashes cover {inked} columns"
+        );
         // The background: the bright square shows white at its place (top left), the dark frame shows faded grey.
         let (col, row) = to_pixel(&b, (160, 120), (20.0, 20.0));
-        assert!(is_colour(image.get_pixel(col as u32, row as u32).0, [255, 255, 255], 2));
+        assert!(is_colour(
+            image.get_pixel(col as u32, row as u32).0,
+            [255, 255, 255],
+            2
+        ));
         let (col, row) = to_pixel(&b, (160, 120), (80.0, 30.0));
         let grey = (255.0 * (1.0 - BACKGROUND_CONTRAST)).round() as u8;
-        assert!(is_colour(image.get_pixel(col as u32, row as u32).0, [grey; 3], 2), "{:?}", image.get_pixel(col as u32, row as u32));
+        assert!(
+            is_colour(image.get_pixel(col as u32, row as u32).0, [grey; 3], 2),
+            "{:?}",
+            image.get_pixel(col as u32, row as u32)
+        );
     }
 
     #[test]
     fn mismatch_circle_is_drawn_around_its_position() {
         let mut plot = TrajectoryPlot::new("Mismatch");
         plot.frame_size = Some((200, 150));
-        plot.tracks.push(Track { name: "p0".into(), points: vec![(10.0, 10.0), (20.0, 10.0)] });
-        plot.mismatches.push(Mismatch { position: (100.0, 75.0), radius: 20.0, label: "p1: drag?".into() });
+        plot.tracks.push(Track {
+            name: "p0".into(),
+            points: vec![(10.0, 10.0), (20.0, 10.0)],
+        });
+        plot.mismatches.push(Mismatch {
+            position: (100.0, 75.0),
+            radius: 20.0,
+            label: "p1: drag?".into(),
+        });
         let image = render_trajectory_plot(&plot).unwrap();
         let b = plot_box(&plot, &image);
         let ink = [20, 20, 20];
         let centre = to_pixel(&b, (200, 150), (100.0, 75.0));
         let edge = to_pixel(&b, (200, 150), (80.0, 75.0));
-        assert!(count_near(&image, edge, 2, ink, 40) > 0, "no circle at the mismatch's radius");
+        assert!(
+            count_near(&image, edge, 2, ink, 40) > 0,
+            "no circle at the mismatch's radius"
+        );
         assert_eq!(count_near(&image, centre, 3, ink, 40), 0, "the circle is filled");
     }
 
@@ -372,7 +467,10 @@ mod tests {
     fn more_than_two_models_is_an_error() {
         let mut plot = TrajectoryPlot::new("t");
         for name in ["a", "b", "c"] {
-            plot.models.push(ModelPaths { name: name.into(), paths: Vec::new() });
+            plot.models.push(ModelPaths {
+                name: name.into(),
+                paths: Vec::new(),
+            });
         }
         let err = render_trajectory_plot(&plot).unwrap_err().to_string();
         assert!(err.contains("at most two models"), "{err}");
@@ -383,7 +481,15 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("trajectories.png");
         let mut plot = TrajectoryPlot::new("Trajectories");
-        plot.tracks.push(Track { name: "p0".into(), points: vec![(300.0, 200.0), (310.0, 240.0), (f64::NAN, f64::NAN), (330.0, 260.0)] });
+        plot.tracks.push(Track {
+            name: "p0".into(),
+            points: vec![
+                (300.0, 200.0),
+                (310.0, 240.0),
+                (f64::NAN, f64::NAN),
+                (330.0, 260.0),
+            ],
+        });
         trajectory_plot(&path, &plot).unwrap();
         let decoded = image::open(&path).unwrap();
         assert_eq!(decoded.width(), 900);

@@ -89,7 +89,13 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         let stride = (k * median.len() / 2_000_000).max(1) | 1;
         let mut dev: Vec<f32> = Vec::with_capacity(k * median.len() / stride + 1);
         for f in samples {
-            dev.extend(f.data.iter().zip(&median).step_by(stride).map(|(a, b)| (a - b).abs()));
+            dev.extend(
+                f.data
+                    .iter()
+                    .zip(&median)
+                    .step_by(stride)
+                    .map(|(a, b)| (a - b).abs()),
+            );
         }
         // With an odd number of samples one of them equals the median at each pixel.
         let m = quantile(&mut dev, 0.5) as f64 * 1.4826;
@@ -111,7 +117,9 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         BackgroundChoice::Constant => BackgroundModel::Constant,
         BackgroundChoice::PerPixel if k >= 2 => BackgroundModel::PerPixel,
         BackgroundChoice::PerPixel => BackgroundModel::Constant,
-        BackgroundChoice::Auto if k >= 3 && structured_fraction > STRUCTURED_LIMIT => BackgroundModel::PerPixel,
+        BackgroundChoice::Auto if k >= 3 && structured_fraction > STRUCTURED_LIMIT => {
+            BackgroundModel::PerPixel
+        }
         BackgroundChoice::Auto => BackgroundModel::Constant,
     };
     let image = match model {
@@ -135,7 +143,18 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
     let mut signal = Vec::new();
     for f in samples {
         bg.signal_into(f, &mut signal);
-        negatives.extend(signal.iter().filter(|&&s| s < 0.0).map(|s| -s));
+        // 8-bit frames hold whole levels, so the signal takes values one level apart and
+        // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
+        // deterministic dither spread evenly over one level makes the distribution
+        // continuous again: its spread is then that of the quantised noise itself.
+        negatives.extend(
+            signal
+                .iter()
+                .enumerate()
+                .map(|(i, &s)| s + dither(i))
+                .filter(|&s| s < 0.0)
+                .map(|s| -s),
+        );
     }
     bg.noise_sigma = if negatives.len() >= 16 {
         (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
@@ -169,9 +188,13 @@ impl Background {
             _ => {
                 let c = self.channels;
                 let u = &self.direction;
-                out.extend(frame.data.chunks_exact(c).zip(self.image.chunks_exact(c)).map(|(p, b)| {
-                    p.iter().zip(b).zip(u).map(|((p, b), u)| u * (p - b)).sum::<f32>()
-                }));
+                out.extend(
+                    frame
+                        .data
+                        .chunks_exact(c)
+                        .zip(self.image.chunks_exact(c))
+                        .map(|(p, b)| p.iter().zip(b).zip(u).map(|((p, b), u)| u * (p - b)).sum::<f32>()),
+                );
             }
         }
     }
@@ -181,6 +204,13 @@ impl Background {
     pub fn is_dark_on_light(&self) -> bool {
         self.direction.iter().sum::<f32>() < 0.0
     }
+}
+
+/// An offset in `[-0.5, 0.5)` grey levels for sample `i`, evenly spread over that range along
+/// any run of consecutive samples (the golden-ratio sequence).
+fn dither(i: usize) -> f32 {
+    const PHI_FRAC: f64 = 0.618_033_988_749_894_8;
+    ((i as f64 * PHI_FRAC).fract() - 0.5) as f32
 }
 
 fn median_image(samples: &[Frame]) -> Vec<f32> {
@@ -229,7 +259,11 @@ fn mode_level(image: &[f32], channels: usize, c: usize) -> f32 {
     for v in image.iter().skip(c).step_by(channels) {
         hist[v.round().clamp(0.0, 255.0) as usize] += 1;
     }
-    let (mode, _) = hist.iter().enumerate().max_by_key(|(i, &n)| (n, usize::MAX - i)).unwrap_or((0, &0));
+    let (mode, _) = hist
+        .iter()
+        .enumerate()
+        .max_by_key(|(i, &n)| (n, usize::MAX - i))
+        .unwrap_or((0, &0));
     let lo = mode as f32 - 2.5;
     let hi = mode as f32 + 2.5;
     let (mut sum, mut count) = (0.0f64, 0usize);
@@ -318,7 +352,9 @@ mod tests {
 
     #[test]
     fn dark_on_light_gets_negative_direction_and_positive_signal() {
-        let samples: Vec<Frame> = (0..5).map(|k| frame_with_spot(200.0, 50.0, (5 + 6 * k, 10))).collect();
+        let samples: Vec<Frame> = (0..5)
+            .map(|k| frame_with_spot(200.0, 50.0, (5 + 6 * k, 10)))
+            .collect();
         let bg = estimate_background(&samples, BackgroundChoice::Auto);
         assert_eq!(bg.model, BackgroundModel::Constant);
         assert!((bg.level[0] - 200.0).abs() < 1e-3);
@@ -344,7 +380,11 @@ mod tests {
         let bg = estimate_background(&samples, BackgroundChoice::Auto);
         assert_eq!(bg.model, BackgroundModel::PerPixel);
         let s = bg.signal(&samples[3]);
-        assert!(s[3 * 40 + 30].abs() < 1e-3, "background pixel signal {}", s[3 * 40 + 30]);
+        assert!(
+            s[3 * 40 + 30].abs() < 1e-3,
+            "background pixel signal {}",
+            s[3 * 40 + 30]
+        );
         assert!(s[15 * 40 + 17] > 100.0);
     }
 

@@ -69,7 +69,9 @@ pub struct BlobSet {
 /// Half-width of the matched box filter for particles of radius `radius`, px: a box of
 /// the disc's area.
 pub fn box_half_width(radius: f64) -> usize {
-    (((radius * std::f64::consts::PI.sqrt() - 1.0) / 2.0).round().max(1.0)) as usize
+    (((radius * std::f64::consts::PI.sqrt() - 1.0) / 2.0)
+        .round()
+        .max(1.0)) as usize
 }
 
 /// Finds particle-like blobs in a signal image (`width * height`, row-major, grey levels,
@@ -101,16 +103,46 @@ pub fn find_blobs_with_scratch(
     }
     let h = box_half_width(params.radius);
     let big = 2 * h + 1;
-    box_mean(signal, width, height, h, &mut scratch.small, &mut scratch.tmp, &mut scratch.col);
-    box_mean(signal, width, height, big, &mut scratch.large, &mut scratch.tmp, &mut scratch.col);
+    box_mean(
+        signal,
+        width,
+        height,
+        h,
+        &mut scratch.small,
+        &mut scratch.tmp,
+        &mut scratch.col,
+    );
+    box_mean(
+        signal,
+        width,
+        height,
+        big,
+        &mut scratch.large,
+        &mut scratch.tmp,
+        &mut scratch.col,
+    );
     let (small, large) = (&scratch.small, &scratch.large);
+    let sigma = params.noise_sigma.max(1e-6);
+    // Near the border the boxes hold fewer pixels, so their means are noisier: the noise of
+    // each filtered pixel is propagated from its own pixel counts (interior counts give the
+    // smallest thresholds, `peak_min` and `mask_t`), otherwise the border sprouts false peaks.
+    let count_small_x = box_counts(width, h);
+    let count_small_y = box_counts(height, h);
+    let count_large_x = box_counts(width, big);
+    let count_large_y = box_counts(height, big);
+    let band_sigma_at = |x: usize, y: usize| {
+        let ns = count_small_x[x] * count_small_y[y];
+        let nl = count_large_x[x] * count_large_y[y];
+        sigma * (1.0 / ns - 1.0 / nl).max(0.0).sqrt()
+    };
     let n_small = ((2 * h + 1) * (2 * h + 1)) as f64;
     let n_large = ((2 * big + 1) * (2 * big + 1)) as f64;
-    let sigma = params.noise_sigma.max(1e-6);
-    let sigma_small = sigma / n_small.sqrt();
-    let sigma_band = sigma * (1.0 / n_small - 1.0 / n_large).sqrt();
-    let peak_t = (PEAK_SIGMAS * sigma_band) as f32;
-    let mask_t = (MASK_SIGMAS * sigma_small) as f32;
+    let peak_min = (PEAK_SIGMAS * sigma * (1.0 / n_small - 1.0 / n_large).sqrt()) as f32;
+    let mask_t = (MASK_SIGMAS * sigma / n_small.sqrt()) as f32;
+    // Mask threshold factors per column and row: sqrt(full count / count) of the small box.
+    let full = (2 * h + 1) as f64;
+    let mask_fx: Vec<f32> = count_small_x.iter().map(|&c| (full / c).sqrt() as f32).collect();
+    let mask_fy: Vec<f32> = count_small_y.iter().map(|&c| (full / c).sqrt() as f32).collect();
 
     // Local maxima of the band-pass response (strict against earlier neighbours in raster
     // order, non-strict against later ones, so a plateau yields one maximum per row run).
@@ -121,7 +153,10 @@ pub fn find_blobs_with_scratch(
         for x in 0..width {
             let i = row + x;
             let v = band(i);
-            if v <= peak_t || small[i] <= mask_t {
+            if v <= peak_min || small[i] <= mask_t * mask_fx[x] * mask_fy[y] {
+                continue;
+            }
+            if f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
                 continue;
             }
             let mut is_max = true;
@@ -181,7 +216,7 @@ pub fn find_blobs_with_scratch(
     }
 
     // Components of the smoothed signal above the mask threshold, as row runs.
-    let comps = label_runs(small, width, height, mask_t);
+    let comps = label_runs(small, width, height, mask_t, &mask_fx, &mask_fy);
     let mut seeds_per: Vec<u32> = vec![0; comps.area.len()];
     let labels: Vec<Option<usize>> = kept.iter().map(|&(_, x, y)| comps.label_at(x, y)).collect();
     for l in labels.iter().flatten() {
@@ -190,7 +225,10 @@ pub fn find_blobs_with_scratch(
     let mut out = BlobSet::default();
     for (&(v, x, y), label) in kept.iter().zip(&labels) {
         let (area, at_border) = match label {
-            Some(l) => (comps.area[*l] as f64 / f64::from(seeds_per[*l].max(1)), comps.border[*l]),
+            Some(l) => (
+                comps.area[*l] as f64 / f64::from(seeds_per[*l].max(1)),
+                comps.border[*l],
+            ),
             None => (1.0, false),
         };
         if let Some(expected) = params.expected_area {
@@ -242,7 +280,23 @@ impl Components {
     }
 }
 
-fn label_runs(image: &[f32], width: usize, height: usize, threshold: f32) -> Components {
+/// Pixels in a box of half-width `h` about each position along an axis of `len` pixels
+/// (the box clipped by the image edges).
+fn box_counts(len: usize, h: usize) -> Vec<f64> {
+    (0..len)
+        .map(|x| ((x + h).min(len - 1) - x.saturating_sub(h) + 1) as f64)
+        .collect()
+}
+
+/// Components of `image > threshold * fx[x] * fy[y]`.
+fn label_runs(
+    image: &[f32],
+    width: usize,
+    height: usize,
+    threshold: f32,
+    fx: &[f32],
+    fy: &[f32],
+) -> Components {
     let mut rows: Vec<Vec<(usize, usize, usize)>> = Vec::with_capacity(height);
     let mut parent: Vec<usize> = Vec::new();
     fn find(parent: &mut [usize], mut a: usize) -> usize {
@@ -254,12 +308,14 @@ fn label_runs(image: &[f32], width: usize, height: usize, threshold: f32) -> Com
     }
     for y in 0..height {
         let line = &image[y * width..(y + 1) * width];
+        let ty = threshold * fy[y];
+        let above = |x: usize| line[x] > ty * fx[x];
         let mut runs = Vec::new();
         let mut x = 0;
         while x < width {
-            if line[x] > threshold {
+            if above(x) {
                 let start = x;
-                while x < width && line[x] > threshold {
+                while x < width && above(x) {
                     x += 1;
                 }
                 let label = parent.len();
@@ -431,7 +487,10 @@ mod tests {
         found.sort_unstable();
         assert_eq!(found.len(), 3, "{found:?}");
         for (f, t) in found.iter().zip([(20.0, 20.0), (28.0, 20.0), (60.5, 50.25)]) {
-            assert!((f.0 as f64 - t.0).abs() <= 1.0 && (f.1 as f64 - t.1).abs() <= 1.0, "{found:?}");
+            assert!(
+                (f.0 as f64 - t.0).abs() <= 1.0 && (f.1 as f64 - t.1).abs() <= 1.0,
+                "{found:?}"
+            );
         }
         assert!(set.too_large_count > 0);
     }

@@ -53,7 +53,10 @@ impl Frame {
         let data = if channels == 3 {
             self.data.iter().flat_map(|&v| [v, v, v]).collect()
         } else {
-            self.data.chunks_exact(3).map(|c| (c[0] + c[1] + c[2]) / 3.0).collect()
+            self.data
+                .chunks_exact(3)
+                .map(|c| (c[0] + c[1] + c[2]) / 3.0)
+                .collect()
         };
         Frame {
             channels,
@@ -74,8 +77,14 @@ pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, TrackError> {
     let mut files = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io_err)? {
         let path = entry.map_err(io_err)?.path();
-        let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
         if !name.starts_with('.') && matches!(ext.as_str(), "png" | "jpg" | "jpeg") && path.is_file() {
             files.push(path);
         }
@@ -99,7 +108,11 @@ pub fn compare_natural(a: &str, b: &str) -> Ordering {
                 let (da, db) = (&a[..na], &b[..nb]);
                 let ta = trim_zeros(da);
                 let tb = trim_zeros(db);
-                let ord = ta.len().cmp(&tb.len()).then_with(|| ta.cmp(tb)).then_with(|| na.cmp(&nb));
+                let ord = ta
+                    .len()
+                    .cmp(&tb.len())
+                    .then_with(|| ta.cmp(tb))
+                    .then_with(|| na.cmp(&nb));
                 if ord != Ordering::Equal {
                     return ord;
                 }
@@ -151,7 +164,9 @@ pub fn load_frame(path: &Path) -> Result<Frame, TrackError> {
     let reader = image::ImageReader::new(Cursor::new(&bytes))
         .with_guessed_format()
         .map_err(|e| decode_err(e.to_string()))?;
-    let image = reader.decode().map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
+    let image = reader
+        .decode()
+        .map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
     Ok(frame_from_image(&image))
 }
 
@@ -162,13 +177,20 @@ pub fn frame_from_image(image: &DynamicImage) -> Frame {
         DynamicImage::ImageLuma8(b) => (1, b.as_raw().iter().map(|&v| f32::from(v)).collect()),
         DynamicImage::ImageLumaA8(b) => (1, b.as_raw().chunks_exact(2).map(|p| f32::from(p[0])).collect()),
         DynamicImage::ImageLuma16(b) => (1, b.as_raw().iter().map(|&v| f32::from(v) / 257.0).collect()),
-        DynamicImage::ImageLumaA16(b) => {
-            (1, b.as_raw().chunks_exact(2).map(|p| f32::from(p[0]) / 257.0).collect())
-        }
+        DynamicImage::ImageLumaA16(b) => (
+            1,
+            b.as_raw()
+                .chunks_exact(2)
+                .map(|p| f32::from(p[0]) / 257.0)
+                .collect(),
+        ),
         DynamicImage::ImageRgb8(b) => (3, b.as_raw().iter().map(|&v| f32::from(v)).collect()),
         DynamicImage::ImageRgba8(b) => (
             3,
-            b.as_raw().chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]].map(f32::from)).collect(),
+            b.as_raw()
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]].map(f32::from))
+                .collect(),
         ),
         DynamicImage::ImageRgb16(b) => (3, b.as_raw().iter().map(|&v| f32::from(v) / 257.0).collect()),
         DynamicImage::ImageRgba16(b) => (
@@ -194,9 +216,24 @@ mod tests {
 
     #[test]
     fn natural_order_puts_2_before_10() {
-        let mut names = vec!["frame_10.png", "frame_2.png", "frame_1.png", "frame_02.png", "a.png"];
+        let mut names = vec![
+            "frame_10.png",
+            "frame_2.png",
+            "frame_1.png",
+            "frame_02.png",
+            "a.png",
+        ];
         names.sort_by(|a, b| compare_natural(a, b));
-        assert_eq!(names, ["a.png", "frame_1.png", "frame_2.png", "frame_02.png", "frame_10.png"]);
+        assert_eq!(
+            names,
+            [
+                "a.png",
+                "frame_1.png",
+                "frame_2.png",
+                "frame_02.png",
+                "frame_10.png"
+            ]
+        );
     }
 
     #[test]

@@ -127,6 +127,8 @@ struct Track {
     /// One point per frame from `first_frame`, contiguous.
     points: Vec<Point>,
     misses: usize,
+    /// Points located in frames (detected or split), not bridged.
+    seen: usize,
     err_cv: Option<f64>,
     err_ca: Option<f64>,
     /// Prediction scale before any velocity is known, px.
@@ -136,11 +138,13 @@ struct Track {
 
 impl Track {
     fn new(name: String, frame: usize, p: Point, init_scale: f64) -> Track {
+        let seen = usize::from(p.flag != PointFlag::Interpolated);
         Track {
             name,
             first_frame: frame,
             points: vec![p],
             misses: 0,
+            seen,
             err_cv: None,
             err_ca: None,
             init_scale,
@@ -209,7 +213,12 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     };
     let r = options.radius.max(0.5);
     let floor = (0.25 * r).max(0.5);
-    let typical_mass = median(frames.iter().flat_map(|f| f.detections.iter().map(|d| d.mass)).collect());
+    let typical_mass = median(
+        frames
+            .iter()
+            .flat_map(|f| f.detections.iter().map(|d| d.mass))
+            .collect(),
+    );
     let mut tracks: Vec<Track> = Vec::new();
     let named = options.named_start.is_some();
     let mut events: Vec<(usize, AmbiguityKind, Vec<usize>)> = Vec::new();
@@ -258,7 +267,13 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             tracks.push(Track::new(name.clone(), first.frame, point, init.max(floor)));
         }
     } else {
-        start_tracks(&mut tracks, first, &vec![false; first.detections.len()], floor, options);
+        start_tracks(
+            &mut tracks,
+            first,
+            &vec![false; first.detections.len()],
+            floor,
+            options,
+        );
     }
 
     for fd in &frames[1..] {
@@ -270,7 +285,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         // Columns: each detection once per particle its mass can hold.
         let mut col_det: Vec<usize> = Vec::new();
         for (j, d) in dets.iter().enumerate() {
-            let cap = if typical_mass > 0.0 { (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize } else { 1 };
+            let cap = if typical_mass > 0.0 {
+                (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize
+            } else {
+                1
+            };
             col_det.extend(std::iter::repeat(j).take(cap));
         }
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
@@ -308,10 +327,18 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 None => unassigned.push(k),
             }
         }
-        // A track left over whose prediction falls inside a taken blob joins it.
+        // A track left over whose prediction falls inside a taken blob joins it, provided it
+        // was located in the previous frame and has a velocity from located points: a
+        // track that is itself being bridged, or has been seen once, says too little about
+        // where its particle is to claim a share of another particle's blob.
         let merge_r = 1.5 * r;
         let mut still: Vec<usize> = Vec::new();
         for &k in &unassigned {
+            let tr = &tracks[live[k]];
+            if tr.misses > 0 || tr.seen < 2 {
+                still.push(k);
+                continue;
+            }
             let p = preds[k].0;
             let best = tree.as_ref().and_then(|tree| {
                 tree.within_unsorted::<SquaredEuclidean>(&p, merge_r * merge_r)
@@ -326,7 +353,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             }
         }
         // Second chance for the rest: the nearest detection nobody took, within a gate
-        // widened by the misses, provided no other leftover track is as close to it.
+        // widened by the misses, provided no other leftover track is as close to it. Only
+        // named tracks and tracks located at least twice get it: a new unnamed track (often
+        // a noise speck) has no motion to extrapolate a wide gate from.
         let free: Vec<usize> = (0..dets.len()).filter(|&j| det_tracks[j].is_empty()).collect();
         let mut problem2 = SparseProblem {
             pairs: Vec::new(),
@@ -334,6 +363,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             col_miss: vec![0.0; free.len()],
         };
         for (a, &k) in still.iter().enumerate() {
+            if !named && tracks[live[k]].seen < 2 {
+                continue;
+            }
             let (p, s) = preds[k];
             let g = (GATE_SIGMAS * s * 2.0).max(2.0 * r + speed(&tracks[live[k]]));
             for (b, &j) in free.iter().enumerate() {
@@ -362,17 +394,21 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 let ti = live[group[0]];
                 tracks[ti].learn([d.x, d.y]);
                 tracks[ti].misses = 0;
+                tracks[ti].seen += 1;
                 tracks[ti].points.push(point_from(d, PointFlag::Detected));
                 continue;
             }
             let n = group.len() as f64;
-            let mean = group.iter().fold([0.0, 0.0], |m, &k| [m[0] + preds[k].0[0] / n, m[1] + preds[k].0[1] / n]);
+            let mean = group.iter().fold([0.0, 0.0], |m, &k| {
+                [m[0] + preds[k].0[0] / n, m[1] + preds[k].0[1] / n]
+            });
             for &k in group {
                 let (p, s) = preds[k];
                 let ti = live[k];
                 let x = d.x + p[0] - mean[0];
                 let y = d.y + p[1] - mean[1];
                 tracks[ti].misses = 0;
+                tracks[ti].seen += 1;
                 tracks[ti].points.push(Point {
                     x,
                     y,
@@ -390,7 +426,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let ti = live[k];
             let tr = &mut tracks[ti];
             tr.misses += 1;
-            let inside = p[0] >= -r && p[1] >= -r && p[0] <= options.width as f64 - 1.0 + r
+            let inside = p[0] >= -r
+                && p[1] >= -r
+                && p[0] <= options.width as f64 - 1.0 + r
                 && p[1] <= options.height as f64 - 1.0 + r;
             let emit = inside && tr.misses <= options.memory;
             if !named && tr.misses > options.memory {
@@ -406,7 +444,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 flag: PointFlag::Interpolated,
                 emit,
             });
-            let kind = if emit { AmbiguityKind::Missing } else { AmbiguityKind::Lost };
+            let kind = if emit {
+                AmbiguityKind::Missing
+            } else {
+                AmbiguityKind::Lost
+            };
             events.push((t, kind, vec![ti]));
         }
         if !named {
@@ -418,7 +460,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     // Unnamed tracks: drop trailing bridged points (the particle was never seen again).
     for tr in &mut tracks {
         if !named {
-            while tr.points.last().is_some_and(|p| p.flag == PointFlag::Interpolated) {
+            while tr
+                .points
+                .last()
+                .is_some_and(|p| p.flag == PointFlag::Interpolated)
+            {
                 tr.points.pop();
             }
         }
@@ -438,7 +484,8 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     out.ambiguities = collect_runs(&events, &tracks);
     for a in &out.ambiguities {
         if a.kind == AmbiguityKind::Lost {
-            out.warnings.push(format!("particle {} {a}", a.particles.join(", ")));
+            out.warnings
+                .push(format!("particle {} {a}", a.particles.join(", ")));
         }
     }
 
@@ -529,7 +576,12 @@ fn start_tracks(tracks: &mut Vec<Track>, fd: &FrameDetections, taken: &[bool], f
         }
         let init = (0.5 * nn[j]).min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
-        tracks.push(Track::new(name, fd.frame, point_from(d, PointFlag::Detected), init.max(floor)));
+        tracks.push(Track::new(
+            name,
+            fd.frame,
+            point_from(d, PointFlag::Detected),
+            init.max(floor),
+        ));
     }
 }
 
@@ -553,7 +605,10 @@ fn smooth_bridges(tr: &mut Track) {
             continue;
         }
         let mut knots: Vec<(f64, [f64; 2])> = Vec::new();
-        for k in [start.checked_sub(2), Some(start - 1), Some(i), Some(i + 1)].into_iter().flatten() {
+        for k in [start.checked_sub(2), Some(start - 1), Some(i), Some(i + 1)]
+            .into_iter()
+            .flatten()
+        {
             if k < n && seen(&tr.points[k]) {
                 knots.push((k as f64, [tr.points[k].x, tr.points[k].y]));
             }

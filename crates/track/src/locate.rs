@@ -69,8 +69,11 @@ pub fn refine_centroids(
             if !alive[i] || done[i] {
                 continue;
             }
-            let others: Vec<[f64; 2]> =
-                neighbours[i].iter().filter(|&&j| alive[j]).map(|&j| pos[j]).collect();
+            let others: Vec<[f64; 2]> = neighbours[i]
+                .iter()
+                .filter(|&&j| alive[j])
+                .map(|&j| pos[j])
+                .collect();
             let st = window_stats(signal, width, height, pos[i], window, &others);
             if st.mass <= 0.0 {
                 alive[i] = false;
@@ -100,7 +103,11 @@ pub fn refine_centroids(
         if !alive[i] {
             continue;
         }
-        let others: Vec<[f64; 2]> = neighbours[i].iter().filter(|&&j| alive[j]).map(|&j| pos[j]).collect();
+        let others: Vec<[f64; 2]> = neighbours[i]
+            .iter()
+            .filter(|&&j| alive[j])
+            .map(|&j| pos[j])
+            .collect();
         let st = window_stats(signal, width, height, pos[i], window, &others);
         if st.mass <= 0.0 {
             continue;
@@ -224,7 +231,13 @@ mod tests {
     /// the test image itself carries no centroid bias.
     pub(crate) fn render_disc(img: &mut [f32], w: usize, h: usize, c: [f64; 2], r: f64, amp: f32) {
         let mut plane = vec![0.0f32; w * h];
-        physfit_render::add_disc_coverage(&mut plane, w as u32, h as u32, physfit_model::Vec2::new(c[0], c[1]), r);
+        physfit_render::add_disc_coverage(
+            &mut plane,
+            w as u32,
+            h as u32,
+            physfit_model::Vec2::new(c[0], c[1]),
+            r,
+        );
         for (p, cov) in img.iter_mut().zip(&plane) {
             *p += amp * cov;
         }
@@ -262,7 +275,10 @@ mod tests {
         let d = refine_centroids(&img, w, h, &[[15.0, 15.0], [23.0, 15.0]], &[0.0, 0.0], 5.0, 1.0);
         assert_eq!(d.len(), 2);
         for (det, t) in d.iter().zip([a, b]) {
-            assert!((det.x - t[0]).abs() < 0.05 && (det.y - t[1]).abs() < 0.05, "{det:?} vs {t:?}");
+            assert!(
+                (det.x - t[0]).abs() < 0.05 && (det.y - t[1]).abs() < 0.05,
+                "{det:?} vs {t:?}"
+            );
         }
     }
 }

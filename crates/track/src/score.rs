@@ -65,7 +65,10 @@ pub fn score_tracks(tracks: &TrackTable, truth: &TrackTable, match_radius: f64) 
         }
     }
     let truth_names: HashSet<&str> = truth.points.iter().map(|p| p.particle.as_str()).collect();
-    let named = tracks.points.iter().any(|p| truth_names.contains(p.particle.as_str()));
+    let named = tracks
+        .points
+        .iter()
+        .any(|p| truth_names.contains(p.particle.as_str()));
     let r2 = match_radius * match_radius;
     let mut s = TrackScore {
         frame_count: by_frame.len(),
@@ -145,14 +148,32 @@ impl TrackScore {
     pub fn to_markdown(&self) -> String {
         let mut rows = vec![
             ("frames scored".to_string(), self.frame_count.to_string()),
-            ("recall".into(), format!("{:.4} ({} of {} truth points)", self.recall, self.matched_count, self.truth_count)),
-            ("precision".into(), format!("{:.4} ({} track points)", self.precision, self.track_count)),
+            (
+                "recall".into(),
+                format!(
+                    "{:.4} ({} of {} truth points)",
+                    self.recall, self.matched_count, self.truth_count
+                ),
+            ),
+            (
+                "precision".into(),
+                format!("{:.4} ({} track points)", self.precision, self.track_count),
+            ),
             ("RMS error x, px".into(), format!("{:.4}", self.rms_x)),
             ("RMS error y, px".into(), format!("{:.4}", self.rms_y)),
-            ("RMS error x, detected points only, px".into(), format!("{:.4}", self.rms_x_detected)),
-            ("RMS error y, detected points only, px".into(), format!("{:.4}", self.rms_y_detected)),
+            (
+                "RMS error x, detected points only, px".into(),
+                format!("{:.4}", self.rms_x_detected),
+            ),
+            (
+                "RMS error y, detected points only, px".into(),
+                format!("{:.4}", self.rms_y_detected),
+            ),
             ("largest error, px".into(), format!("{:.3}", self.max_error)),
-            ("matched points bridged or split".into(), self.matched_bridged_count.to_string()),
+            (
+                "matched points bridged or split".into(),
+                self.matched_bridged_count.to_string(),
+            ),
             ("identity switches".into(), self.id_switches.to_string()),
         ];
         if let Some(n) = self.name_mismatches {

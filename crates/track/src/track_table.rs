@@ -107,7 +107,10 @@ impl TrackTable {
         let headers = rdr.headers().map_err(|e| csv_err(1, e.to_string()))?.clone();
         for need in ["frame", "particle", "x", "y"] {
             if !headers.iter().any(|h| h == need) {
-                return Err(csv_err(1, format!("missing column `{need}` (need frame,particle,x,y)")));
+                return Err(csv_err(
+                    1,
+                    format!("missing column `{need}` (need frame,particle,x,y)"),
+                ));
             }
         }
         let mut points = Vec::new();
@@ -117,7 +120,11 @@ impl TrackTable {
                 let line = e.position().map_or(line, |p| p.line());
                 let msg = match e.kind() {
                     csv::ErrorKind::Deserialize { err, .. } => match err.field() {
-                        Some(f) => format!("column `{}`: {}", headers.get(f as usize).unwrap_or("?"), err.kind()),
+                        Some(f) => format!(
+                            "column `{}`: {}",
+                            headers.get(f as usize).unwrap_or("?"),
+                            err.kind()
+                        ),
                         None => err.kind().to_string(),
                     },
                     _ => e.to_string(),
@@ -125,7 +132,13 @@ impl TrackTable {
                 csv_err(line, msg)
             })?;
             if !(p.x.is_finite() && p.y.is_finite()) {
-                return Err(csv_err(line, format!("particle {} has a non-finite position ({}, {})", p.particle, p.x, p.y)));
+                return Err(csv_err(
+                    line,
+                    format!(
+                        "particle {} has a non-finite position ({}, {})",
+                        p.particle, p.x, p.y
+                    ),
+                ));
             }
             points.push(p);
         }
@@ -140,11 +153,21 @@ impl TrackTable {
             source,
         };
         let mut w = csv::Writer::from_writer(Vec::new());
+        if self.points.is_empty() {
+            // serde writes the header with the first row; an empty table still needs it.
+            w.write_record(["frame", "particle", "x", "y", "mass", "size", "ep", "flag"])
+                .map_err(|e| io_err(std::io::Error::other(e)))?;
+        }
         for p in &self.points {
             w.serialize(p).map_err(|e| io_err(std::io::Error::other(e)))?;
         }
-        let bytes = w.into_inner().map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
-        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let bytes = w
+            .into_inner()
+            .map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         let tmp = dir.join(format!(
             ".{}.{}.tmp",
             path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
@@ -204,7 +227,9 @@ mod tests {
     #[test]
     fn error_names_file_line_and_column() {
         let text = "frame,particle,x,y\n0,p0,1.5,2.5\n1,p0,abc,3.0\n";
-        let e = TrackTable::read_from(text.as_bytes(), Path::new("bad.csv")).unwrap_err().to_string();
+        let e = TrackTable::read_from(text.as_bytes(), Path::new("bad.csv"))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("bad.csv:3:"), "{e}");
         assert!(e.contains("`x`"), "{e}");
     }
@@ -220,8 +245,20 @@ mod tests {
     #[test]
     fn non_finite_position_is_an_error() {
         let text = "frame,particle,x,y\n0,p0,NaN,2.5\n";
-        let e = TrackTable::read_from(text.as_bytes(), Path::new("t.csv")).unwrap_err().to_string();
+        let e = TrackTable::read_from(text.as_bytes(), Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("t.csv:2") && e.contains("non-finite"), "{e}");
+    }
+
+    #[test]
+    fn an_empty_table_keeps_its_header() {
+        let dir = std::env::temp_dir().join(format!("physfit-tt-empty-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.csv");
+        TrackTable::default().write_csv(&path).unwrap();
+        assert!(TrackTable::read_csv(&path).unwrap().points.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -64,11 +64,11 @@ pub fn model_costs(
         );
     };
     // Start from the window fit's state when the sequence starts at the same frame.
-    let start = match warm {
-        Some((state, frame)) if frame == sequence.first_frame + shot.anchor => state.clone(),
-        _ => shot.observed_state(),
+    let (start, is_warm) = match warm {
+        Some((state, frame)) if frame == sequence.first_frame + shot.anchor => (state.clone(), true),
+        _ => (shot.observed_state(), false),
     };
-    let fit = fit_state(&shot, family, params, &start, scales);
+    let fit = fit_state(&shot, family, params, &start, scales, is_warm);
     let multi_step = match &fit {
         Some(f) => MultiStepFit {
             sum_squares: f.sum_squares,

@@ -1,15 +1,16 @@
 //! Jolts: isolated frames where a particle's velocity jumps far beyond what smooth motion and
 //! the track noise allow (a bounce), and the walls they suggest.
 //!
-//! Across every frame gap `k -> k + 1` the two second differences that contain it sum to
-//! `x[k+2] - x[k+1] - x[k] + x[k-1]`, which is the whole velocity change of an impulse that
-//! happened in the gap, times `dt`; minus what the model's smooth forces account for
-//! (`(a[k] + a[k+1]) dt^2`) it is the unexplained impulse `J`. Its noise is `2 sigma / dt` per
-//! coordinate for position noise `sigma`; the scale used is the larger of that and a robust
-//! spread (median absolute value) of all impulses, so a poor model does not make jolts of its
-//! misfit. A gap whose impulse exceeds [`JOLT_THRESHOLD`] times the scale and is the largest
-//! within two frames is a jolt if the velocity along it reverses (one-sided quadratic fits over
-//! [`JOLT_FIT_POINTS`] frames give the velocities before and after): a bounce, not a kick.
+//! Let `e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2` be the frame differences with the model's
+//! smooth accelerations `a` integrated out: for motion the model explains, `e` is constant up
+//! to noise, and an impulse in the gap `k -> k + 1` makes it jump. The jump is estimated as
+//! the mean of the [`JOLT_FIT_POINTS`] values after the gap minus the mean of as many before
+//! it (the difference straddling the gap is left out), over `dt`: the unexplained impulse
+//! per unit mass `J`, with noise `2 sigma / (m dt)` per coordinate for position noise `sigma`.
+//! The scale used is the larger of that and a robust spread (median absolute value) of all
+//! impulses, so a poor model does not make jolts of its misfit. A gap whose impulse exceeds
+//! [`JOLT_THRESHOLD`] times the scale, is the largest within `m` frames, and reverses the
+//! velocity along it (approaching, then leaving: a bounce, not a kick) is a jolt.
 //!
 //! A wall reverses the normal velocity and keeps the tangential one, so its jolts have jumps
 //! along its normal: jolts are grouped by jump direction, each group gives a normal (mean
@@ -22,7 +23,7 @@ use serde::Serialize;
 
 use crate::Observations;
 
-/// Frames in each one-sided velocity fit.
+/// Frames averaged on each side of a gap.
 pub const JOLT_FIT_POINTS: usize = 4;
 
 /// A jump must exceed this many times its noise scale to be a jolt.
@@ -59,20 +60,6 @@ pub struct WallGuess {
     pub jolts: Vec<usize>,
 }
 
-/// Least-squares weights giving the velocity (per frame) at `tau = 0` from samples at `taus`.
-fn derivative_weights(taus: &[f64]) -> Vec<f64> {
-    let m = taus.len();
-    let a = nalgebra::DMatrix::from_fn(m, 3, |i, j| taus[i].powi(j as i32));
-    let ata = a.transpose() * &a;
-    match ata.try_inverse() {
-        Some(inv) => {
-            let w = inv * a.transpose();
-            (0..m).map(|i| w[(1, i)]).collect()
-        }
-        None => vec![0.0; m],
-    }
-}
-
 /// The jolts in `obs` (free particles only) and the noise scale of the impulses (px/s).
 ///
 /// `acc[k][p]`, when given, is the model's acceleration of particle `p` at frame offset `k`
@@ -81,31 +68,41 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     let m = JOLT_FIT_POINTS;
     let fps = obs.fps;
     let dt = obs.frame_dt();
-    let left_taus: Vec<f64> = (0..m).map(|i| -(m as f64) + 0.5 + i as f64).collect();
-    let right_taus: Vec<f64> = (0..m).map(|i| 0.5 + i as f64).collect();
-    let wl = derivative_weights(&left_taus);
-    let wr = derivative_weights(&right_taus);
-    // x[k+2] - x[k+1] - x[k] + x[k-1] has noise 2 sigma per coordinate.
-    let noise_scale = 2.0 * obs.noise * fps;
+    // mean(x[k+1+m] - x[k+1]) / m - mean(x[k] - x[k-m]) / m: noise 2 sigma / m per coordinate.
+    let noise_scale = 2.0 * obs.noise * fps / m as f64;
     let frames = obs.frame_count();
     let model_acc = |k: usize, p: usize| {
         acc.and_then(|a| a.get(k)?.as_ref()?.get(p).copied())
             .unwrap_or_else(Vec2::zeros)
     };
-    // impulses[p][k]: impulse per unit mass across the gap k -> k+1, px/s.
-    let mut impulses: Vec<Vec<Option<Vec2>>> = vec![vec![None; frames]; obs.particle_count()];
+    // Per particle: corrected differences e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2 (None
+    // where a frame is missing), and the cumulative model term.
+    let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2)>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
-    for (p, series) in impulses.iter_mut().enumerate() {
+    for (p, out) in series.iter_mut().enumerate() {
         if obs.fixed[p] {
             continue;
         }
-        for (k, slot) in series.iter_mut().enumerate().take(frames.saturating_sub(2)).skip(1) {
-            let x = |q: usize| obs.positions[q][p];
-            if let (Some(a), Some(b), Some(c), Some(d)) = (x(k - 1), x(k), x(k + 1), x(k + 2)) {
-                let i = (d - c - b + a) * fps - (model_acc(k, p) + model_acc(k + 1, p)) * dt;
-                magnitudes.push(i.x.abs());
-                magnitudes.push(i.y.abs());
-                *slot = Some(i);
+        let mut e = vec![None; frames];
+        let mut cum = vec![Vec2::zeros(); frames];
+        let mut total = Vec2::zeros();
+        for j in 0..frames.saturating_sub(1) {
+            total += model_acc(j, p) * (dt * dt);
+            cum[j] = total;
+            if let (Some(a), Some(b)) = (obs.positions[j][p], obs.positions[j + 1][p]) {
+                e[j] = Some(b - a - total);
+            }
+        }
+        for k in m..frames.saturating_sub(m + 1) {
+            let before: Option<Vec<Vec2>> = (k - m..k).map(|j| e[j]).collect();
+            let after: Option<Vec<Vec2>> = (k + 1..=k + m).map(|j| e[j]).collect();
+            if let (Some(b), Some(a)) = (before, after) {
+                let mb = b.iter().sum::<Vec2>() / m as f64;
+                let ma = a.iter().sum::<Vec2>() / m as f64;
+                let impulse = (ma - mb) * fps;
+                magnitudes.push(impulse.x.abs());
+                magnitudes.push(impulse.y.abs());
+                out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps));
             }
         }
     }
@@ -116,34 +113,19 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     let robust = 1.4826 * magnitudes[magnitudes.len() / 2];
     let scale = noise_scale.max(robust).max(f64::MIN_POSITIVE);
     let mut out = Vec::new();
-    for (p, series) in impulses.iter().enumerate() {
+    for (p, series) in series.iter().enumerate() {
         for k in 0..frames {
-            let Some(imp) = series[k] else { continue };
+            let Some((imp, vb, va)) = series[k] else { continue };
             let size = imp.norm();
             if size < JOLT_THRESHOLD * scale {
                 continue;
             }
-            let lo = k.saturating_sub(2);
-            let hi = (k + 2).min(frames - 1);
-            let is_peak = (lo..=hi).all(|q| q == k || series[q].map_or(true, |i| i.norm() < size));
+            let lo = k.saturating_sub(m);
+            let hi = (k + m).min(frames - 1);
+            let is_peak = (lo..=hi).all(|q| q == k || series[q].map_or(true, |i| i.0.norm() < size));
             if !is_peak {
                 continue;
             }
-            // One-sided quadratic fits give the velocities before and after the gap.
-            let side = |first: usize, w: &[f64]| -> Option<Vec2> {
-                let pts: Option<Vec<Vec2>> = (0..m).map(|i| obs.positions.get(first + i)?[p]).collect();
-                Some(pts?.iter().zip(w).map(|(x, w)| x * *w).sum::<Vec2>() * fps)
-            };
-            let before = (k + 1).checked_sub(m).and_then(|f| side(f, &wl));
-            let after = side(k + 1, &wr);
-            let (vb, va) = match (before, after) {
-                (Some(b), Some(a)) => (b, a),
-                // Near the ends: split the impulse around the observed velocity.
-                _ => {
-                    let v = obs.velocities[k][p].unwrap_or_else(Vec2::zeros);
-                    (v - imp * 0.5, v + imp * 0.5)
-                }
-            };
             // A bounce reverses the velocity along its impulse: approaching, then leaving.
             let n = imp / size;
             if !(vb.dot(&n) < 0.0 && va.dot(&n) > 0.0) {

@@ -160,7 +160,17 @@ pub fn diagnose_observations(
             Some(a)
         })
         .collect();
-    let (jolt_list, _) = jolts::find_jolts(&obs, Some(&model_acc));
+    let (jolt_list, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
+    if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+        eprintln!(
+            " rough jolts {}, jolts {} (scale {jolt_scale:.2} px/s)",
+            rough.len(),
+            jolt_list.len()
+        );
+        for j in &jolt_list {
+            eprintln!("   {j:?}");
+        }
+    }
     let excluded = exclusion(&jolt_list);
     let guesses = jolts::propose_walls(&jolt_list, &obs);
     let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
@@ -176,7 +186,7 @@ pub fn diagnose_observations(
     // 3. Base fit on the fitted frames.
     let base_params = ctx.joint_estimate(&family0, &[]);
     let base = ctx
-        .fit(&family0, &base_params, &start)
+        .fit(&family0, &base_params, &start, false)
         .ok_or_else(|| IdentifyError::NoFiniteCost {
             method: "diagnosis base fit".into(),
             detail: "the structure's model from the weak-form estimate cannot be simulated".into(),
@@ -297,7 +307,7 @@ pub fn diagnose_observations(
         let alt = if ctx.at_noise_level(&current) {
             None
         } else {
-            ctx.fit(&current.family, &without, &next.fit.state)
+            ctx.fit(&current.family, &without, &next.fit.state, true)
         };
         if let Some(alt) = alt {
             if alt.fit.sum_squares < current.fit.sum_squares {
@@ -337,6 +347,7 @@ pub fn diagnose_observations(
             &c.fit.state,
             &scales,
             search::SHOT_ITERATIONS,
+            true,
             &(),
         )
     };

@@ -331,8 +331,9 @@ impl Context<'_> {
         best.1
     }
 
-    /// Fits `family` from `params` (and the observed start) on the fitted frames.
-    pub fn fit(&self, family: &Family, params: &[f64], state: &State) -> Option<Current> {
+    /// Fits `family` from `params` and `state` on the fitted frames (`warm`: see
+    /// [`fit_shot`]).
+    pub fn fit(&self, family: &Family, params: &[f64], state: &State, warm: bool) -> Option<Current> {
         let t0 = std::time::Instant::now();
         let fit = fit_shot(
             self.shot,
@@ -341,6 +342,7 @@ impl Context<'_> {
             state,
             self.scales,
             SHOT_ITERATIONS,
+            warm,
             &(),
         )?;
         if std::env::var_os("PHYSFIT_DEBUG").is_some() {
@@ -398,10 +400,10 @@ impl Context<'_> {
         }
         // Both starts unless the first already fits to the noise: the current fit may be a
         // poor optimum when a strong term is missing.
-        let mut best = self.fit(&family, &warm, &current.fit.state);
+        let mut best = self.fit(&family, &warm, &current.fit.state, true);
         if !best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
             let joint = self.joint_estimate(&family, &warm);
-            if let Some(b) = self.fit(&family, &joint, self.start) {
+            if let Some(b) = self.fit(&family, &joint, self.start, false) {
                 if best
                     .as_ref()
                     .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)

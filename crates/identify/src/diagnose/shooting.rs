@@ -182,8 +182,11 @@ impl<'a> Shot<'a> {
     }
 }
 
-/// Fits parameters and start state by Levenberg-Marquardt over progressively longer spans.
-/// Returns `None` if the model cannot be simulated from the start.
+/// Fits parameters and start state by Levenberg-Marquardt, over progressively longer spans
+/// from a cold start (`warm` false: a start that may be far off), over the whole window at
+/// once from a warm one (a previous fit's values). Returns `None` if the model cannot be
+/// simulated from the start.
+#[allow(clippy::too_many_arguments)]
 pub fn fit_shot(
     shot: &Shot<'_>,
     family: &Family,
@@ -191,6 +194,7 @@ pub fn fit_shot(
     state0: &State,
     scales: &DataScales,
     max_iterations: usize,
+    warm: bool,
     observer: &dyn Observer,
 ) -> Option<ShotFit> {
     fit_spans(
@@ -201,20 +205,22 @@ pub fn fit_shot(
         scales,
         max_iterations,
         false,
+        warm,
         observer,
     )
 }
 
-/// Fits only the start state for fixed `params` (how a given model is judged fairly), over
-/// progressively longer spans as [`fit_shot`].
+/// Fits only the start state for fixed `params` (how a given model is judged fairly), cold
+/// or warm as [`fit_shot`].
 pub fn fit_state(
     shot: &Shot<'_>,
     family: &Family,
     params: &[f64],
     state0: &State,
     scales: &DataScales,
+    warm: bool,
 ) -> Option<ShotFit> {
-    fit_spans(shot, family, params, state0, scales, 30, true, &())
+    fit_spans(shot, family, params, state0, scales, 30, true, warm, &())
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -226,6 +232,7 @@ fn fit_spans(
     scales: &DataScales,
     max_iterations: usize,
     state_only: bool,
+    warm: bool,
     observer: &dyn Observer,
 ) -> Option<ShotFit> {
     let frames = shot.obs.frame_count();
@@ -235,6 +242,9 @@ fn fit_spans(
         .clamp(20, remaining.max(1))
         .min(remaining);
     let mut spans = Vec::new();
+    if warm {
+        span = remaining;
+    }
     loop {
         spans.push(span);
         if span >= remaining {

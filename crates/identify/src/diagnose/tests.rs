@@ -447,3 +447,16 @@ fn every_scene_over_three_seeds() {
         }
     }
 }
+
+#[test]
+#[ignore = "debugging aid"]
+fn explore() {
+    let names = std::env::var("DIAG_SCENES").unwrap_or_else(|_| "concealed-wall".into());
+    let seed: u64 = std::env::var("DIAG_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    for name in names.split(',') {
+        let _ = run(name, seed);
+    }
+}

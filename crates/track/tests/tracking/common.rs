@@ -1,0 +1,221 @@
+//! Shared helpers: temporary folders, rendering position sequences to PNG frames, truth
+//! tables, and running the tracker.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use physfit_model::{write_atomic, Colour, Recording, RenderSettings, Scene, Vec2};
+use physfit_render::{encode_png, frame_file_name, render_frame, render_sequence};
+use physfit_track::{
+    score_tracks, track_folder, TrackOptions, TrackOutcome, TrackPoint, TrackScore, TrackTable,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A folder under the system temp dir, removed when dropped.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    /// A fresh, empty folder whose name contains `label`.
+    pub fn new(label: &str) -> TempDir {
+        static COUNT: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNT.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("physfit-track-it-{}-{n}-{label}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("create temp dir");
+        TempDir(dir)
+    }
+
+    /// The folder.
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Positions per frame (frame-major), with particle names.
+pub struct Truth {
+    /// Particle names.
+    pub names: Vec<String>,
+    /// `frames[k][i]`: position of particle `i` in frame `k`, px.
+    pub frames: Vec<Vec<Vec2>>,
+}
+
+impl Truth {
+    /// Truth from a simulated recording, first `frames` frames.
+    pub fn from_recording(names: Vec<String>, rec: &Recording, frames: usize) -> Truth {
+        Truth {
+            names,
+            frames: (0..frames.min(rec.frame_count()))
+                .map(|k| rec.frame(k).to_vec())
+                .collect(),
+        }
+    }
+
+    /// The recording holding these positions (velocities zero: the renderer ignores them).
+    pub fn recording(&self) -> Recording {
+        let n = self.names.len();
+        let positions: Vec<Vec2> = self.frames.iter().flatten().copied().collect();
+        Recording {
+            particle_count: n,
+            velocities: vec![Vec2::zeros(); positions.len()],
+            positions,
+        }
+    }
+
+    /// The truth as a track table; frame `k` of the table is `frames[index[k]]` (so a
+    /// deleted frame file can be skipped), particles inside the image only.
+    pub fn table_for(&self, index: &[usize], width: u32, height: u32) -> TrackTable {
+        let mut points = Vec::new();
+        for (k, &src) in index.iter().enumerate() {
+            for (name, p) in self.names.iter().zip(&self.frames[src]) {
+                if inside(*p, width, height, 0.0) {
+                    points.push(TrackPoint::new(k, name.clone(), p.x, p.y));
+                }
+            }
+        }
+        TrackTable { points }
+    }
+
+    /// The truth of every frame as a track table.
+    pub fn table(&self, width: u32, height: u32) -> TrackTable {
+        let index: Vec<usize> = (0..self.frames.len()).collect();
+        self.table_for(&index, width, height)
+    }
+
+    /// Named start positions: every particle at its frame-0 position.
+    pub fn named_start(&self) -> Vec<(String, [f64; 2])> {
+        self.names
+            .iter()
+            .zip(&self.frames[0])
+            .map(|(n, p)| (n.clone(), [p.x, p.y]))
+            .collect()
+    }
+}
+
+/// Returns true if and only if `p` lies at least `margin` px inside the image.
+pub fn inside(p: Vec2, width: u32, height: u32, margin: f64) -> bool {
+    p.x >= margin
+        && p.y >= margin
+        && p.x <= f64::from(width) - 1.0 - margin
+        && p.y <= f64::from(height) - 1.0 - margin
+}
+
+/// Renders `truth` into `dir` as `000000.png`, ... (in parallel).
+pub fn render_to(truth: &Truth, settings: &RenderSettings, dir: &Path) {
+    render_sequence(&truth.recording(), settings, dir, &|_| {}).expect("render frames");
+}
+
+/// Writes one frame with the given positions as `dir/name`.
+pub fn write_frame(positions: &[Vec2], settings: &RenderSettings, frame_index: usize, path: &Path) {
+    let img = render_frame(positions, settings, frame_index);
+    write_atomic(path, &encode_png(&img).expect("encode")).expect("write frame");
+}
+
+/// The path of frame `k` in `dir`.
+pub fn frame_path(dir: &Path, k: usize) -> PathBuf {
+    dir.join(frame_file_name(k))
+}
+
+/// Tracks `dir` with `options`.
+pub fn track(dir: &Path, options: &TrackOptions) -> TrackOutcome {
+    track_folder(dir, options, &|_, _| {})
+        .unwrap_or_else(|e| panic!("tracking {} failed: {e}", dir.display()))
+}
+
+/// Scores an outcome against a truth table with the tracker's own match radius.
+pub fn score(outcome: &TrackOutcome, truth: &TrackTable) -> TrackScore {
+    score_tracks(&outcome.table, truth, outcome.stats.match_radius())
+}
+
+/// Loads a scene of the repository's `scenes/` folder.
+pub fn load_scene(name: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes")
+        .join(name);
+    Scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Render settings of the issue's benchmark discs: radius 4, amplitude 200 over 30, grey.
+pub fn issue_settings(width: u32, height: u32, noise: f64, seed: u64) -> RenderSettings {
+    RenderSettings {
+        width,
+        height,
+        radius: 4.0,
+        background: Colour::Grey(30),
+        foreground: Colour::Grey(230),
+        noise,
+        blur: 0.0,
+        seed,
+    }
+}
+
+/// Random walks of isolated particles: one per cell of a `cols x rows` grid of `cell` px
+/// cells, each stepping a random distance up to `max_step` px per frame in a random
+/// direction and reflected to stay within `cell / 2 - clearance` px of its cell centre,
+/// so no two discs ever come closer than `2 * clearance` px.
+pub fn grid_walk(
+    cols: usize,
+    rows: usize,
+    cell: f64,
+    clearance: f64,
+    max_step: f64,
+    frames: usize,
+    seed: u64,
+) -> Truth {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let half = cell / 2.0 - clearance;
+    let mut centres = Vec::new();
+    let mut pos = Vec::new();
+    for r in 0..rows {
+        for c in 0..cols {
+            let centre = Vec2::new(cell * (c as f64 + 0.5), cell * (r as f64 + 0.5));
+            centres.push(centre);
+            pos.push(centre + Vec2::new(rng.gen_range(-half..half), rng.gen_range(-half..half)));
+        }
+    }
+    let mut out = vec![pos.clone()];
+    for _ in 1..frames {
+        for (p, c) in pos.iter_mut().zip(&centres) {
+            let len = max_step * rng.gen::<f64>();
+            let a = std::f64::consts::TAU * rng.gen::<f64>();
+            let mut q = *p + len * Vec2::new(a.cos(), a.sin());
+            for k in 0..2 {
+                if q[k] > c[k] + half {
+                    q[k] = 2.0 * (c[k] + half) - q[k];
+                }
+                if q[k] < c[k] - half {
+                    q[k] = 2.0 * (c[k] - half) - q[k];
+                }
+            }
+            *p = q;
+        }
+        out.push(pos.clone());
+    }
+    Truth {
+        names: (0..pos.len()).map(|i| format!("p{i}")).collect(),
+        frames: out,
+    }
+}
+
+/// Asserts the outcome follows every particle of `truth` in every frame with no switch and
+/// returns the score.
+pub fn assert_followed(label: &str, outcome: &TrackOutcome, truth: &TrackTable) -> TrackScore {
+    let s = score(outcome, truth);
+    assert!(
+        s.matched_count == s.truth_count && s.id_switches == 0 && s.name_mismatches.unwrap_or(0) == 0,
+        "{label}: {} of {} truth points matched, {} switches, {:?} wrong names\n{}\nwarnings: {:?}",
+        s.matched_count,
+        s.truth_count,
+        s.id_switches,
+        s.name_mismatches,
+        outcome.stats,
+        outcome.warnings
+    );
+    s
+}

@@ -1,0 +1,5 @@
+//! Integration tests of the tracker on rendered sequences and real recordings.
+
+mod accuracy;
+mod common;
+mod debug;

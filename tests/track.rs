@@ -1,0 +1,162 @@
+//! `physfit track` and `physfit run`, end to end.
+
+use predicates::prelude::*;
+
+use crate::util::{physfit, read_xy, scenes_dir, tempdir};
+
+#[test]
+fn track_names_particles_after_the_structure_and_matches_the_truth() {
+    let dir = tempdir();
+    let mut scene = std::fs::read_to_string(scenes_dir().join("paper3.toml")).unwrap();
+    // 40 frames are plenty here and keep the test quick.
+    scene = scene.replacen("frames = 400", "frames = 40", 1);
+    let scene_path = crate::util::write(dir.path(), "paper3.toml", &scene);
+    physfit()
+        .arg("-q")
+        .arg("render")
+        .arg(&scene_path)
+        .arg("--out")
+        .arg(dir.path())
+        .assert()
+        .success();
+    let tracks = dir.path().join("tracks.csv");
+    physfit()
+        .arg("track")
+        .arg(dir.path().join("frames"))
+        .arg("--out")
+        .arg(&tracks)
+        .arg("--structure")
+        .arg(dir.path().join("structure.toml"))
+        .arg("--truth")
+        .arg(dir.path().join("truth.csv"))
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("identity switches | 0"));
+
+    let header = std::fs::read_to_string(&tracks)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    assert!(header.starts_with("frame,particle,x,y,mass,size"), "{header}");
+    let got = read_xy(&tracks);
+    let truth = read_xy(&dir.path().join("truth.csv"));
+    assert_eq!(got.len(), truth.len());
+    let mut worst: f64 = 0.0;
+    for t in &truth {
+        let g = got
+            .iter()
+            .find(|g| g.0 == t.0 && g.1 == t.1)
+            .expect("every true point tracked under its id");
+        worst = worst.max((g.2 - t.2).abs()).max((g.3 - t.3).abs());
+    }
+    assert!(worst < 0.02, "largest localisation error {worst} px");
+}
+
+#[test]
+fn track_window_limits_frames_and_errors_name_their_input() {
+    let dir = tempdir();
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    physfit()
+        .arg("track")
+        .arg(&empty)
+        .arg("--out")
+        .arg(dir.path().join("t.csv"))
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("empty").and(predicate::str::contains("no frames")));
+
+    let frames = dir.path().join("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    // A disc of radius 4 moving 12 px right per frame.
+    for k in 0..3 {
+        let cx = 20 + 12 * k as i32;
+        let img = image::GrayImage::from_fn(80, 30, |x, y| {
+            image::Luma([if (x as i32 - cx).pow(2) + (y as i32 - 15).pow(2) < 16 {
+                200
+            } else {
+                20
+            }])
+        });
+        img.save(frames.join(format!("f_{k}.png"))).unwrap();
+    }
+    std::fs::write(frames.join("f_3.png"), b"\x89PNG\r\n\x1a\nbroken").unwrap();
+    physfit()
+        .arg("track")
+        .arg(&frames)
+        .arg("--out")
+        .arg(dir.path().join("t.csv"))
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("f_3.png"));
+    assert!(!dir.path().join("t.csv").exists());
+
+    // The window excludes the broken frame: frames 0..2 track fine.
+    physfit()
+        .arg("-q")
+        .arg("track")
+        .arg(&frames)
+        .arg("--window")
+        .arg("0..2")
+        .arg("--out")
+        .arg(dir.path().join("t.csv"))
+        .assert()
+        .success();
+    let rows = read_xy(&dir.path().join("t.csv"));
+    assert_eq!(rows.len(), 3);
+    // Frame k's disc is centred on (20 + 12 k, 15): symmetric pixel masks give exact centroids.
+    assert!(
+        rows.iter()
+            .all(|r| (r.2 - (20.0 + 12.0 * r.0 as f64)).abs() < 0.05 && (r.3 - 15.0).abs() < 0.05),
+        "{rows:?}"
+    );
+
+    physfit()
+        .arg("track")
+        .arg(&frames)
+        .arg("--window")
+        .arg("2..9")
+        .arg("--out")
+        .arg(dir.path().join("t2.csv"))
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("2..9"));
+}
+
+#[test]
+fn run_on_a_scene_writes_tracks_fit_and_report() {
+    let dir = tempdir();
+    let mut scene = std::fs::read_to_string(scenes_dir().join("paper3.toml")).unwrap();
+    scene = scene.replacen("frames = 400", "frames = 120", 1);
+    let scene_path = crate::util::write(dir.path(), "paper3.toml", &scene);
+    let out = dir.path().join("out");
+    physfit()
+        .arg("-q")
+        .arg("run")
+        .arg(&scene_path)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    for name in [
+        "tracks.csv",
+        "fitted.toml",
+        "report.json",
+        "report.md",
+        "truth.csv",
+        "structure.toml",
+    ] {
+        assert!(out.join(name).exists(), "{name} missing");
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["tracking"]["score"]["id_switches"], 0);
+    assert!(report["tracking"]["score"]["recall"].as_f64().unwrap() > 0.999);
+    // From pixels, every paper3 parameter within 1% of the truth.
+    for p in report["fit"]["parameters"].as_array().unwrap() {
+        let e = p["relative_error"].as_f64().unwrap();
+        assert!(e.abs() < 0.01, "{p}");
+    }
+}
