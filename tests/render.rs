@@ -65,7 +65,7 @@ fn render_writes_frames_truth_structure_and_scene() {
     // Two bodies on a spring, solved analytically: the centre of mass drifts at 10/3 px/s and
     // the separation r oscillates about L = 20 with omega = sqrt(2 S / mu), mu = 2/3.
     let t = 4.0 / 50.0;
-    let omega = (2.0 * 50.0 / (2.0 / 3.0) as f64).sqrt();
+    let omega = (2.0_f64 * 50.0 / (2.0 / 3.0)).sqrt();
     let r = 20.0 + 4.0 * (omega * t).cos() - 10.0 / omega * (omega * t).sin();
     let expected_a = 36.0 + 10.0 / 3.0 * t - 2.0 / 3.0 * r;
     let last_a = truth.iter().find(|r| r.0 == 4 && r.1 == "a").unwrap();

@@ -72,7 +72,7 @@ fn track_window_limits_frames_and_errors_name_their_input() {
     std::fs::create_dir_all(&frames).unwrap();
     // A disc of radius 4 moving 12 px right per frame.
     for k in 0..3 {
-        let cx = 20 + 12 * k as i32;
+        let cx: i32 = 20 + 12 * k;
         let img = image::GrayImage::from_fn(80, 30, |x, y| {
             image::Luma([if (x as i32 - cx).pow(2) + (y as i32 - 15).pow(2) < 16 {
                 200

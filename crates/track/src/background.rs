@@ -139,7 +139,18 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         sample_count: k,
     };
     bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
+    // The lowest signal a pixel can show: its value at the clip level (0 where particles
+    // are brighter in a channel, 255 where darker).
+    let clip: Vec<f32> = bg
+        .direction
+        .iter()
+        .map(|&u| if u >= 0.0 { 0.0 } else { 255.0 })
+        .collect();
+    let floor = bg.signal(&Frame::filled(width, height, &clip));
+    let stride = (k * width * height / 1_000_000).max(1) | 1;
     let mut negatives: Vec<f32> = Vec::new();
+    let mut sampled: Vec<f32> = Vec::new();
+    let mut clipped = 0usize;
     let mut signal = Vec::new();
     for f in samples {
         bg.signal_into(f, &mut signal);
@@ -147,20 +158,40 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
         // deterministic dither spread evenly over one level makes the distribution
         // continuous again: its spread is then that of the quantised noise itself.
-        negatives.extend(
-            signal
-                .iter()
-                .enumerate()
-                .map(|(i, &s)| s + dither(i))
-                .filter(|&s| s < 0.0)
-                .map(|s| -s),
-        );
+        for (i, (&v, &lo)) in signal.iter().zip(&floor).enumerate() {
+            let d = v + dither(i);
+            if d < 0.0 {
+                negatives.push(-d);
+                clipped += usize::from(v <= lo + 0.5);
+            }
+            if i % stride == 0 {
+                sampled.push(d);
+            }
+        }
     }
-    bg.noise_sigma = if negatives.len() >= 16 {
-        (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
+    if 2 * clipped < negatives.len() {
+        bg.noise_sigma = if negatives.len() >= 16 {
+            (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
+        } else {
+            MIN_NOISE
+        };
     } else {
-        MIN_NOISE
-    };
+        // Most of the background's negative half is clipped (a black background under
+        // noise): the noise the filters see is that of the clipped distribution, whose mean
+        // sits above the level. Both come from the sampled signal by iterated 3-sigma
+        // clipping, started from the upper quartile's spread (above the truth when
+        // particles crowd the frame, so the clipping converges from above).
+        let (offset, sigma) = clipped_mean_and_sigma(&mut sampled);
+        bg.noise_sigma = sigma.max(MIN_NOISE);
+        for (l, u) in bg.level.iter_mut().zip(&bg.direction) {
+            *l += offset as f32 * u;
+        }
+        for px in bg.image.chunks_exact_mut(channels) {
+            for (b, u) in px.iter_mut().zip(&bg.direction) {
+                *b += offset as f32 * u;
+            }
+        }
+    }
     bg
 }
 
@@ -204,6 +235,41 @@ impl Background {
     pub fn is_dark_on_light(&self) -> bool {
         self.direction.iter().sum::<f32>() < 0.0
     }
+}
+
+/// Mean and standard deviation (grey levels) of the bulk of `values` (reordered) by iterated
+/// 3-sigma clipping from the median and the upper quartile's spread; the standard deviation
+/// is corrected for the clipping of a normal distribution's tails (factor 0.9866).
+fn clipped_mean_and_sigma(values: &mut [f32]) -> (f64, f64) {
+    if values.len() < 16 {
+        return (0.0, MIN_NOISE);
+    }
+    let mut mean = f64::from(quantile(values, 0.5));
+    let mut sigma = ((f64::from(quantile(values, 0.75)) - mean) / 0.6745).max(MIN_NOISE);
+    for _ in 0..50 {
+        let (lo, hi) = (mean - 3.0 * sigma, mean + 3.0 * sigma);
+        let (mut n, mut sum, mut sum2) = (0usize, 0.0f64, 0.0f64);
+        for &v in values.iter() {
+            let v = f64::from(v);
+            if v >= lo && v <= hi {
+                n += 1;
+                sum += v;
+                sum2 += v * v;
+            }
+        }
+        if n < 16 {
+            break;
+        }
+        let m = sum / n as f64;
+        let s = ((sum2 / n as f64 - m * m).max(0.0)).sqrt() / 0.9866;
+        let converged = (s - sigma).abs() <= 1e-3 * sigma && (m - mean).abs() <= 1e-3 * sigma;
+        mean = m;
+        sigma = s.max(MIN_NOISE);
+        if converged {
+            break;
+        }
+    }
+    (mean, sigma)
 }
 
 /// An offset in `[-0.5, 0.5)` grey levels for sample `i`, evenly spread over that range along

@@ -148,12 +148,12 @@ pub fn find_blobs_with_scratch(
     // order, non-strict against later ones, so a plateau yields one maximum per row run).
     let band = |i: usize| small[i] - large[i];
     let mut peaks: Vec<(f32, usize, usize)> = Vec::new();
-    for y in 0..height {
+    for (y, &fy) in mask_fy.iter().enumerate().take(height) {
         let row = y * width;
-        for x in 0..width {
+        for (x, &fx) in mask_fx.iter().enumerate().take(width) {
             let i = row + x;
             let v = band(i);
-            if v <= peak_min || small[i] <= mask_t * mask_fx[x] * mask_fy[y] {
+            if v <= peak_min || small[i] <= mask_t * fx * fy {
                 continue;
             }
             if f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {

@@ -198,7 +198,8 @@ pub fn diagnose_observations(
     let mut current = base.clone();
     let mut accepted: Vec<(Proposal, report::Evidence, usize)> = Vec::new();
     let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
-    let mut walls_left = wall_proposals(&guesses);
+    let mut jolt_list = jolt_list;
+    let mut guesses = guesses;
     let mut round = 0;
     let mut restarts = 0;
     while accepted.len() < options.max_effects {
@@ -254,6 +255,37 @@ pub fn diagnose_observations(
                 to_verify.push(vec![(*p).clone()]);
             }
         }
+        // Jolts as the current model sees them (a missing smooth force makes false ones), less
+        // those an accepted wall explains.
+        if round > 1 {
+            let model = current.family.model(&current.fit.params, None);
+            let acc: Vec<Option<Vec<physfit_model::Vec2>>> = (0..frames)
+                .map(|k| {
+                    let s = obs.state(k)?;
+                    let mut a = vec![physfit_model::Vec2::zeros(); model.particle_count()];
+                    let mut st = s.clone();
+                    let _ = current.family.model(&current.fit.params, Some(&mut st));
+                    model.accelerations(&st, &mut a);
+                    a.truncate(s.len());
+                    Some(a)
+                })
+                .collect();
+            jolt_list = jolts::find_jolts(&obs, Some(&acc)).0;
+            guesses = jolts::propose_walls(&jolt_list, &obs);
+        }
+        let accepted_walls: Vec<[f64; 3]> = accepted
+            .iter()
+            .enumerate()
+            .filter(|(_, (p, _, _))| p.effect == Effect::Wall)
+            .filter_map(|(k, _)| {
+                let o = current.family.effect_offset(k);
+                current.fit.params.get(o..o + 3).map(|v| [v[0], v[1], v[2]])
+            })
+            .collect();
+        let walls_left: Vec<Proposal> = wall_proposals(&guesses)
+            .into_iter()
+            .filter(|g| !accepted_walls.iter().any(|w| same_wall(w, &g.init, &scales)))
+            .collect();
         for wall in walls_left.iter().take(3) {
             to_verify.push(vec![wall.clone()]);
             for p in by_screen.iter().take(1) {
@@ -327,9 +359,6 @@ pub fn diagnose_observations(
         }
         merge_rejects(&mut rejected, round_rejects);
         for p in &best.proposals {
-            if p.effect == Effect::Wall {
-                walls_left.retain(|w| w.jolts != p.jolts);
-            }
             accepted.push((p.clone(), evidence.clone(), round));
         }
         observer.observe(round, next.fit.sum_squares);
@@ -398,6 +427,14 @@ pub fn diagnose_observations(
         seconds: t0.elapsed().as_secs_f64(),
         final_scene: outcome.scene,
     })
+}
+
+/// Returns true if and only if two walls' parameters (`[angle, offset, restitution]`) are
+/// the same line within `WALL_GROUP_DEGREES` and a twentieth of the data's length scale.
+fn same_wall(a: &[f64; 3], b: &[f64], scales: &DataScales) -> bool {
+    let na = physfit_model::Vec2::new(a[0].cos(), a[0].sin());
+    let nb = physfit_model::Vec2::new(b[0].cos(), b[0].sin());
+    na.dot(&nb) > jolts::WALL_GROUP_DEGREES.to_radians().cos() && (a[1] - b[1]).abs() < 0.05 * scales.length
 }
 
 fn rejected_entry(

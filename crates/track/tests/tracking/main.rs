@@ -3,3 +3,4 @@
 mod accuracy;
 mod common;
 mod debug;
+mod scenes;
