@@ -154,6 +154,13 @@ fn run_on_a_scene_writes_tracks_fit_and_report() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report["tracking"]["score"]["id_switches"], 0);
     assert!(report["tracking"]["score"]["recall"].as_f64().unwrap() > 0.999);
+    // The HTML page embeds every picture and references no other file.
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    let srcs: Vec<&str> = html.split("src=\"").skip(1).collect();
+    assert!(srcs.len() >= 3, "pictures embedded: {}", srcs.len());
+    assert!(srcs.iter().all(|s| s.starts_with("data:image/png;base64,")));
+    assert!(!html.contains("<link") && !html.contains("<script"));
+    assert!(std::fs::read_dir(out.join("overlay")).unwrap().count() >= 1);
     // From pixels, every paper3 parameter within 1% of the truth.
     for p in report["fit"]["parameters"].as_array().unwrap() {
         let e = p["relative_error"].as_f64().unwrap();

@@ -53,7 +53,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         }
     };
     // A report left from an earlier run must not look like this run's.
-    for stale in ["report.json", "report.md"] {
+    for stale in ["report.json", "report.md", "report.html"] {
         let _ = std::fs::remove_file(out.join(stale));
     }
 
@@ -124,21 +124,167 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         },
         fit: &fitted.report,
     };
-    write_reports(out, &report)?;
+    let pictures =
+        figures(out, &rendered.frames_dir, &tracked.table, &fitted).context("stage report: figures")?;
+    write_reports(out, &report, &pictures).context("stage report")?;
     say(format!("report -> {}", out.join("report.md").display()));
     Ok(())
 }
 
-/// Writes `report.md` then `report.json` (last: its presence marks a complete run).
-fn write_reports(out: &Path, report: &RunReport) -> anyhow::Result<()> {
-    let md = markdown(report);
-    physfit_model::write_atomic(&out.join("report.md"), md.as_bytes()).context("writing report.md")?;
-    let json = serde_json::to_string_pretty(report).context("serialising report.json")?;
-    physfit_model::write_atomic(&out.join("report.json"), json.as_bytes()).context("writing report.json")?;
+/// Draws the run's pictures into `out` and returns their Markdown lines: the trajectories
+/// observed and predicted by the fitted model, each particle's prediction error over time, the
+/// solver's cost history, and overlay frames of the input.
+fn figures(
+    out: &Path,
+    frames_dir: &Path,
+    tracks: &TrackTable,
+    fitted: &physfit_identify::FitResult,
+) -> anyhow::Result<String> {
+    use crate::report::{
+        self, LineChart, ModelPaths, Overlay, Prediction, Series, Tail, Track, TrajectoryPlot,
+    };
+    let scene = &fitted.fitted;
+    let model = scene.model().context("the fitted model")?;
+    let frames = tracks.frame_end();
+    let predicted = physfit_model::simulate(
+        &model,
+        &scene.initial_state(),
+        &scene.integration_parameters(),
+        frames,
+    );
+    let by_particle = tracks.by_particle();
+    let mut md = String::new();
+
+    // Trajectories over the first frame.
+    let first_frame = physfit_track::list_frames(frames_dir)?
+        .first()
+        .map(|p| image::open(p).with_context(|| format!("reading {}", p.display())))
+        .transpose()?;
+    let mut track_lines = Vec::new();
+    let mut model_paths = Vec::new();
+    let mut residual_series = Vec::new();
+    for (k, p) in scene.particles.iter().enumerate() {
+        let obs: Vec<(usize, f64, f64)> = by_particle
+            .get(p.id.as_str())
+            .map(|v| v.iter().map(|q| (q.frame, q.x, q.y)).collect())
+            .unwrap_or_default();
+        track_lines.push(Track {
+            name: p.id.clone(),
+            points: obs.iter().map(|o| (o.1, o.2)).collect(),
+        });
+        model_paths.push(
+            (0..frames)
+                .map(|f| (predicted.frame(f)[k].x, predicted.frame(f)[k].y))
+                .collect(),
+        );
+        residual_series.push(
+            Series::new(
+                &p.id,
+                obs.iter()
+                    .map(|&(f, x, y)| {
+                        let q = predicted.frame(f)[k];
+                        (f as f64, (q.x - x).hypot(q.y - y))
+                    })
+                    .collect(),
+            )
+            .with_colour(k),
+        );
+    }
+    report::trajectory_plot(
+        &out.join("trajectories.png"),
+        &TrajectoryPlot {
+            title: "observed tracks (solid) and the fitted model (dashed)".into(),
+            tracks: track_lines,
+            models: vec![ModelPaths {
+                name: "fitted model".into(),
+                paths: model_paths,
+            }],
+            mismatches: Vec::new(),
+            background: first_frame.as_ref().map(|f| f.to_rgb8()),
+            frame_size: first_frame.as_ref().map(|f| (f.width(), f.height())),
+            width: 900,
+        },
+    )?;
+    md.push_str(&report::markdown_image("trajectories", "trajectories.png"));
+    md.push_str("\n\n");
+
+    let mut chart = LineChart::new(
+        "distance between the fitted model's motion and the tracks",
+        "frame",
+        "prediction error, px",
+    );
+    chart.series = residual_series;
+    report::line_chart(&out.join("residuals.png"), &chart)?;
+    md.push_str(&report::markdown_image("residuals", "residuals.png"));
+    md.push_str("\n\n");
+
+    let history: Vec<(f64, f64)> = fitted
+        .report
+        .history
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| (i as f64, c))
+        .collect();
+    if history.len() > 1 {
+        let mut chart = LineChart::new("solver cost history", "iteration", "cost, px²");
+        chart.log_y = true;
+        chart.series = vec![Series::new(&fitted.report.method_used, history)];
+        report::line_chart(&out.join("cost_history.png"), &chart)?;
+        md.push_str(&report::markdown_image("cost history", "cost_history.png"));
+        md.push_str("\n\n");
+    }
+
+    // Overlay frames: first, middle and last, with detections, 10-frame tails and predictions.
+    let overlay_dir = out.join("overlay");
+    std::fs::create_dir_all(&overlay_dir).with_context(|| format!("creating {}", overlay_dir.display()))?;
+    let paths = physfit_track::list_frames(frames_dir)?;
+    for &f in &[0, frames / 2, frames.saturating_sub(1)] {
+        let Some(path) = paths.get(f) else { continue };
+        let frame = image::open(path).with_context(|| format!("reading {}", path.display()))?;
+        let mut marks = Overlay::default();
+        for (k, p) in scene.particles.iter().enumerate() {
+            let Some(obs) = by_particle.get(p.id.as_str()) else {
+                continue;
+            };
+            if let Some(q) = obs.iter().find(|q| q.frame == f) {
+                marks.detections.push((q.x, q.y));
+            }
+            marks.tails.push(Tail {
+                colour: k,
+                points: obs
+                    .iter()
+                    .filter(|q| q.frame <= f && q.frame + 10 > f)
+                    .map(|q| (q.x, q.y))
+                    .collect(),
+            });
+            let x = predicted.frame(f)[k];
+            marks.predictions.push(Prediction {
+                colour: k,
+                position: (x.x, x.y),
+            });
+        }
+        let name = format!("overlay/frame_{f:06}.png");
+        report::write_png(&out.join(&name), &report::overlay_frame(&frame, &marks))?;
+        md.push_str(&report::markdown_image(&format!("overlay of frame {f}"), &name));
+        md.push('\n');
+    }
+    Ok(md)
+}
+
+/// Writes `report.md`, `report.html` and `report.json` (prepared together; the JSON last).
+fn write_reports(out: &Path, report: &RunReport, pictures: &str) -> anyhow::Result<()> {
+    use crate::report::{HtmlExporter, JsonExporter, MarkdownExporter, ReportDocument};
+    let doc = ReportDocument {
+        title: format!("physfit report: {}", report.scene),
+        markdown: markdown(report, pictures),
+        json: serde_json::to_value(report).context("serialising report.json")?,
+        dir: out.to_path_buf(),
+    };
+    crate::report::write_reports(&doc, &[&MarkdownExporter, &HtmlExporter, &JsonExporter])?;
     Ok(())
 }
 
-fn markdown(r: &RunReport) -> String {
+fn markdown(r: &RunReport, pictures: &str) -> String {
     let t = &r.tracking;
     let mut s = format!("# physfit report: {}\n\n## Tracking\n\n", r.scene);
     s.push_str(&format!(
@@ -154,9 +300,11 @@ fn markdown(r: &RunReport) -> String {
     }
     s.push_str("\n## Fit\n\n```text\n");
     s.push_str(&super::fit::summary(r.fit));
-    s.push_str("```\n");
+    s.push_str("```\n\n");
     for w in &r.fit.warnings {
         s.push_str(&format!("- warning: {w}\n"));
     }
+    s.push_str("\n## Pictures\n\n");
+    s.push_str(pictures);
     s
 }

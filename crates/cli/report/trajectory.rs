@@ -7,7 +7,7 @@ use anyhow::Context;
 use image::RgbImage;
 use plotters::chart::ChartBuilder;
 use plotters::coord::ReverseCoordTranslate;
-use plotters::element::{Circle, DashedPathElement, PathElement, Text};
+use plotters::element::{Circle, DashedPathElement, PathElement, Rectangle, Text};
 use plotters::prelude::{BitMapBackend, IntoDrawingArea};
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{Color, RGBColor, ShapeStyle, TRANSPARENT, WHITE};
@@ -326,6 +326,14 @@ pub fn render_trajectory_plot(plot: &TrajectoryPlot) -> anyhow::Result<RgbImage>
             root.draw(&Circle::new((col, row), r, ink.stroke_width(2)))
                 .map_err(draw_err)?;
             let label_at = (col + r * 7 / 10 + 3, row - r * 7 / 10 - 15);
+            // A pale backing keeps the label legible over tracks and the background frame.
+            let (tw, th) = label_style.font.box_size(&mismatch.label).map_err(draw_err)?;
+            let backing = [
+                (label_at.0 - 2, label_at.1 - 1),
+                (label_at.0 + tw as i32 + 2, label_at.1 + th as i32 + 3),
+            ];
+            root.draw(&Rectangle::new(backing, WHITE.mix(0.8).filled()))
+                .map_err(draw_err)?;
             root.draw(&Text::new(mismatch.label.clone(), label_at, label_style))
                 .map_err(draw_err)?;
         }

@@ -54,6 +54,9 @@
 
 mod cost;
 pub mod diagnose;
+pub use diagnose::{
+    diagnose, diagnose_observations, scene_costs, DiagnoseOptions, Diagnosis, Effect, Finding,
+};
 mod error;
 mod fit;
 mod layout;

@@ -73,6 +73,10 @@ pub struct Background {
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
 const MIN_NOISE: f64 = 0.3;
 
+/// Half-width, in standard deviations, of the band kept when the noise of a clipped
+/// background is measured by iterated clipping.
+const CLIP_SIGMAS: f64 = 5.0;
+
 /// Fraction of structured pixels above which the per-pixel model is chosen.
 const STRUCTURED_LIMIT: f64 = 0.02;
 
@@ -178,7 +182,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
     } else {
         // Most of the background's negative half is clipped (a black background under
         // noise): the noise the filters see is that of the clipped distribution, whose mean
-        // sits above the level. Both come from the sampled signal by iterated 3-sigma
+        // sits above the level. Both come from the sampled signal by iterated 5-sigma
         // clipping, started from the upper quartile's spread (above the truth when
         // particles crowd the frame, so the clipping converges from above).
         let (offset, sigma) = clipped_mean_and_sigma(&mut sampled);
@@ -238,8 +242,9 @@ impl Background {
 }
 
 /// Mean and standard deviation (grey levels) of the bulk of `values` (reordered) by iterated
-/// 3-sigma clipping from the median and the upper quartile's spread; the standard deviation
-/// is corrected for the clipping of a normal distribution's tails (factor 0.9866).
+/// 5-sigma clipping from the median and the upper quartile's spread. The wide cut keeps the
+/// long tail of a clipped (half-normal) noise distribution, whose spread the filters see,
+/// while rejecting particle pixels; it shortens a normal distribution's spread by 1e-5.
 fn clipped_mean_and_sigma(values: &mut [f32]) -> (f64, f64) {
     if values.len() < 16 {
         return (0.0, MIN_NOISE);
@@ -247,7 +252,7 @@ fn clipped_mean_and_sigma(values: &mut [f32]) -> (f64, f64) {
     let mut mean = f64::from(quantile(values, 0.5));
     let mut sigma = ((f64::from(quantile(values, 0.75)) - mean) / 0.6745).max(MIN_NOISE);
     for _ in 0..50 {
-        let (lo, hi) = (mean - 3.0 * sigma, mean + 3.0 * sigma);
+        let (lo, hi) = (mean - CLIP_SIGMAS * sigma, mean + CLIP_SIGMAS * sigma);
         let (mut n, mut sum, mut sum2) = (0usize, 0.0f64, 0.0f64);
         for &v in values.iter() {
             let v = f64::from(v);
@@ -261,7 +266,7 @@ fn clipped_mean_and_sigma(values: &mut [f32]) -> (f64, f64) {
             break;
         }
         let m = sum / n as f64;
-        let s = ((sum2 / n as f64 - m * m).max(0.0)).sqrt() / 0.9866;
+        let s = ((sum2 / n as f64 - m * m).max(0.0)).sqrt();
         let converged = (s - sigma).abs() <= 1e-3 * sigma && (m - mean).abs() <= 1e-3 * sigma;
         mean = m;
         sigma = s.max(MIN_NOISE);

@@ -129,6 +129,8 @@ struct Track {
     misses: usize,
     /// Points located in frames (detected or split), not bridged.
     seen: usize,
+    /// Consecutive frames, up to the last, in which the track shared a blob.
+    merged: usize,
     err_cv: Option<f64>,
     err_ca: Option<f64>,
     /// Prediction scale before any velocity is known, px.
@@ -145,6 +147,7 @@ impl Track {
             points: vec![p],
             misses: 0,
             seen,
+            merged: 0,
             err_cv: None,
             err_ca: None,
             init_scale,
@@ -157,23 +160,49 @@ impl Track {
         [p.x, p.y]
     }
 
+    /// The last point located from the particle's own blob, as an index into `points`, and
+    /// how many frames ahead of it the next frame is. Split and bridged points are placed
+    /// from predictions, so motion is extrapolated from the last located point instead.
+    fn anchor(&self) -> (usize, f64) {
+        let n = self.points.len();
+        let a = self
+            .points
+            .iter()
+            .rposition(|p| p.flag == PointFlag::Detected)
+            .unwrap_or(n - 1);
+        (a, (n - a) as f64)
+    }
+
+    fn at(&self, i: usize) -> [f64; 2] {
+        let p = &self.points[i];
+        [p.x, p.y]
+    }
+
+    /// Constant-velocity prediction for the next frame.
     fn predict_cv(&self) -> Option<[f64; 2]> {
-        (self.points.len() >= 2).then(|| {
-            let (a, b) = (self.pos(0), self.pos(1));
-            [2.0 * a[0] - b[0], 2.0 * a[1] - b[1]]
+        let (a, h) = self.anchor();
+        (a >= 1).then(|| {
+            let (p, q) = (self.at(a), self.at(a - 1));
+            [p[0] + h * (p[0] - q[0]), p[1] + h * (p[1] - q[1])]
         })
     }
 
+    /// Constant-acceleration prediction for the next frame.
     fn predict_ca(&self) -> Option<[f64; 2]> {
-        (self.points.len() >= 3).then(|| {
-            let (a, b, c) = (self.pos(0), self.pos(1), self.pos(2));
-            [3.0 * a[0] - 3.0 * b[0] + c[0], 3.0 * a[1] - 3.0 * b[1] + c[1]]
+        let (a, h) = self.anchor();
+        (a >= 2).then(|| {
+            let (p, q, r) = (self.at(a), self.at(a - 1), self.at(a - 2));
+            let k = 0.5 * h * (h + 1.0);
+            [
+                p[0] + h * (p[0] - q[0]) + k * (p[0] - 2.0 * q[0] + r[0]),
+                p[1] + h * (p[1] - q[1]) + k * (p[1] - 2.0 * q[1] + r[1]),
+            ]
         })
     }
 
     /// Predicted position and prediction scale (px) for the next frame.
     fn predict(&self, floor: f64) -> ([f64; 2], f64) {
-        let grow = 1.0 + self.misses as f64;
+        let grow = 1.0 + (self.misses + self.merged) as f64;
         let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a < v);
         let (p, err) = if use_ca {
             (self.predict_ca(), self.err_ca)
@@ -183,7 +212,7 @@ impl Track {
         match (p, err) {
             (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
             (Some(p), None) => (p, self.init_scale.max(floor) * grow),
-            _ => (self.pos(0), self.init_scale.max(floor) * grow),
+            _ => (self.at(self.anchor().0), self.init_scale.max(floor) * grow),
         }
     }
 
@@ -219,6 +248,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             .flat_map(|f| f.detections.iter().map(|d| d.mass))
             .collect(),
     );
+    let one = SingleParticle::measure(frames);
     let mut tracks: Vec<Track> = Vec::new();
     let named = options.named_start.is_some();
     let mut events: Vec<(usize, AmbiguityKind, Vec<usize>)> = Vec::new();
@@ -343,7 +373,13 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let best = tree.as_ref().and_then(|tree| {
                 tree.within_unsorted::<SquaredEuclidean>(&p, merge_r * merge_r)
                     .into_iter()
-                    .filter(|nb| !det_tracks[nb.item as usize].is_empty())
+                    // Only a blob whose light says it holds more particles than it was
+                    // given: otherwise two tracks would glue onto one particle, and the
+                    // other particle, left unclaimed nearby, would be lost for good.
+                    .filter(|nb| {
+                        let j = nb.item as usize;
+                        !det_tracks[j].is_empty() && one.holds_more(&dets[j], det_tracks[j].len())
+                    })
                     .min_by(|a, b| a.distance.total_cmp(&b.distance))
                     .map(|nb| nb.item as usize)
             });
@@ -394,6 +430,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 let ti = live[group[0]];
                 tracks[ti].learn([d.x, d.y]);
                 tracks[ti].misses = 0;
+                tracks[ti].merged = 0;
                 tracks[ti].seen += 1;
                 tracks[ti].points.push(point_from(d, PointFlag::Detected));
                 continue;
@@ -407,7 +444,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 let ti = live[k];
                 let x = d.x + p[0] - mean[0];
                 let y = d.y + p[1] - mean[1];
+                // A split point is placed from the prediction, so it carries no news about
+                // the motion: it does not train the predictor, and the prediction grows
+                // less certain with each merged frame, as with each unseen one.
                 tracks[ti].misses = 0;
+                tracks[ti].merged += 1;
                 tracks[ti].seen += 1;
                 tracks[ti].points.push(Point {
                     x,
@@ -515,6 +556,54 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     }
     out.table = TrackTable { points: rows };
     out
+}
+
+/// What one particle's blob looks like in this recording: the median and robust spread
+/// (1.4826 MAD) of the mass and size of all detections, most of which hold one particle.
+struct SingleParticle {
+    mass: f64,
+    mass_spread: f64,
+    size: f64,
+    size_spread: f64,
+}
+
+impl SingleParticle {
+    fn measure(frames: &[FrameDetections]) -> SingleParticle {
+        let masses: Vec<f64> = frames
+            .iter()
+            .flat_map(|f| f.detections.iter().map(|d| d.mass))
+            .collect();
+        let sizes: Vec<f64> = frames
+            .iter()
+            .flat_map(|f| f.detections.iter().map(|d| d.size))
+            .collect();
+        let (mass, mass_spread) = median_and_spread(masses);
+        let (size, size_spread) = median_and_spread(sizes);
+        SingleParticle {
+            mass,
+            mass_spread,
+            size,
+            size_spread,
+        }
+    }
+
+    /// Returns true if and only if blob `d`, already given to `taken` tracks, is measurably
+    /// heavier or wider than `taken` particles (by more than three spreads, and by at least
+    /// a tenth of a particle's mass or of its size).
+    fn holds_more(&self, d: &Detection, taken: usize) -> bool {
+        if !(self.mass.is_finite() && self.size.is_finite()) {
+            return false;
+        }
+        let heavier = d.mass > self.mass * taken as f64 + (3.0 * self.mass_spread).max(0.1 * self.mass);
+        let wider = taken == 1 && d.size > self.size + (3.0 * self.size_spread).max(0.1 * self.size);
+        heavier || wider
+    }
+}
+
+fn median_and_spread(v: Vec<f64>) -> (f64, f64) {
+    let m = median(v.clone());
+    let dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    (m, 1.4826 * median(dev))
 }
 
 fn point_from(d: &Detection, flag: PointFlag) -> Point {

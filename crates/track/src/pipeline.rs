@@ -20,8 +20,11 @@ use crate::{
 const BACKGROUND_SAMPLES: usize = 25;
 /// Frames sampled to estimate the particle radius.
 const RADIUS_SAMPLES: usize = 5;
-/// Radius, px, the estimation starts from; three rounds make it independent of this.
+/// Radius, px, the estimation starts from; the rounds make it independent of this.
 const START_RADIUS: f64 = 3.0;
+/// Most rounds of the radius estimate (each re-detects and re-measures with the last
+/// estimate; a small start converges upwards in about ten rounds).
+const RADIUS_ROUNDS: usize = 16;
 
 /// How to track a folder of frames. `TrackOptions::default()` derives everything from the data.
 #[derive(Clone, Debug, PartialEq)]
@@ -369,11 +372,12 @@ fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)
 
 /// Estimates the particle radius, px, from the blobs of a few frames: a uniform disc of
 /// radius `R` has radius of gyration `R / sqrt(2)`, so `R = sqrt(2)` times the median
-/// measured gyration radius. Three rounds (detect and locate with the current estimate,
-/// re-measure) make the answer independent of the starting value.
+/// measured gyration radius. Rounds (detect and locate with the current estimate,
+/// re-measure) until it changes by less than 0.01 px make the answer independent of the
+/// starting value.
 fn estimate_radius(background: &Background, frames: &[Frame]) -> f64 {
     let mut radius = START_RADIUS;
-    for _ in 0..3 {
+    for _ in 0..RADIUS_ROUNDS {
         let params = DetectParameters {
             radius,
             noise_sigma: background.noise_sigma,

@@ -29,6 +29,11 @@ pub const JOLT_FIT_POINTS: usize = 4;
 /// A jump must exceed this many times its noise scale to be a jolt.
 pub const JOLT_THRESHOLD: f64 = 5.0;
 
+/// Least distance (px) a tracked centre may seem to cross a proposed wall before the wall is
+/// dropped (also at least five track noises and a bounce's frame of travel): the line's
+/// position from the bounces is only estimated to about this.
+pub const WALL_CROSSING_PX: f64 = 2.0;
+
 /// Largest angle between the jumps of one wall's jolts, degrees.
 pub const WALL_GROUP_DEGREES: f64 = 25.0;
 
@@ -207,6 +212,35 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
                 params: [n.y.atan2(n.x), offset, e],
                 jolts: members,
             }
+        })
+        // A wall is never crossed: a line that some tracked centre goes beyond by more than a
+        // bounce's frame of travel is no wall; within that, the line moves to the deepest centre.
+        .filter_map(|mut g| {
+            let n = Vec2::new(g.params[0].cos(), g.params[0].sin());
+            let deepest = obs
+                .positions
+                .iter()
+                .flat_map(|f| {
+                    f.iter()
+                        .zip(&obs.fixed)
+                        .filter(|(_, &fixed)| !fixed)
+                        .filter_map(|(x, _)| *x)
+                })
+                .map(|x| n.dot(&x) - g.params[1])
+                .fold(f64::INFINITY, f64::min);
+            let travel = g
+                .jolts
+                .iter()
+                .map(|&k| Vec2::new(jolts[k].before[0], jolts[k].before[1]).dot(&n).abs() * dt)
+                .fold(0.0, f64::max);
+            let tolerance = travel.max(5.0 * obs.noise).max(WALL_CROSSING_PX);
+            if deepest < -tolerance {
+                return None;
+            }
+            if deepest < 0.0 {
+                g.params[1] += deepest;
+            }
+            Some(g)
         })
         .collect()
 }

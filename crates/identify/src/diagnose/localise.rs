@@ -124,7 +124,23 @@ pub fn localise(
             f64::NAN
         };
         let rms = ms.sqrt();
-        let significant = noise.is_finite() && ms > SIGNIFICANT_RATIO * noise * noise;
+        let pos: Vec<f64> = series
+            .before
+            .iter()
+            .filter_map(|f| f.get(p).copied().flatten())
+            .flat_map(|e| [e[0] * e[0], e[1] * e[1]])
+            .collect();
+        let position_rms = (pos.iter().sum::<f64>() / pos.len().max(1) as f64).sqrt();
+        // Beyond noise: a mean square residual acceleration above SIGNIFICANT_RATIO times
+        // noise's, a mean (bias) above five standard errors (windows overlap by three quarters,
+        // so a quarter of them are independent), or a position residual above
+        // sqrt(SIGNIFICANT_RATIO) track noises.
+        let independent = (points.len() as f64 / 4.0).max(1.0);
+        let bias_z = mean.norm() / (noise / independent.sqrt()).max(f64::MIN_POSITIVE);
+        let significant = noise.is_finite()
+            && (ms > SIGNIFICANT_RATIO * noise * noise
+                || bias_z > 5.0
+                || position_rms > SIGNIFICANT_RATIO.sqrt() * sigma);
         let velocity_correlation = {
             let mut num = 0.0;
             let (mut aa, mut vv) = (0.0, 0.0);
@@ -143,20 +159,30 @@ pub fn localise(
             }
         };
         let has_jolts = jolts.iter().any(|j| j.particle == p);
+        // The pattern, each test against its noise: a bias of three standard errors, a
+        // correlation with the velocity three standard errors below zero, a straight-line trend
+        // explaining half the variance of a residual beyond noise; a position residual beyond
+        // noise whose accelerations are each within it accumulates from a small force.
+        let velocity_z = velocity_correlation * independent.sqrt();
+        let beyond = noise.is_finite() && ms > SIGNIFICANT_RATIO * noise * noise;
         let pattern = if !significant {
             if has_jolts {
                 "isolated jolts"
             } else {
                 "noise"
             }
-        } else if mean.norm_squared() > 0.5 * 2.0 * ms {
-            "steady bias"
-        } else if velocity_correlation < -0.5 {
+        } else if has_jolts && !beyond {
+            "isolated jolts"
+        } else if velocity_z < -3.0 {
             "against the motion"
-        } else if trend_fraction(&points) > 0.5 {
+        } else if bias_z > 3.0 {
+            "steady bias"
+        } else if beyond && trend_fraction(&points) > 0.5 {
             "slow trend"
-        } else {
+        } else if beyond {
             "oscillating"
+        } else {
+            "accumulated drift"
         };
         let mut region: Option<[f64; 4]> = None;
         if noise.is_finite() {
@@ -171,13 +197,7 @@ pub fn localise(
                 }
             }
         }
-        let pos: Vec<f64> = series
-            .before
-            .iter()
-            .filter_map(|f| f.get(p).copied().flatten())
-            .flat_map(|e| [e[0] * e[0], e[1] * e[1]])
-            .collect();
-        let position_rms = (pos.iter().sum::<f64>() / pos.len().max(1) as f64).sqrt();
+
         if significant || has_jolts {
             summary.push(format!(
                 "{}: {pattern}, residual acceleration {:.2} px/s^2 RMS against {:.2} from noise, mean {:.2} px/s^2 towards {:.0} degrees",

@@ -3,19 +3,23 @@
 //!
 //! A key design decision made in this module is to *screen* cheaply and *judge* expensively:
 //!
-//! 1. **Jolts** (bounces) are found in the tracks alone ([`jolts`]); they suggest walls and
-//!    their frames are left out of the smooth analysis.
-//! 2. The frames are split into interleaved blocks; a fraction is **held out** of every fit.
+//! 1. The frames are split into interleaved blocks; a fraction is **held out** of every fit.
+//! 2. **Jolts** (bounces) are found in the tracks, as impulses the structure's smooth forces
+//!    do not explain (module `jolts`); they propose walls, and their frames are left out of
+//!    the smooth analysis.
 //! 3. The **base fit** (structure alone: weak-form estimate, then multi-step least squares
 //!    with the start state free) gives the residuals that are **localised** per particle, per
-//!    bond and per frame against the noise measured from the tracks ([`localise`]).
-//! 4. **Greedy search** ([`search`]): every candidate [`Effect`] is screened by the residual
-//!    it explains in the weak-form linear system (held-out rows); the best few, and every wall
-//!    proposed by jolts, are fitted by multi-step least squares with everything else, and
-//!    scored by the held-out multi-step cost they remove over the noise variance, minus a
+//!    bond and per frame against the noise measured from the tracks (module `localise`).
+//! 4. **Greedy search** (module `search`): every candidate [`Effect`] is screened in the
+//!    weak-form linear system (held-out rows) and by a score test on the multi-step fit
+//!    (module `score_test`); the best few, and every proposed wall (alone and with the weak
+//!    form's favourite force), are fitted by multi-step least squares with everything else,
+//!    and scored by the held-out multi-step cost they remove over the noise variance, minus a
 //!    `k ln N` penalty. The best positive score is accepted; repeat until none is positive.
 //! 5. The accepted model is **refitted** on all analysed frames (warm start), with standard
 //!    errors from its Jacobian, and written as a scene ([`Diagnosis::final_scene`]).
+//!
+//! `docs/diagnosis.md` describes the thresholds and the `report.json` contract.
 
 mod costs;
 mod effect;

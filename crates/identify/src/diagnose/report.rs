@@ -169,7 +169,8 @@ pub struct ParticleResidual {
     /// True when the residual is beyond what track noise explains.
     pub significant: bool,
     /// `steady bias`, `slow trend`, `against the motion`, `isolated jolts`, `oscillating`,
-    /// or `noise`.
+    /// `accumulated drift` (positions off while each window's acceleration is within noise:
+    /// a small force adding up), or `noise`.
     pub pattern: String,
     /// Image region `[x_min, y_min, x_max, y_max]` where its residual exceeds three noise
     /// levels.

@@ -118,6 +118,9 @@ fn diagnose_case(name: &str, truth: Scene, structure: &Scene, seed: u64) -> Case
         d.base.costs.multi_step.sum_squares,
         d.final_model.costs.multi_step.sum_squares
     );
+    for line in &d.localisation.summary {
+        eprintln!("   {line}");
+    }
     Case {
         name: name.into(),
         truth,

@@ -1,71 +1,109 @@
 use crate::common::*;
-use physfit_model::{simulate, RenderSettings};
 use physfit_track::*;
 
 #[test]
 #[ignore]
-fn debug_radius() {
-    for (file, noise) in [("paper3.toml", 0.0), ("paper5.toml", 5.0)] {
-        let scene = load_scene(file);
-        let model = scene.model().unwrap();
-        let rec = simulate(
-            &model,
-            &scene.initial_state(),
-            &scene.integration_parameters(),
-            10,
-        );
-        let settings = RenderSettings {
-            noise,
-            ..scene.render.clone()
-        };
-        let frames: Vec<Frame> = (0..5)
-            .map(|k| frame_from_image(&physfit_render::render_frame(rec.frame(k), &settings, k)))
-            .collect();
-        let bg = estimate_background(&frames, BackgroundChoice::Auto);
-        let f0 = &frames[0];
-        for y in 278..287 {
+fn debug_crossing() {
+    let truth = crate::crossing::ballistic(100, 512.0, 6.0, 3.0, 200, 42);
+    let dir = TempDir::new("dbgx");
+    render_to(&truth, &issue_settings(512, 512, 5.0, 9), dir.path());
+    let out = track(
+        dir.path(),
+        &TrackOptions {
+            named_start: Some(truth.named_start()),
+            ..TrackOptions::default()
+        },
+    );
+    let mut last_bad = std::collections::HashSet::new();
+    for p in &out.table.points {
+        let i: usize = p.particle[1..].parse().unwrap();
+        let t = truth.frames[p.frame][i];
+        let e = (p.x - t.x).hypot(p.y - t.y);
+        if e > 1.0 && last_bad.insert(p.particle.clone()) {
+            let near: Vec<_> = truth.frames[p.frame]
+                .iter()
+                .enumerate()
+                .filter(|(j, q)| *j != i && (*q - t).norm() < 15.0)
+                .map(|(j, q)| (j, ((q - t).norm() * 10.0).round() / 10.0))
+                .collect();
             println!(
-                "{:?}",
-                (148..158)
-                    .map(|x| f0.data[y * 512 + x] as i32)
-                    .collect::<Vec<_>>()
+                "frame {} {} flag {:?} err {:.2} near {:?}",
+                p.frame, p.particle, p.flag, e, near
             );
+            for f in p.frame.saturating_sub(3)..=p.frame {
+                let pts: Vec<_> = out
+                    .table
+                    .points
+                    .iter()
+                    .filter(|q| {
+                        q.frame == f
+                            && (q.particle == p.particle
+                                || near.iter().any(|(j, _)| q.particle == format!("p{j}")))
+                    })
+                    .map(|q| {
+                        (
+                            q.particle.clone(),
+                            (q.x * 10.0).round() / 10.0,
+                            (q.y * 10.0).round() / 10.0,
+                            q.flag,
+                            q.mass.round(),
+                        )
+                    })
+                    .collect();
+                let tr: Vec<_> = std::iter::once(i)
+                    .chain(near.iter().map(|(j, _)| *j))
+                    .map(|j| {
+                        (
+                            j,
+                            (truth.frames[f][j].x * 10.0).round() / 10.0,
+                            (truth.frames[f][j].y * 10.0).round() / 10.0,
+                        )
+                    })
+                    .collect();
+                println!("   f{f}: tracks {:?}\n        truth {:?}", pts, tr);
+            }
         }
-        println!(
-            "{file}: level {:?} noise {} dir {:?}",
-            bg.level, bg.noise_sigma, bg.direction
-        );
-        for radius in [3.0, 4.0, 5.0] {
-            let p = DetectParameters {
-                radius,
-                noise_sigma: bg.noise_sigma,
-                expected_area: None,
-            };
-            let sig = bg.signal(&frames[0]);
-            let b = find_blobs(&sig, 512, 512, &p);
-            let seeds: Vec<[f64; 2]> = b.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
-            let d = refine_centroids(
-                &sig,
-                512,
-                512,
-                &seeds,
-                &vec![0.0; seeds.len()],
-                radius + 1.0,
-                bg.noise_sigma,
-            );
-            println!(
-                "  radius {radius}: {} blobs; {:?}",
-                b.blobs.len(),
-                d.iter()
-                    .take(12)
-                    .map(|d| (
-                        d.x.round(),
-                        d.y.round(),
-                        (d.size * 100.0).round() / 100.0,
-                        d.mass.round()
-                    ))
-                    .collect::<Vec<_>>()
-            );
+    }
+}
+
+#[test]
+#[ignore]
+fn debug_crossing_errors() {
+    let truth = crate::crossing::ballistic(100, 512.0, 6.0, 3.0, 200, 42);
+    let dir = TempDir::new("dbgx2");
+    render_to(&truth, &issue_settings(512, 512, 5.0, 9), dir.path());
+    let out = track(
+        dir.path(),
+        &TrackOptions {
+            named_start: Some(truth.named_start()),
+            ..TrackOptions::default()
+        },
+    );
+    let mut big = std::collections::BTreeMap::new();
+    let mut hist = [0usize; 6];
+    for p in &out.table.points {
+        let i: usize = p.particle[1..].parse().unwrap();
+        let t = truth.frames[p.frame][i];
+        let e = (p.x - t.x).hypot(p.y - t.y);
+        hist[(e.floor() as usize).min(5)] += 1;
+        if e > 3.0 {
+            big.entry(p.particle.clone()).or_insert_with(Vec::new).push((
+                p.frame,
+                (e * 10.0).round() / 10.0,
+                p.flag,
+            ));
         }
+    }
+    println!("error histogram by px: {hist:?}");
+    for (k, v) in big {
+        println!("{k}: {:?}", v);
+    }
+    for a in out
+        .stats
+        .ambiguities
+        .iter()
+        .filter(|a| a.kind != AmbiguityKind::Merged)
+    {
+        println!("{a}");
     }
 }

@@ -2,5 +2,6 @@
 
 mod accuracy;
 mod common;
+mod crossing;
 mod debug;
 mod scenes;

@@ -1,0 +1,143 @@
+//! Dense crossing: 100 free particles on 512x512 px crossing and touching for 200 frames,
+//! followed from a named start: no identity switch, and every point not located from its
+//! own blob flagged and reported as an ambiguity.
+
+use std::collections::HashSet;
+
+use physfit_model::Vec2;
+use physfit_track::{AmbiguityKind, PointFlag, TrackOptions};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::common::{issue_settings, render_to, score, track, TempDir, Truth};
+
+/// `count` particles moving in straight lines at up to `max_speed` px/frame, reflected by
+/// walls `margin` px inside the image; they pass through each other.
+pub fn ballistic(count: usize, size: f64, margin: f64, max_speed: f64, frames: usize, seed: u64) -> Truth {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut pos: Vec<Vec2> = (0..count)
+        .map(|_| {
+            Vec2::new(
+                rng.gen_range(margin..size - margin),
+                rng.gen_range(margin..size - margin),
+            )
+        })
+        .collect();
+    let mut vel: Vec<Vec2> = (0..count)
+        .map(|_| {
+            let a = std::f64::consts::TAU * rng.gen::<f64>();
+            rng.gen_range(0.5 * max_speed..max_speed) * Vec2::new(a.cos(), a.sin())
+        })
+        .collect();
+    let mut out = vec![pos.clone()];
+    for _ in 1..frames {
+        for (p, v) in pos.iter_mut().zip(vel.iter_mut()) {
+            *p += *v;
+            for k in 0..2 {
+                if p[k] < margin {
+                    p[k] = 2.0 * margin - p[k];
+                    v[k] = -v[k];
+                }
+                if p[k] > size - 1.0 - margin {
+                    p[k] = 2.0 * (size - 1.0 - margin) - p[k];
+                    v[k] = -v[k];
+                }
+            }
+        }
+        out.push(pos.clone());
+    }
+    Truth {
+        names: (0..count).map(|i| format!("p{i}")).collect(),
+        frames: out,
+    }
+}
+
+#[test]
+fn hundred_crossing_particles_keep_their_names() {
+    let truth = ballistic(100, 512.0, 6.0, 3.0, 200, 42);
+    // How crowded it is: frames where some pair of discs (radius 4) overlaps.
+    let overlaps: usize = truth
+        .frames
+        .iter()
+        .map(|f| {
+            let mut n = 0;
+            for i in 0..f.len() {
+                for j in i + 1..f.len() {
+                    n += usize::from((f[i] - f[j]).norm() < 8.0);
+                }
+            }
+            n
+        })
+        .sum();
+    let dir = TempDir::new("crossing");
+    render_to(&truth, &issue_settings(512, 512, 5.0, 9), dir.path());
+    let out = track(
+        dir.path(),
+        &TrackOptions {
+            named_start: Some(truth.named_start()),
+            ..TrackOptions::default()
+        },
+    );
+    let table = truth.table(512, 512);
+    let s = score(&out, &table);
+    println!(
+        "crossing: {overlaps} overlapping pairs over 200 frames; recall {}, switches {}, wrong names {:?}, rms x {:.4} y {:.4} (detected only {:.4} {:.4}), max {:.3} px, {} split, {} bridged, {} ambiguity runs",
+        s.recall,
+        s.id_switches,
+        s.name_mismatches,
+        s.rms_x,
+        s.rms_y,
+        s.rms_x_detected,
+        s.rms_y_detected,
+        s.max_error,
+        out.stats.split_count,
+        out.stats.interpolated_count,
+        out.stats.ambiguities.len()
+    );
+    assert!(
+        overlaps > 100,
+        "the test must make particles touch: {overlaps} overlapping pairs"
+    );
+    assert_eq!(s.id_switches, 0);
+    assert_eq!(s.name_mismatches, Some(0));
+    assert_eq!(s.matched_count, s.truth_count, "every particle in every frame");
+
+    // Every point not located from its own blob lies in a reported run of that particle.
+    let mut reported: HashSet<(usize, String, PointFlag)> = HashSet::new();
+    for a in &out.stats.ambiguities {
+        let flag = match a.kind {
+            AmbiguityKind::Merged => PointFlag::Split,
+            AmbiguityKind::Missing => PointFlag::Interpolated,
+            AmbiguityKind::Lost => continue,
+        };
+        for f in a.first_frame..=a.last_frame {
+            for p in &a.particles {
+                reported.insert((f, p.clone(), flag));
+            }
+        }
+    }
+    let mut flagged = 0;
+    for p in out.table.points.iter().filter(|p| p.flag != PointFlag::Detected) {
+        flagged += 1;
+        assert!(
+            reported.contains(&(p.frame, p.particle.clone(), p.flag)),
+            "{p:?} flagged but not reported"
+        );
+    }
+    assert_eq!(
+        reported.len(),
+        flagged,
+        "every reported (frame, particle) has its flagged point"
+    );
+    assert!(
+        flagged > 0,
+        "dense crossing must make the tracker split or bridge some points"
+    );
+    // No silent guess: a point called detected is on its own particle.
+    let truth_at = |frame: usize, name: &str| truth.frames[frame][name[1..].parse::<usize>().expect("name")];
+    for p in out.table.points.iter().filter(|p| p.flag == PointFlag::Detected) {
+        let t = truth_at(p.frame, &p.particle);
+        let e = (p.x - t.x).hypot(p.y - t.y);
+        assert!(e < 1.0, "{p:?} is {e:.2} px from its particle");
+    }
+}
