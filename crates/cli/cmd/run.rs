@@ -98,7 +98,14 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         tracks_path.display()
     ));
 
-    let mut fitted = physfit_identify::fit(&structure, &tracked.table, &FitOptions::default(), &())
+    // In the pipeline a poor least-squares fit is evidence of physics the structure left out,
+    // which a global search over bond values cannot supply: fit by `lsq` and let the report
+    // (and the diagnosis) say how far the model is from the tracks.
+    let options = FitOptions {
+        method: physfit_identify::Method::Lsq,
+        ..FitOptions::default()
+    };
+    let mut fitted = physfit_identify::fit(&structure, &tracked.table, &options, &())
         .context("stage fit: tracks.csv against the scene's structure")?;
     fitted.report.compare_truth(&scene);
     fitted

@@ -429,7 +429,7 @@ fn invalid_options_are_rejected() {
 }
 
 #[test]
-#[ignore = "every scene over three seeds: about two minutes"]
+#[ignore = "every scene over three seeds: several minutes"]
 fn every_scene_over_three_seeds() {
     let names = [
         "concealed-gravity",
@@ -462,4 +462,33 @@ fn explore() {
     for name in names.split(',') {
         let _ = run(name, seed);
     }
+}
+
+#[test]
+fn a_lone_ball_gets_its_field_and_floor() {
+    // One particle, no bond: nothing to fit but the start state until effects are added.
+    let text = r#"
+        name = "ball"
+        [recording]
+        fps = 30.0
+        frames = 90
+        substeps = 20
+        [[particles]]
+        id = "ball"
+        mass = 1.0
+        position = [60.0, 80.0]
+        velocity = [40.0, 0.0]
+        [physics]
+        gravity = [0.0, 900.0]
+        [[physics.walls]]
+        point = [0.0, 330.0]
+        normal = [0.0, -1.0]
+        restitution = 0.75
+    "#;
+    let truth = Scene::from_toml_str(text, "ball").unwrap_or_else(|e| panic!("{e}"));
+    let c = diagnose_case("ball", truth.clone(), &truth.structure(), 1);
+    c.names_exactly(&["uniform field (gravity)", "wall"])
+        .gravity()
+        .wall(0)
+        .cost_near_truth();
 }

@@ -128,9 +128,10 @@ pub fn track(dir: &Path, options: &TrackOptions) -> TrackOutcome {
         .unwrap_or_else(|e| panic!("tracking {} failed: {e}", dir.display()))
 }
 
-/// Scores an outcome against a truth table with the tracker's own match radius.
+/// Scores an outcome against a truth table; a point farther than the particle radius from a
+/// true centre is on another particle or none, so it never matches.
 pub fn score(outcome: &TrackOutcome, truth: &TrackTable) -> TrackScore {
-    score_tracks(&outcome.table, truth, outcome.stats.match_radius())
+    score_tracks(&outcome.table, truth, outcome.stats.radius)
 }
 
 /// Loads a scene of the repository's `scenes/` folder.

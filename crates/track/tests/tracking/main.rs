@@ -3,5 +3,6 @@
 mod accuracy;
 mod common;
 mod crossing;
-mod debug;
 mod scenes;
+mod styles;
+mod debug;
