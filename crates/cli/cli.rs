@@ -32,6 +32,8 @@ pub enum Command {
     Track(TrackArgs),
     /// Identify every bond's parameters from trajectories and a structure.
     Fit(FitArgs),
+    /// Locate where the fitted model and the tracks disagree, name the missing physics, refit.
+    Diagnose(DiagnoseArgs),
     /// Run the default pipeline on a built-in scene (for now: render it).
     Run(RunArgs),
     /// Measure speed: `render`, `track`, `fit` or `all`.
@@ -116,6 +118,25 @@ pub struct FitArgs {
     /// Generations (GA) or iterations (annealing), at most.
     #[arg(long)]
     pub generations: Option<usize>,
+}
+
+/// `physfit diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Trajectories (`frame,particle,x,y` CSV; `particle` = a structure id).
+    pub tracks: PathBuf,
+    /// The structure: a scene whose unknown bond values and physics are left out.
+    #[arg(long)]
+    pub structure: PathBuf,
+    /// Output folder: fitted.toml, report.json, report.md, report.html and figures.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// First and last frame analysed, inclusive (`A..B`).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<(usize, usize)>,
+    /// Seed of every random choice (which frames are held out).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// Identification methods.

@@ -37,6 +37,7 @@ fn run() -> anyhow::Result<ExitCode> {
         Command::Simulate(args) => cmd::simulate::run(&args, verbosity)?,
         Command::Track(args) => cmd::track::run(&args, verbosity)?,
         Command::Fit(args) => cmd::fit::run(&args, verbosity)?,
+        Command::Diagnose(args) => cmd::diagnose::run(&args, verbosity)?,
         Command::Run(args) => cmd::run::run(&args, verbosity)?,
         Command::Bench(args) => bench::run(&args, verbosity)?,
     }

@@ -1,5 +1,6 @@
 //! One module per subcommand; each validates its arguments and calls the library crates.
 
+pub mod diagnose;
 pub mod fit;
 pub mod render;
 pub mod run;

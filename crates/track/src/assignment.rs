@@ -69,40 +69,151 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
             }
             continue;
         }
-        // Dense augmented square matrix: rows | dummy rows (one per column),
-        // columns | dummy columns (one per row).
-        let (k, l) = (rows.len(), cols.len());
-        let n = k + l;
-        let big: f64 = 1e18;
-        let mut cost = vec![big; n * n];
-        let col_index: std::collections::HashMap<usize, usize> =
-            cols.iter().enumerate().map(|(i, &c)| (c, i)).collect();
-        let row_index: std::collections::HashMap<usize, usize> =
-            rows.iter().enumerate().map(|(i, &r)| (r, i)).collect();
-        for &(r, c, v) in pairs {
-            let (i, j) = (row_index[&r], col_index[&c]);
-            cost[i * n + j] = cost[i * n + j].min(v);
-        }
-        for (i, &r) in rows.iter().enumerate() {
-            cost[i * n + l + i] = problem.row_miss[r];
-        }
-        for (j, &c) in cols.iter().enumerate() {
-            cost[(k + j) * n + j] = problem.col_miss[c];
-            for i in 0..k {
-                // Dummy row × dummy column: free, so unused dummies pair up.
-                cost[(k + j) * n + l + i] = 0.0;
-            }
-        }
-        let assign = solve_dense(&cost, n, n);
-        for (i, &r) in rows.iter().enumerate() {
-            if let Some(j) = assign[i] {
-                if j < l && cost[i * n + j] < big {
-                    result[r] = Some(cols[j]);
-                }
-            }
+        for (r, c) in solve_component(rows, cols, pairs, problem) {
+            result[r] = Some(c);
         }
     }
     result
+}
+
+/// Solves one connected component by successive shortest augmenting paths on the sparse
+/// graph (Dijkstra with potentials, the shortest-path form of the Hungarian method), so a
+/// crowded frame whose gates chain a thousand particles together costs about the number of
+/// gated pairs per augmentation, not the cube of the component size.
+///
+/// Leaving column `c` unmatched costs `col_miss[c]`, so matching row `r` to it costs
+/// `cost - col_miss[c]` relative to leaving it; each row also has a private "miss" column at
+/// `row_miss[r]`. Every row is then assigned exactly once, and a constant per row (its
+/// cheapest option) is subtracted so that all costs are non-negative for Dijkstra.
+fn solve_component(
+    rows: &[usize],
+    cols: &[usize],
+    pairs: &[(usize, usize, f64)],
+    problem: &SparseProblem,
+) -> Vec<(usize, usize)> {
+    use std::cmp::Reverse;
+    use std::collections::{BinaryHeap, HashMap};
+    let (k, l) = (rows.len(), cols.len());
+    let row_index: HashMap<usize, usize> = rows.iter().enumerate().map(|(i, &r)| (r, i)).collect();
+    let col_index: HashMap<usize, usize> = cols.iter().enumerate().map(|(j, &c)| (c, j)).collect();
+    // Edges per local row: (local column, cost); column l + i is row i's miss column.
+    let mut adj: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
+    for &(r, c, v) in pairs {
+        let (i, j) = (row_index[&r], col_index[&c]);
+        adj[i].push((j, v - problem.col_miss[c]));
+    }
+    for (i, &r) in rows.iter().enumerate() {
+        adj[i].push((l + i, problem.row_miss[r]));
+        let lo = adj[i].iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
+        for e in &mut adj[i] {
+            e.1 -= lo;
+        }
+    }
+    let m = l + k;
+    let mut v = vec![0.0f64; m];
+    let mut u = vec![0.0f64; k];
+    let mut col_match: Vec<Option<usize>> = vec![None; m];
+    let mut row_match: Vec<Option<usize>> = vec![None; k];
+    let mut dist = vec![f64::INFINITY; m];
+    let mut prev_row = vec![usize::MAX; m];
+    let mut done = vec![false; m];
+    let mut touched: Vec<usize> = Vec::new();
+    /// A heap key ordered by distance.
+    #[derive(PartialEq)]
+    struct Key(f64, usize);
+    impl Eq for Key {}
+    impl PartialOrd for Key {
+        fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+            Some(self.cmp(o))
+        }
+    }
+    impl Ord for Key {
+        fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+            self.0.total_cmp(&o.0).then(self.1.cmp(&o.1))
+        }
+    }
+    for s in 0..k {
+        for &j in &touched {
+            dist[j] = f64::INFINITY;
+            done[j] = false;
+            prev_row[j] = usize::MAX;
+        }
+        touched.clear();
+        let mut heap = BinaryHeap::new();
+        for &(j, c) in &adj[s] {
+            let d = c - u[s] - v[j];
+            if d < dist[j] {
+                if dist[j].is_infinite() {
+                    touched.push(j);
+                }
+                dist[j] = d;
+                prev_row[j] = s;
+                heap.push(Reverse(Key(d, j)));
+            }
+        }
+        let mut finalized: Vec<usize> = Vec::new();
+        let mut end = None;
+        while let Some(Reverse(Key(d, j))) = heap.pop() {
+            if done[j] || d > dist[j] {
+                continue;
+            }
+            done[j] = true;
+            finalized.push(j);
+            match col_match[j] {
+                None => {
+                    end = Some((j, d));
+                    break;
+                }
+                Some(i) => {
+                    for &(j2, c) in &adj[i] {
+                        if done[j2] {
+                            continue;
+                        }
+                        let nd = d + c - u[i] - v[j2];
+                        if nd < dist[j2] {
+                            if dist[j2].is_infinite() {
+                                touched.push(j2);
+                            }
+                            dist[j2] = nd;
+                            prev_row[j2] = i;
+                            heap.push(Reverse(Key(nd, j2)));
+                        }
+                    }
+                }
+            }
+        }
+        // Every row has its own miss column, so a free column is always reached.
+        let Some((jend, dend)) = end else { continue };
+        for &j in &finalized {
+            let delta = dend - dist[j];
+            if delta > 0.0 {
+                v[j] -= delta;
+                if let Some(i) = col_match[j] {
+                    u[i] += delta;
+                }
+            }
+        }
+        u[s] += dend;
+        // Augment along the path of predecessors.
+        let mut j = jend;
+        loop {
+            let i = prev_row[j];
+            let old = row_match[i];
+            row_match[i] = Some(j);
+            col_match[j] = Some(i);
+            match old {
+                Some(jo) if i != s => j = jo,
+                _ => break,
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (j, r) in col_match.iter().enumerate().take(l) {
+        if let Some(i) = r {
+            out.push((rows[*i], cols[j]));
+        }
+    }
+    out
 }
 
 /// Solves a dense `n x m` problem (`n <= m`, row-major costs); returns each row's column.
@@ -182,6 +293,80 @@ mod tests {
         // Greedy takes (0,0)=1 then (1,1)=10: 11; optimal is (0,1)+(1,0) = 2+2 = 4.
         let cost = [1.0, 2.0, 2.0, 10.0];
         assert_eq!(solve_dense(&cost, 2, 2), vec![Some(1), Some(0)]);
+    }
+
+    #[test]
+    fn sparse_matches_dense_on_random_problems() {
+        // Brute force over the dense augmented form for small random problems.
+        let mut state = 12345u64;
+        let mut rnd = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as f64 / (1u64 << 31) as f64
+        };
+        for _ in 0..300 {
+            let (nr, nc) = (1 + (rnd() * 5.0) as usize, 1 + (rnd() * 5.0) as usize);
+            let mut p = SparseProblem::default();
+            for r in 0..nr {
+                for c in 0..nc {
+                    if rnd() < 0.6 {
+                        p.pairs.push((r, c, rnd() * 4.0));
+                    }
+                }
+            }
+            p.row_miss = (0..nr).map(|_| rnd() * 3.0).collect();
+            p.col_miss = (0..nc).map(|_| rnd()).collect();
+            let total = |a: &[Option<usize>]| {
+                let mut t = 0.0;
+                let mut used = vec![false; nc];
+                for (r, m) in a.iter().enumerate() {
+                    match m {
+                        Some(c) => {
+                            used[*c] = true;
+                            t += p
+                                .pairs
+                                .iter()
+                                .filter(|q| q.0 == r && q.1 == *c)
+                                .map(|q| q.2)
+                                .fold(f64::INFINITY, f64::min);
+                        }
+                        None => t += p.row_miss[r],
+                    }
+                }
+                t + (0..nc).filter(|&c| !used[c]).map(|c| p.col_miss[c]).sum::<f64>()
+            };
+            // Best by exhaustive search over partial injections.
+            fn search(
+                r: usize,
+                nr: usize,
+                nc: usize,
+                cur: &mut Vec<Option<usize>>,
+                best: &mut f64,
+                f: &dyn Fn(&[Option<usize>]) -> f64,
+                allowed: &dyn Fn(usize, usize) -> bool,
+            ) {
+                if r == nr {
+                    *best = best.min(f(cur));
+                    return;
+                }
+                cur.push(None);
+                search(r + 1, nr, nc, cur, best, f, allowed);
+                cur.pop();
+                for c in 0..nc {
+                    if allowed(r, c) && !cur.contains(&Some(c)) {
+                        cur.push(Some(c));
+                        search(r + 1, nr, nc, cur, best, f, allowed);
+                        cur.pop();
+                    }
+                }
+            }
+            let mut best = f64::INFINITY;
+            let allowed = |r: usize, c: usize| p.pairs.iter().any(|q| q.0 == r && q.1 == c);
+            search(0, nr, nc, &mut Vec::new(), &mut best, &total, &allowed);
+            let got = total(&solve_sparse(&p));
+            assert!((got - best).abs() < 1e-9, "sparse {got} vs best {best} on {p:?}");
+        }
     }
 
     #[test]

@@ -32,7 +32,8 @@ pub enum BackgroundModel {
 /// How the background model is chosen.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BackgroundChoice {
-    /// Constant if the median image is flat apart from compact spots, else per-pixel.
+    /// Constant if the median image is flat apart from compact spots, or its structure
+    /// covers no more than twice the part of a frame that moves; else per-pixel.
     #[default]
     Auto,
     /// Always a constant level.
@@ -117,11 +118,31 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         .filter(|px| px.iter().zip(&level).any(|(v, l)| (v - l).abs() > tau))
         .count();
     let structured_fraction = structured as f64 / (width * height).max(1) as f64;
+    // The fraction of each frame that moving things cover: pixels far from the median.
+    // Particles that hover (a random walk, a slow drift) leave part of themselves in the
+    // median image; such structure covers no more of the frame than the particles do,
+    // while a scene's static background (a wall, a shelf, a gradient) covers far more.
+    let tau_frame = (5.0 * sigma_t).max(3.0) as f32;
+    let moving: usize = samples
+        .iter()
+        .map(|f| {
+            f.data
+                .chunks_exact(channels)
+                .zip(median.chunks_exact(channels))
+                .filter(|(p, m)| p.iter().zip(*m).any(|(a, b)| (a - b).abs() > tau_frame))
+                .count()
+        })
+        .sum();
+    let moving_fraction = moving as f64 / (k * width * height).max(1) as f64;
     let model = match choice {
         BackgroundChoice::Constant => BackgroundModel::Constant,
         BackgroundChoice::PerPixel if k >= 2 => BackgroundModel::PerPixel,
         BackgroundChoice::PerPixel => BackgroundModel::Constant,
-        BackgroundChoice::Auto if k >= 3 && structured_fraction > STRUCTURED_LIMIT => {
+        BackgroundChoice::Auto
+            if k >= 3
+                && structured_fraction > STRUCTURED_LIMIT
+                && structured_fraction > 2.0 * moving_fraction =>
+        {
             BackgroundModel::PerPixel
         }
         BackgroundChoice::Auto => BackgroundModel::Constant,

@@ -3,6 +3,8 @@
 mod accuracy;
 mod common;
 mod crossing;
+mod errors;
+mod events;
+mod real;
 mod scenes;
 mod styles;
-mod debug;

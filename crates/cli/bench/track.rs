@@ -1,0 +1,214 @@
+//! `physfit bench track`: end-to-end tracking speed (PNG decode, detect, locate, link) and
+//! localisation accuracy on the issue's benchmark frames, next to trackpy 0.7's figures.
+//!
+//! Frames are 512x512 8-bit grey, anti-aliased discs of radius 4 px and amplitude 200 over
+//! a background of 30, each particle stepping up to 3 px per frame in a random direction.
+//! They are rendered once per case into a folder under the system temp dir (removed after).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use physfit_model::{Colour, Recording, RenderSettings, Vec2};
+use physfit_render::render_sequence;
+use physfit_track::{
+    list_frames, load_frame, score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable,
+};
+
+/// Frame size, px.
+const SIZE: u32 = 512;
+/// trackpy 0.7 end-to-end frames/s at 10, 100 and 1000 particles (from the issue).
+const TRACKPY_FPS: [(usize, f64); 3] = [(10, 90.0), (100, 70.0), (1000, 21.0)];
+/// trackpy 0.7 RMS localisation error per axis at noise 0, 5 and 20 grey levels, px.
+const TRACKPY_RMS: [(f64, f64); 3] = [(0.0, 0.004), (5.0, 0.014), (20.0, 0.05)];
+
+/// A folder removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(label: &str) -> anyhow::Result<Scratch> {
+        let dir = std::env::temp_dir().join(format!("physfit-bench-track-{}-{label}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(Scratch(dir))
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Uniform numbers in [0, 1) from splitmix64 (fixed seeds: every run draws the same frames).
+struct Uniform(u64);
+
+impl Uniform {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Random walks: `start` positions stepping up to 3 px per frame, reflected to stay within
+/// `[lo, hi]` on each axis (per particle), for `frames` frames.
+fn walk(start: Vec<Vec2>, bounds: &[(Vec2, Vec2)], frames: usize, seed: u64) -> Recording {
+    let mut rng = Uniform(seed);
+    let n = start.len();
+    let mut pos = start;
+    let mut positions = Vec::with_capacity(n * frames);
+    positions.extend_from_slice(&pos);
+    for _ in 1..frames {
+        for (p, (lo, hi)) in pos.iter_mut().zip(bounds) {
+            let len = 3.0 * rng.next();
+            let a = std::f64::consts::TAU * rng.next();
+            let mut q = *p + len * Vec2::new(a.cos(), a.sin());
+            for k in 0..2 {
+                if q[k] < lo[k] {
+                    q[k] = 2.0 * lo[k] - q[k];
+                }
+                if q[k] > hi[k] {
+                    q[k] = 2.0 * hi[k] - q[k];
+                }
+            }
+            *p = q;
+        }
+        positions.extend_from_slice(&pos);
+    }
+    Recording {
+        particle_count: n,
+        velocities: vec![Vec2::zeros(); positions.len()],
+        positions,
+    }
+}
+
+/// `count` particles anywhere in the frame (they may overlap), 8 px from the edges.
+fn scattered(count: usize, frames: usize) -> Recording {
+    let mut rng = Uniform(0x5eed + count as u64);
+    let (lo, hi) = (8.0, SIZE as f64 - 9.0);
+    let start: Vec<Vec2> = (0..count)
+        .map(|_| Vec2::new(lo + (hi - lo) * rng.next(), lo + (hi - lo) * rng.next()))
+        .collect();
+    let bounds = vec![(Vec2::new(lo, lo), Vec2::new(hi, hi)); count];
+    walk(start, &bounds, frames, 7 + count as u64)
+}
+
+/// 100 isolated particles, one per cell of a 10x10 grid, each kept 10 px inside its cell.
+fn isolated(frames: usize) -> Recording {
+    let cell = SIZE as f64 / 10.0;
+    let mut rng = Uniform(0xacc);
+    let mut start = Vec::new();
+    let mut bounds = Vec::new();
+    for r in 0..10 {
+        for c in 0..10 {
+            let lo = Vec2::new(c as f64 * cell + 10.0, r as f64 * cell + 10.0);
+            let hi = lo + Vec2::new(cell - 20.0, cell - 20.0);
+            start.push(lo + Vec2::new((hi.x - lo.x) * rng.next(), (hi.y - lo.y) * rng.next()));
+            bounds.push((lo, hi));
+        }
+    }
+    walk(start, &bounds, frames, 0xacc)
+}
+
+fn settings(noise: f64) -> RenderSettings {
+    RenderSettings {
+        width: SIZE,
+        height: SIZE,
+        radius: 4.0,
+        background: Colour::Grey(30),
+        foreground: Colour::Grey(230),
+        noise,
+        blur: 0.0,
+        seed: 1,
+    }
+}
+
+fn render(rec: &Recording, noise: f64, dir: &Path) -> anyhow::Result<()> {
+    render_sequence(rec, &settings(noise), dir, &|_| {})
+        .with_context(|| format!("rendering into {}", dir.display()))
+}
+
+fn truth_table(rec: &Recording) -> TrackTable {
+    let mut points = Vec::new();
+    for k in 0..rec.frame_count() {
+        for (i, p) in rec.frame(k).iter().enumerate() {
+            points.push(TrackPoint::new(k, format!("p{i}"), p.x, p.y));
+        }
+    }
+    TrackTable { points }
+}
+
+/// Seconds to decode every frame of `dir` on one thread (read, PNG decode, to f32).
+fn decode_seconds(dir: &Path) -> anyhow::Result<f64> {
+    let files = list_frames(dir)?;
+    let start = Instant::now();
+    for f in &files {
+        std::hint::black_box(load_frame(f)?);
+    }
+    Ok(start.elapsed().as_secs_f64())
+}
+
+/// Seconds to track `dir` end to end with `threads` worker threads.
+fn track_seconds(dir: &Path, threads: usize) -> anyhow::Result<(f64, usize)> {
+    let options = TrackOptions {
+        threads: Some(threads),
+        ..TrackOptions::default()
+    };
+    let start = Instant::now();
+    let out = track_folder(dir, &options, &|_, _| {})?;
+    Ok((start.elapsed().as_secs_f64(), out.table.points.len()))
+}
+
+/// Runs the tracking benchmark and returns Markdown tables: frames/s for 10, 100 and 1000
+/// particles (decode only, end to end on one and two threads) and RMS error per axis at
+/// noise 0, 5 and 20, each beside trackpy 0.7's figure. `quick` uses few frames.
+pub fn run(quick: bool) -> anyhow::Result<String> {
+    let frames = if quick { 30 } else { 200 };
+    let mut out = String::new();
+    out.push_str(&format!(
+        "### Tracker: {SIZE}x{SIZE} 8-bit PNG frames, discs of radius 4 px, amplitude 200 over 30, random walks up to 3 px/frame, noise sigma 5\n\n"
+    ));
+    out.push_str("| particles | frames | decode only (frames/s, 1 thread) | physfit end to end, 1 thread | physfit, 2 threads | trackpy 0.7 | physfit / trackpy (1 thread) | decode share (1 thread) |\n");
+    out.push_str("|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (count, trackpy) in TRACKPY_FPS {
+        let dir = Scratch::new(&format!("n{count}"))?;
+        render(&scattered(count, frames), 5.0, &dir.0)?;
+        let decode = decode_seconds(&dir.0)?;
+        // One untimed run warms the file cache, then the timed runs.
+        track_seconds(&dir.0, 1)?;
+        let (one, _) = track_seconds(&dir.0, 1)?;
+        let (two, _) = track_seconds(&dir.0, 2)?;
+        let fps = |s: f64| frames as f64 / s.max(1e-9);
+        out.push_str(&format!(
+            "| {count} | {frames} | {:.0} | {:.0} | {:.0} | {trackpy:.0} | {:.1}x | {:.0} % |\n",
+            fps(decode),
+            fps(one),
+            fps(two),
+            fps(one) / trackpy,
+            100.0 * decode / one
+        ));
+    }
+    let acc_frames = if quick { 10 } else { 40 };
+    out.push_str(&format!(
+        "\n### Localisation: 100 isolated discs (radius 4 px, amplitude 200 over 30), {acc_frames} frames, default options\n\n"
+    ));
+    out.push_str("| noise sigma (grey levels) | RMS x (px) | RMS y (px) | median ep (px) | trackpy 0.7 RMS (px) | recall | identity switches |\n");
+    out.push_str("|---:|---:|---:|---:|---:|---:|---:|\n");
+    let rec = isolated(acc_frames);
+    let truth = truth_table(&rec);
+    for (noise, trackpy) in TRACKPY_RMS {
+        let dir = Scratch::new(&format!("rms{noise}"))?;
+        render(&rec, noise, &dir.0)?;
+        let t = track_folder(&dir.0, &TrackOptions::default(), &|_, _| {})?;
+        let s = score_tracks(&t.table, &truth, t.stats.radius);
+        out.push_str(&format!(
+            "| {noise} | {:.4} | {:.4} | {:.4} | {trackpy} | {:.4} | {} |\n",
+            s.rms_x, s.rms_y, t.stats.median_ep, s.recall, s.id_switches
+        ));
+    }
+    Ok(out)
+}
