@@ -2,6 +2,7 @@
 
 pub mod fit;
 pub mod render;
+pub mod track;
 
 use anyhow::Context;
 
@@ -13,6 +14,10 @@ pub fn run(args: &BenchArgs, _verbosity: Verbosity) -> anyhow::Result<()> {
     let mut report = String::new();
     if matches!(args.what, BenchTarget::Render | BenchTarget::All) {
         report.push_str(&render::run(args.quick)?);
+        report.push('\n');
+    }
+    if matches!(args.what, BenchTarget::Track | BenchTarget::All) {
+        report.push_str(&track::run(args.quick)?);
         report.push('\n');
     }
     if matches!(args.what, BenchTarget::Fit | BenchTarget::All) {
