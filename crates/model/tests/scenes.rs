@@ -166,7 +166,7 @@ fn check(scene: &Scene, rec: &Recording) -> (Vec<String>, String) {
     }
 
     let mut summary = format!(
-        "{:<15} {n:>3} particles {:>3} springs {:>3} torsions {frames:>4} frames; closest pair {closest:.1} px",
+        "{:<26} {n:>3} particles {:>3} springs {:>3} torsions {frames:>4} frames; closest pair {closest:.1} px",
         scene.name,
         scene.springs.len(),
         scene.torsions.len(),
