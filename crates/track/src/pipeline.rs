@@ -197,13 +197,17 @@ fn track_paths(
     let paths: Vec<(usize, PathBuf)> = (first..=last).map(|k| (k, all[k].clone())).collect();
 
     // Background and noise from an even sample of the window.
-    let samples = load_sample(&paths, BACKGROUND_SAMPLES)?;
-    let size = (samples[0].1.width, samples[0].1.height);
-    let reference = &samples[0].0;
-    for (path, frame) in &samples {
-        check_size(path, frame, reference, size)?;
+    // The sampled frames are kept and reused by the locate pass: each file is decoded once.
+    let (picks, sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES)?;
+    let size = (sample_frames[0].width, sample_frames[0].height);
+    let reference = &paths[picks[0]].1;
+    for (&i, frame) in picks.iter().zip(&sample_frames) {
+        check_size(&paths[i].1, frame, reference, size)?;
     }
-    let sample_frames: Vec<Frame> = samples.iter().map(|(_, f)| f.clone()).collect();
+    let mut sample_of: Vec<Option<usize>> = vec![None; paths.len()];
+    for (j, &i) in picks.iter().enumerate() {
+        sample_of[i] = Some(j);
+    }
     let background = estimate_background(&sample_frames, options.background);
 
     let (radius, radius_estimated) = match options.radius {
@@ -233,10 +237,18 @@ fn track_paths(
     let total = paths.len();
     let located: Result<Vec<FrameDetections>, TrackError> = paths
         .par_iter()
-        .map(|(k, path)| {
-            let frame = load_frame(path)?;
-            check_size(path, &frame, reference, size)?;
-            let signal = background.signal(&frame);
+        .enumerate()
+        .map(|(i, (k, path))| {
+            let loaded;
+            let frame = match sample_of[i] {
+                Some(j) => &sample_frames[j],
+                None => {
+                    loaded = load_frame(path)?;
+                    check_size(path, &loaded, reference, size)?;
+                    &loaded
+                }
+            };
+            let signal = background.signal(frame);
             let blobs = find_blobs(&signal, size.0, size.1, &params);
             let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
             let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
@@ -337,8 +349,9 @@ fn locate_window(radius: f64) -> f64 {
     radius + 1.0
 }
 
-/// Loads up to `count` frames spread evenly over `paths`.
-fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<Vec<(PathBuf, Frame)>, TrackError> {
+/// Loads up to `count` frames spread evenly over `paths`; returns their indices into `paths`
+/// and the decoded frames.
+fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<(Vec<usize>, Vec<Frame>), TrackError> {
     let n = paths.len();
     let picks: Vec<usize> = if n <= count {
         (0..n).collect()
@@ -347,10 +360,11 @@ fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<Vec<(PathBuf,
         v.dedup();
         v
     };
-    picks
+    let frames = picks
         .par_iter()
-        .map(|&i| load_frame(&paths[i].1).map(|f| (paths[i].1.clone(), f)))
-        .collect()
+        .map(|&i| load_frame(&paths[i].1))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((picks, frames))
 }
 
 fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)) -> Result<(), TrackError> {

@@ -109,18 +109,7 @@ impl AnnealOptions {
                 && self.min_temperature < self.spring_temperature.min(self.torsion_temperature),
             "> 0 and below both initial temperatures",
         )?;
-        check_option(
-            "target_cost",
-            self.target_cost,
-            !self.target_cost.is_nan(),
-            "a number",
-        )?;
-        check_option(
-            "stagnation_tolerance",
-            self.stagnation_tolerance,
-            self.stagnation_tolerance.is_finite() && self.stagnation_tolerance >= 0.0,
-            "finite and >= 0",
-        )
+        super::stopping::check_stopping_options(self.target_cost, self.stagnation_tolerance)
     }
 
     /// A copy with every out-of-range value replaced by the nearest admissible one (or the

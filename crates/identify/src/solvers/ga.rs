@@ -158,18 +158,7 @@ impl GaOptions {
             self.stiffness_range.is_finite() && self.stiffness_range >= 1.0,
             "finite and >= 1",
         )?;
-        check_option(
-            "target_cost",
-            self.target_cost,
-            !self.target_cost.is_nan(),
-            "a number",
-        )?;
-        check_option(
-            "stagnation_tolerance",
-            self.stagnation_tolerance,
-            self.stagnation_tolerance.is_finite() && self.stagnation_tolerance >= 0.0,
-            "finite and >= 0",
-        )
+        super::stopping::check_stopping_options(self.target_cost, self.stagnation_tolerance)
     }
 
     /// A copy with every out-of-range value replaced by the nearest admissible one (or the

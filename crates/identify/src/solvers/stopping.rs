@@ -1,5 +1,20 @@
 //! [`Stagnation`]: the "no improvement over N iterations" stopping rule shared by the solvers.
 
+/// Validates the stopping options every solver shares: a target cost that is a number and a
+/// stagnation tolerance (relative improvement, dimensionless) that is finite and not negative.
+pub(super) fn check_stopping_options(
+    target_cost: f64,
+    stagnation_tolerance: f64,
+) -> Result<(), super::SolverError> {
+    super::check_option("target_cost", target_cost, !target_cost.is_nan(), "a number")?;
+    super::check_option(
+        "stagnation_tolerance",
+        stagnation_tolerance,
+        stagnation_tolerance.is_finite() && stagnation_tolerance >= 0.0,
+        "finite and >= 0",
+    )
+}
+
 /// Counts iterations since the best cost last improved by more than a relative tolerance.
 #[derive(Clone, Debug)]
 pub(super) struct Stagnation {
