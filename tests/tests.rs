@@ -2,6 +2,8 @@
 
 mod diagnose;
 mod fit;
+mod getting_started;
 mod render;
+mod run;
 mod track;
 mod util;

@@ -34,7 +34,7 @@ pub enum Command {
     Fit(FitArgs),
     /// Locate where the fitted model and the tracks disagree, name the missing physics, refit.
     Diagnose(DiagnoseArgs),
-    /// Run the default pipeline on a built-in scene (for now: render it).
+    /// The whole pipeline: render (a scene) or read frames, track, fit, diagnose, report.
     Run(RunArgs),
     /// Measure speed: `render`, `track`, `fit` or `all`.
     Bench(BenchArgs),
@@ -157,8 +157,27 @@ pub enum MethodArg {
 /// `physfit run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// A scene file; the built-in default scene when absent.
+    /// A scene file to render and analyse (the truth is then known and compared); the
+    /// built-in default scene when neither a scene nor `--frames` is given.
+    #[arg(conflicts_with = "frames")]
     pub scene: Option<PathBuf>,
+    /// A folder of frames of a recording (PNG or JPEG, natural name order): track, fit and
+    /// diagnose it against `--structure`.
+    #[arg(long, requires = "structure")]
+    pub frames: Option<PathBuf>,
+    /// The recorded object's structure (particles, masses, first positions, bonds without
+    /// values); its particle positions are those of the first analysed frame.
+    #[arg(long, requires = "frames")]
+    pub structure: Option<PathBuf>,
+    /// Frame rate, frames/s (overrides the structure's `[recording] fps`).
+    #[arg(long, requires = "frames")]
+    pub fps: Option<f64>,
+    /// First and last frame analysed, inclusive (`A..B`).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<(usize, usize)>,
+    /// Seed of every random choice (rendering noise of a scene keeps the scene's own seed).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
     /// Output folder.
     #[arg(long, default_value = "physfit-out")]
     pub out: PathBuf,

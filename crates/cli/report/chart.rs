@@ -97,6 +97,9 @@ pub struct LineChart {
     pub series: Vec<Series>,
     /// Picture size in pixels (width, height); [`LineChart::new`] sets 900 x 420.
     pub size: (u32, u32),
+    /// Fixed y-axis bounds (data units), so that two charts share one scale; from the data
+    /// when `None`.
+    pub y_range: Option<(f64, f64)>,
 }
 
 impl LineChart {
@@ -109,6 +112,7 @@ impl LineChart {
             log_y: false,
             series: Vec::new(),
             size: (900, 420),
+            y_range: None,
         }
     }
 }
@@ -258,7 +262,10 @@ pub(crate) fn render_with_mapping(chart: &LineChart) -> anyhow::Result<(RgbImage
             .filter(|&p| drawable(p, log_y))
     };
     let x_range = linear_range(finite_bounds(all().map(|p| p.0)), 0.0);
-    let y_bounds = finite_bounds(all().map(|p| p.1));
+    let y_bounds = chart
+        .y_range
+        .filter(|r| r.0.is_finite() && r.1.is_finite() && r.1 > r.0)
+        .or_else(|| finite_bounds(all().map(|p| p.1)));
     let entries: Vec<LegendEntry> = chart
         .series
         .iter()

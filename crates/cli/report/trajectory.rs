@@ -67,6 +67,9 @@ pub struct TrajectoryPlot {
     /// Picture width in pixels ([`TrajectoryPlot::new`]: 900); the height follows from the shown region so that a
     /// pixel of the recording stays square.
     pub width: u32,
+    /// Show only the region the tracks, predictions and mismatches cover (with a margin), even over a background
+    /// frame, instead of the whole frame: for small objects in large frames.
+    pub zoom: bool,
 }
 
 impl TrajectoryPlot {
@@ -80,6 +83,7 @@ impl TrajectoryPlot {
             background: None,
             frame_size: None,
             width: 900,
+            zoom: false,
         }
     }
 }
@@ -161,9 +165,10 @@ fn shown_region(plot: &TrajectoryPlot) -> (Range<f64>, Range<f64>) {
         .as_ref()
         .map(|b| b.dimensions())
         .or(plot.frame_size);
-    if let Some((w, h)) = frame {
-        // Pixel centres are at integers, so the frame's edges are half a pixel outside them.
-        return (-0.5..f64::from(w) - 0.5, -0.5..f64::from(h) - 0.5);
+    // Pixel centres are at integers, so the frame's edges are half a pixel outside them.
+    let whole = frame.map(|(w, h)| (-0.5..f64::from(w) - 0.5, -0.5..f64::from(h) - 0.5));
+    if let (Some(whole), false) = (&whole, plot.zoom) {
+        return whole.clone();
     }
     let paths = plot
         .tracks
@@ -180,10 +185,12 @@ fn shown_region(plot: &TrajectoryPlot) -> (Range<f64>, Range<f64>) {
         .chain(circles)
         .filter(|p| p.0.is_finite() && p.1.is_finite())
         .collect();
-    (
-        linear_range(finite_bounds(all.iter().map(|p| p.0)), 0.05),
-        linear_range(finite_bounds(all.iter().map(|p| p.1)), 0.05),
-    )
+    let margin = if whole.is_some() { 0.15 } else { 0.05 };
+    let (xs, ys) = (
+        linear_range(finite_bounds(all.iter().map(|p| p.0)), margin),
+        linear_range(finite_bounds(all.iter().map(|p| p.1)), margin),
+    );
+    (xs, ys)
 }
 
 /// Widens `range` about its centre to `length`, if shorter.

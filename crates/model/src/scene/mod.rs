@@ -4,9 +4,11 @@
 //! out (topology, masses, frame-0 positions); a *fitted model* is a structure with the values
 //! filled in, itself a scene that renders.
 
+mod compare;
 mod error;
 mod file;
 
+pub use compare::{compare_scenes, effects_beyond, SceneComparison, ValueComparison};
 pub use error::{SceneError, SceneProblem};
 pub use file::{
     Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, SceneFile, SpringFile, TorsionFile,

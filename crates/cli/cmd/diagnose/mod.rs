@@ -1,0 +1,68 @@
+//! `physfit diagnose TRACKS --structure S --out DIR [--window A..B] [--seed N]`: locate the
+//! mismatch between the fitted model and the tracks, name the missing physics, refit.
+
+use anyhow::Context;
+use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
+use physfit_track::TrackTable;
+
+use crate::cli::DiagnoseArgs;
+use crate::progress::Verbosity;
+use crate::report;
+
+pub mod figures;
+pub mod sections;
+
+/// Diagnoses a structure against tracks and writes `fitted.toml` and the reports into `--out`.
+pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
+    let structure = super::load_scene(&args.structure)?;
+    let tracks = TrackTable::read_csv(&args.tracks)
+        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let options = DiagnoseOptions {
+        seed: args.seed,
+        window: args.window,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&structure, &tracks, &options, &()).with_context(|| {
+        format!(
+            "diagnosing {} against {}",
+            args.structure.display(),
+            args.tracks.display()
+        )
+    })?;
+    let out = &args.out;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    for stale in ["report.json", "report.md", "report.html"] {
+        let _ = std::fs::remove_file(out.join(stale));
+    }
+    d.final_scene
+        .save(&out.join("fitted.toml"))
+        .context("writing fitted.toml")?;
+    let backdrop = figures::Backdrop {
+        frame: None,
+        frame_size: None,
+    };
+    let pictures = figures::figures(out, &d, &tracks, &backdrop)?;
+    let doc = report::ReportDocument {
+        title: format!("physfit diagnosis: {}", d.structure),
+        markdown: sections::markdown(&d, &pictures),
+        json: serde_json::to_value(&d).context("serialising report.json")?,
+        dir: out.to_path_buf(),
+    };
+    report::write_reports(
+        &doc,
+        &[
+            &report::MarkdownExporter,
+            &report::HtmlExporter,
+            &report::JsonExporter,
+        ],
+    )?;
+    if verbosity != Verbosity::Quiet {
+        print!("{}", sections::summary(&d));
+        println!(
+            "diagnosed model -> {}; report -> {}",
+            out.join("fitted.toml").display(),
+            out.join("report.md").display()
+        );
+    }
+    Ok(())
+}

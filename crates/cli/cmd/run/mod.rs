@@ -1,0 +1,407 @@
+//! `physfit run`: the whole pipeline in one command.
+//!
+//! * `physfit run` (no arguments): the built-in default scene, which hides one effect;
+//! * `physfit run SCENE --out DIR`: any scene; the truth is known, so the report compares;
+//! * `physfit run --frames DIR --structure S --out DIR [--fps F] [--window A..B]`: a recording.
+//!
+//! Stages: render (scenes only), track, fit (the structure alone, by `lsq`), diagnose (name
+//! and add the missing physics, refit), report. Each stage's failure names the stage and its
+//! input; the reports are written last (and stale ones removed first), so a failed run never
+//! leaves a report that looks complete.
+
+mod figures;
+mod note;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use physfit_identify::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use physfit_identify::{FitOptions, FitReport};
+use physfit_model::scene::{compare_scenes, SceneComparison};
+use physfit_model::Scene;
+use physfit_track::{TrackOptions, TrackScore, TrackTable};
+use serde::Serialize;
+
+use crate::cli::RunArgs;
+use crate::progress::{self, Verbosity};
+
+/// The built-in default scene.
+pub const DEFAULT_SCENE: &str = include_str!("../../../../scenes/default.toml");
+
+/// Name shown for the built-in default scene.
+const DEFAULT_SCENE_NAME: &str = "<built-in default scene>";
+
+/// What the run was given.
+#[derive(Debug, Serialize)]
+pub struct Given {
+    /// `scene` (rendered here, truth known) or `recording` (frames from elsewhere).
+    pub kind: &'static str,
+    /// The scene file (scenes) or the structure file (recordings).
+    pub source: String,
+    /// The frames folder.
+    pub frames: String,
+    /// The structure's name.
+    pub structure: String,
+    /// Particles, springs and torsions of the structure.
+    pub particles: usize,
+    /// Springs listed in the structure.
+    pub springs: usize,
+    /// Torsions listed in the structure.
+    pub torsions: usize,
+    /// Unknown bond values.
+    pub unknowns: usize,
+    /// Frame rate used, frames/s.
+    pub fps: f64,
+    /// `--window`, when given.
+    pub window: Option<[usize; 2]>,
+    /// Seed of the random choices.
+    pub seed: u64,
+}
+
+/// What tracking measured.
+#[derive(Debug, Serialize)]
+pub struct Tracking {
+    /// Frames tracked `[first, last]`.
+    pub frames: [usize; 2],
+    /// Tracks written.
+    pub tracks: usize,
+    /// Points written.
+    pub points: usize,
+    /// Points bridged from the motion (`flag = interpolated`).
+    pub interpolated: usize,
+    /// Points split from merged blobs (`flag = split`).
+    pub split: usize,
+    /// Ambiguities bridged, in words.
+    pub ambiguities: Vec<String>,
+    /// Frames in which some structure particle has no point.
+    pub frames_with_gaps: usize,
+    /// Median estimated localisation error of detected points, px.
+    pub median_position_error: f64,
+    /// Pixel noise measured in the frames, grey levels.
+    pub pixel_noise: f64,
+    /// Particle radius used, px.
+    pub radius: f64,
+    /// True when the radius was estimated from the frames.
+    pub radius_estimated: bool,
+    /// `dark on light` or `bright on dark`.
+    pub polarity: &'static str,
+    /// Warnings of the tracker.
+    pub warnings: Vec<String>,
+    /// Against `truth.csv` (scenes only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub score: Option<TrackScore>,
+}
+
+/// Wall time of each stage, s.
+#[derive(Debug, Default, Serialize)]
+pub struct StageTimes {
+    /// Rendering (scenes only).
+    pub render: f64,
+    /// Tracking.
+    pub track: f64,
+    /// Base fit.
+    pub fit: f64,
+    /// Diagnosis.
+    pub diagnose: f64,
+    /// Pictures and reports.
+    pub report: f64,
+    /// The whole run.
+    pub total: f64,
+}
+
+/// `report.json` of a run: the diagnosis's own keys (`findings`, `rejected`, `localisation`,
+/// `base`, `final`, `residuals`... as `physfit diagnose` writes them) plus what the run was
+/// given, the tracking, the base fit (`fit.json`'s content), the truth comparison and the times.
+#[derive(Serialize)]
+pub struct RunReport<'a> {
+    /// What the run was given.
+    pub given: &'a Given,
+    /// What tracking measured.
+    pub tracking: &'a Tracking,
+    /// The base fit of the structure alone (the content of `physfit fit --report`).
+    pub fit: &'a FitReport,
+    /// The diagnosis (flattened: its keys sit at the top level).
+    #[serde(flatten)]
+    pub diagnosis: &'a Diagnosis,
+    /// The diagnosed model against the true scene (scenes only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub truth: Option<&'a SceneComparison>,
+    /// Output files, relative to the output folder.
+    pub outputs: Vec<String>,
+    /// Wall time per stage.
+    pub times: &'a StageTimes,
+}
+
+/// Where the frames come from.
+enum Input {
+    /// A scene rendered here; its truth is known.
+    Scene { scene: Box<Scene>, source: PathBuf },
+    /// A recording's frames and its structure.
+    Recording { frames: PathBuf, structure: PathBuf },
+}
+
+/// Runs the pipeline.
+pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let mut times = StageTimes::default();
+    let out = &args.out;
+    let say = |msg: &str| {
+        if verbosity != Verbosity::Quiet {
+            println!("{msg}");
+        }
+    };
+    let explain = |msg: &str| {
+        if verbosity == Verbosity::Verbose {
+            println!("  {msg}");
+        }
+    };
+    let input = match (&args.scene, &args.frames, &args.structure) {
+        (_, Some(frames), Some(structure)) => Input::Recording {
+            frames: frames.clone(),
+            structure: structure.clone(),
+        },
+        (Some(path), None, _) => Input::Scene {
+            scene: Box::new(super::load_scene(path)?),
+            source: path.clone(),
+        },
+        (None, None, _) => Input::Scene {
+            scene: Box::new(
+                Scene::from_toml_str(DEFAULT_SCENE, DEFAULT_SCENE_NAME)
+                    .context("the built-in default scene")?,
+            ),
+            source: PathBuf::from(DEFAULT_SCENE_NAME),
+        },
+        (_, Some(_), None) => bail!("--frames needs --structure (the recorded object's particles and bonds)"),
+    };
+    if let Some(fps) = args.fps {
+        if !(fps.is_finite() && fps > 0.0) {
+            bail!("--fps {fps}: the frame rate must be a positive number of frames per second");
+        }
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("creating output folder {}", out.display()))?;
+    // A report left by an earlier run must not look like this run's.
+    for stale in ["report.json", "report.md", "report.html"] {
+        let _ = std::fs::remove_file(out.join(stale));
+    }
+
+    // Stage render (scenes) or read the structure (recordings).
+    let (frames_dir, mut structure, truth, source) = match input {
+        Input::Scene { scene, source } => {
+            explain("render: simulate the scene with its hidden physics and draw every frame");
+            let t = Instant::now();
+            let rendered =
+                super::render::render_scene(&scene, &source, out, verbosity).context("stage render")?;
+            times.render = t.elapsed().as_secs_f64();
+            say(&format!(
+                "render: {} frames of {} -> {}",
+                rendered.frame_count,
+                scene.name,
+                rendered.frames_dir.display()
+            ));
+            (rendered.frames_dir, scene.structure(), Some(*scene), source)
+        }
+        Input::Recording { frames, structure } => {
+            let s = super::load_scene(&structure).context("stage track: the structure")?;
+            (frames, s, None, structure)
+        }
+    };
+    if let Some(fps) = args.fps {
+        structure.recording.fps = fps;
+    }
+
+    // Stage track.
+    explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
+    let t = Instant::now();
+    let options = TrackOptions {
+        window: args.window,
+        named_start: Some(
+            structure
+                .particles
+                .iter()
+                .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
+                .collect(),
+        ),
+        ..TrackOptions::default()
+    };
+    let bar = progress::bar(verbosity, "track", 0);
+    let tracked = physfit_track::track_folder(&frames_dir, &options, &|done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .with_context(|| format!("stage track: frames in {}", frames_dir.display()))?;
+    bar.finish_and_clear();
+    let tracks_path = out.join("tracks.csv");
+    tracked
+        .table
+        .write_csv(&tracks_path)
+        .with_context(|| format!("stage track: writing {}", tracks_path.display()))?;
+    let score = match &truth {
+        Some(_) => {
+            let truth_tracks =
+                TrackTable::read_csv(&out.join("truth.csv")).context("stage track: reading truth.csv")?;
+            Some(physfit_track::score_tracks(
+                &tracked.table,
+                &truth_tracks,
+                tracked.stats.match_radius(),
+            ))
+        }
+        None => None,
+    };
+    let tracking = tracking_summary(&tracked, &structure, score);
+    times.track = t.elapsed().as_secs_f64();
+    say(&note::tracking_line(&tracking, &tracks_path));
+    for w in &tracking.warnings {
+        if verbosity != Verbosity::Quiet {
+            eprintln!("physfit: warning: {w}");
+        }
+    }
+
+    // Stage fit: the structure alone.
+    explain("fit: the structure's bond values by linear least squares on the equations of motion, refined on the multi-step prediction");
+    let t = Instant::now();
+    let fit_options = FitOptions {
+        method: physfit_identify::Method::Lsq,
+        seed: args.seed,
+        window: args.window,
+        ..FitOptions::default()
+    };
+    let mut base = physfit_identify::fit(&structure, &tracked.table, &fit_options, &())
+        .context("stage fit: tracks.csv against the structure")?;
+    if let Some(truth) = &truth {
+        base.report.compare_truth(truth);
+    }
+    times.fit = t.elapsed().as_secs_f64();
+    say(&format!(
+        "fit: {} values of the structure alone, multi-step RMS {:.4} px (track noise {:.4} px)",
+        base.report.parameters.len(),
+        base.report.costs.multi_step_sequence.rms,
+        base.report.track_noise
+    ));
+
+    // Stage diagnose.
+    explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
+    let t = Instant::now();
+    let d = diagnose(
+        &structure,
+        &tracked.table,
+        &DiagnoseOptions {
+            seed: args.seed,
+            window: args.window,
+            ..DiagnoseOptions::default()
+        },
+        &(),
+    )
+    .context("stage diagnose: tracks.csv against the structure")?;
+    times.diagnose = t.elapsed().as_secs_f64();
+    if verbosity != Verbosity::Quiet {
+        print!("diagnose: {}", super::diagnose::sections::summary(&d));
+    }
+    let comparison = truth
+        .as_ref()
+        .map(|truth| compare_scenes(&d.final_scene, truth, &structure));
+    if let Some(c) = &comparison {
+        say(&note::truth_line(c));
+    }
+
+    // Stage report.
+    let t = Instant::now();
+    d.final_scene
+        .save(&out.join("fitted.toml"))
+        .context("stage report: writing fitted.toml")?;
+    let given = Given {
+        kind: if truth.is_some() { "scene" } else { "recording" },
+        source: source.display().to_string(),
+        frames: frames_dir.display().to_string(),
+        structure: structure.name.clone(),
+        particles: structure.particles.len(),
+        springs: structure.springs.len(),
+        torsions: structure.torsions.len(),
+        unknowns: structure.unknown_count(),
+        fps: structure.recording.fps,
+        window: args.window.map(|(a, b)| [a, b]),
+        seed: args.seed,
+    };
+    let (pictures, mut outputs) =
+        figures::figures(out, &frames_dir, &tracked.table, &base, &d).context("stage report: pictures")?;
+    outputs.splice(
+        0..0,
+        [
+            "tracks.csv",
+            "fitted.toml",
+            "report.json",
+            "report.md",
+            "report.html",
+        ]
+        .map(String::from),
+    );
+    times.report = t.elapsed().as_secs_f64();
+    times.total = started.elapsed().as_secs_f64();
+    let report = RunReport {
+        given: &given,
+        tracking: &tracking,
+        fit: &base.report,
+        diagnosis: &d,
+        truth: comparison.as_ref(),
+        outputs,
+        times: &times,
+    };
+    write_reports(out, &report, &pictures).context("stage report")?;
+    say(&format!(
+        "report -> {} (also report.html, report.json) in {:.1} s",
+        out.join("report.md").display(),
+        started.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+/// The tracking figures of a run.
+fn tracking_summary(
+    tracked: &physfit_track::TrackOutcome,
+    structure: &Scene,
+    score: Option<TrackScore>,
+) -> Tracking {
+    let s = &tracked.stats;
+    let mut per_frame = std::collections::BTreeMap::<usize, usize>::new();
+    for p in &tracked.table.points {
+        if structure.particle_id(&p.particle).is_some() {
+            *per_frame.entry(p.frame).or_default() += 1;
+        }
+    }
+    let frames_with_gaps = (s.frames.0..=s.frames.1)
+        .filter(|f| per_frame.get(f).copied().unwrap_or(0) < structure.particles.len())
+        .count();
+    Tracking {
+        frames: [s.frames.0, s.frames.1],
+        tracks: s.track_count,
+        points: s.point_count,
+        interpolated: s.interpolated_count,
+        split: s.split_count,
+        ambiguities: s.ambiguities.iter().map(ToString::to_string).collect(),
+        frames_with_gaps,
+        median_position_error: s.median_ep,
+        pixel_noise: s.noise_sigma,
+        radius: s.radius,
+        radius_estimated: s.radius_estimated,
+        polarity: if s.dark_on_light {
+            "dark on light"
+        } else {
+            "bright on dark"
+        },
+        warnings: tracked.warnings.clone(),
+        score,
+    }
+}
+
+/// Writes `report.md`, `report.html` and `report.json` (prepared together; the JSON last).
+fn write_reports(out: &Path, report: &RunReport, pictures: &str) -> anyhow::Result<()> {
+    use crate::report::{HtmlExporter, JsonExporter, MarkdownExporter, ReportDocument};
+    let doc = ReportDocument {
+        title: format!("physfit report: {}", report.given.structure),
+        markdown: note::lab_note(report, pictures),
+        json: serde_json::to_value(report).context("serialising report.json")?,
+        dir: out.to_path_buf(),
+    };
+    crate::report::write_reports(&doc, &[&MarkdownExporter, &HtmlExporter, &JsonExporter])?;
+    Ok(())
+}

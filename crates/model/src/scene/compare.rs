@@ -1,0 +1,433 @@
+//! A fitted model against the true scene it was recorded from: every value's error, and the
+//! effects beyond a structure that each of them carries.
+//!
+//! Effects are named as the diagnosis names them (`gravity`, `drag`, `quadratic_drag`,
+//! `spring_damping`, `wall`, `missing_spring`), so a run on a rendered scene can say which
+//! concealed effects were found, which were missed and which were added without cause.
+
+use serde::Serialize;
+
+use super::{spring_name, torsion_name, Scene};
+use crate::Vec2;
+
+/// One value of the fitted model beside the truth.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ValueComparison {
+    /// What the value belongs to, e.g. `spring a-b`, `torsion a-b-c`, `gravity`, `wall 1`.
+    pub item: String,
+    /// The value's name (`length`, `stiffness`, `rest_angle`, `damping`, `gravity_x`,
+    /// `drag`, `offset`, `restitution`...).
+    pub name: String,
+    /// Fitted value, in `unit` (`null` when the fitted model lacks it).
+    pub fitted: Option<f64>,
+    /// True value, in `unit` (`null` when the truth lacks it).
+    pub truth: Option<f64>,
+    /// `fitted - truth`, in `unit`.
+    pub error: Option<f64>,
+    /// `(fitted - truth) / |truth|` (`null` for angles, positions and zero truths, where a
+    /// relative error means nothing).
+    pub relative_error: Option<f64>,
+    /// Unit of the values: `px`, `mass/s^2` (stiffness), `deg`, `px/s^2`, `1/s`, `1/px`,
+    /// `mass/s`, `1`.
+    pub unit: String,
+}
+
+/// A fitted model compared with the true scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SceneComparison {
+    /// Every value present in either model.
+    pub values: Vec<ValueComparison>,
+    /// Effects the truth carries beyond the structure (what a diagnosis should find).
+    pub effects_concealed: Vec<String>,
+    /// Effects the fitted model carries beyond the structure.
+    pub effects_found: Vec<String>,
+    /// Concealed effects the fitted model lacks.
+    pub missed: Vec<String>,
+    /// Effects the fitted model added that the truth lacks.
+    pub spurious: Vec<String>,
+    /// Largest `|relative error|` over the bond values (lengths, stiffnesses), `null` without.
+    pub max_bond_relative_error: Option<f64>,
+    /// Largest rest-angle error, degrees, `null` without torsions.
+    pub max_angle_error_deg: Option<f64>,
+}
+
+/// Compares `fitted` with `truth`, both read against `structure` (the scene the fit started
+/// from: its springs are the listed ones; every other spring or particle is an added effect).
+pub fn compare_scenes(fitted: &Scene, truth: &Scene, structure: &Scene) -> SceneComparison {
+    let mut values = Vec::new();
+    bond_values(fitted, truth, &mut values);
+    physics_values(fitted, truth, &mut values);
+    let effects_concealed = effects_beyond(truth, structure);
+    let effects_found = effects_beyond(fitted, structure);
+    let missed = multiset_minus(&effects_concealed, &effects_found);
+    let spurious = multiset_minus(&effects_found, &effects_concealed);
+    let max_of = |pick: &dyn Fn(&ValueComparison) -> Option<f64>| {
+        values.iter().filter_map(pick).map(f64::abs).reduce(f64::max)
+    };
+    let max_bond_relative_error = max_of(&|v| {
+        (v.item.starts_with("spring ") && (v.name == "length" || v.name == "stiffness"))
+            .then_some(v.relative_error)
+            .flatten()
+    });
+    let max_angle_error_deg = max_of(&|v| (v.name == "rest_angle").then_some(v.error).flatten());
+    SceneComparison {
+        values,
+        effects_concealed,
+        effects_found,
+        missed,
+        spurious,
+        max_bond_relative_error,
+        max_angle_error_deg,
+    }
+}
+
+/// The effects `scene` carries beyond `structure`, one entry per instance (a scene with two
+/// walls lists `wall` twice), in the diagnosis's names.
+pub fn effects_beyond(scene: &Scene, structure: &Scene) -> Vec<String> {
+    let mut out = Vec::new();
+    let p = &scene.physics;
+    if p.gravity.norm() > 0.0 {
+        out.push("gravity".to_string());
+    }
+    if p.drag > 0.0 {
+        out.push("drag".to_string());
+    }
+    if p.quadratic_drag > 0.0 {
+        out.push("quadratic_drag".to_string());
+    }
+    if p.spring_damping > 0.0 || scene.springs.iter().any(|s| s.damping.is_some_and(|d| d > 0.0)) {
+        out.push("spring_damping".to_string());
+    }
+    out.extend(p.walls.iter().map(|_| "wall".to_string()));
+    let listed = spring_keys(structure);
+    for key in spring_keys(scene) {
+        if !listed.contains(&key) {
+            out.push("missing_spring".to_string());
+        }
+    }
+    out
+}
+
+fn multiset_minus(a: &[String], b: &[String]) -> Vec<String> {
+    let mut rest: Vec<&String> = b.iter().collect();
+    let mut out = Vec::new();
+    for x in a {
+        match rest.iter().position(|y| *y == x) {
+            Some(k) => {
+                rest.swap_remove(k);
+            }
+            None => out.push(x.clone()),
+        }
+    }
+    out
+}
+
+/// A spring's ends as ids, in a canonical order.
+fn spring_keys(scene: &Scene) -> Vec<[String; 2]> {
+    scene
+        .springs
+        .iter()
+        .map(|s| {
+            let mut ends = s.ends.map(|e| scene.particles[e.index()].id.clone());
+            ends.sort();
+            ends
+        })
+        .collect()
+}
+
+fn compared(
+    item: &str,
+    name: &str,
+    unit: &str,
+    fitted: Option<f64>,
+    truth: Option<f64>,
+    relative: bool,
+) -> ValueComparison {
+    let error = fitted.zip(truth).map(|(f, t)| f - t);
+    let relative_error = if relative {
+        error
+            .zip(truth)
+            .and_then(|(e, t)| (t.abs() > 0.0).then(|| e / t.abs()))
+    } else {
+        None
+    };
+    ValueComparison {
+        item: item.to_string(),
+        name: name.to_string(),
+        fitted,
+        truth,
+        error,
+        relative_error,
+        unit: unit.to_string(),
+    }
+}
+
+fn bond_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+    let f_keys = spring_keys(fitted);
+    let t_keys = spring_keys(truth);
+    let mut seen = Vec::new();
+    for (k, key) in f_keys.iter().enumerate() {
+        let fs = &fitted.springs[k];
+        let ts = t_keys.iter().position(|t| t == key).map(|j| &truth.springs[j]);
+        let item = spring_name(key);
+        out.push(compared(
+            &item,
+            "length",
+            "px",
+            fs.rest_length,
+            ts.and_then(|s| s.rest_length),
+            true,
+        ));
+        out.push(compared(
+            &item,
+            "stiffness",
+            "mass/s^2",
+            fs.stiffness,
+            ts.and_then(|s| s.stiffness),
+            true,
+        ));
+        let damping =
+            |s: &super::SpringSpec, scene: &Scene| s.damping.unwrap_or(scene.physics.spring_damping);
+        let (fd, td) = (damping(fs, fitted), ts.map(|s| damping(s, truth)));
+        if fd > 0.0 || td.is_some_and(|d| d > 0.0) {
+            out.push(compared(&item, "damping", "mass/s", Some(fd), td, true));
+        }
+        seen.push(key.clone());
+    }
+    for (j, key) in t_keys.iter().enumerate() {
+        if !seen.contains(key) {
+            let ts = &truth.springs[j];
+            let item = spring_name(key);
+            out.push(compared(&item, "length", "px", None, ts.rest_length, true));
+            out.push(compared(&item, "stiffness", "mass/s^2", None, ts.stiffness, true));
+        }
+    }
+    let torsion_key = |scene: &Scene, k: usize| {
+        let t = &scene.torsions[k];
+        let id = |p: crate::ParticleId| scene.particles[p.index()].id.clone();
+        let mut ends = [id(t.ends[0]), id(t.ends[1])];
+        ends.sort();
+        (id(t.center), ends)
+    };
+    for k in 0..fitted.torsions.len() {
+        let key = torsion_key(fitted, k);
+        let tt = (0..truth.torsions.len())
+            .find(|&j| torsion_key(truth, j) == key)
+            .map(|j| &truth.torsions[j]);
+        let ft = &fitted.torsions[k];
+        let item = torsion_name(&key.0, &key.1);
+        let angle = |c: Option<f64>| c.map(|c| c.clamp(-1.0, 1.0).acos().to_degrees());
+        out.push(compared(
+            &item,
+            "rest_angle",
+            "deg",
+            angle(ft.rest_cos),
+            angle(tt.and_then(|t| t.rest_cos)),
+            false,
+        ));
+        out.push(compared(
+            &item,
+            "stiffness",
+            "mass px^2/s^2",
+            ft.stiffness,
+            tt.and_then(|t| t.stiffness),
+            true,
+        ));
+    }
+}
+
+fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+    let (f, t) = (&fitted.physics, &truth.physics);
+    if f.gravity.norm() > 0.0 || t.gravity.norm() > 0.0 {
+        out.push(compared(
+            "gravity",
+            "gravity_x",
+            "px/s^2",
+            Some(f.gravity.x),
+            Some(t.gravity.x),
+            false,
+        ));
+        out.push(compared(
+            "gravity",
+            "gravity_y",
+            "px/s^2",
+            Some(f.gravity.y),
+            Some(t.gravity.y),
+            false,
+        ));
+        out.push(compared(
+            "gravity",
+            "magnitude",
+            "px/s^2",
+            Some(f.gravity.norm()),
+            Some(t.gravity.norm()),
+            true,
+        ));
+    }
+    for (name, unit, fv, tv) in [
+        ("drag", "1/s", f.drag, t.drag),
+        ("quadratic_drag", "1/px", f.quadratic_drag, t.quadratic_drag),
+    ] {
+        if fv > 0.0 || tv > 0.0 {
+            out.push(compared(name, name, unit, Some(fv), Some(tv), true));
+        }
+    }
+    // Walls: each true wall against the fitted wall facing the same way (largest normal dot
+    // product above cos 25 degrees); its position error is the distance from the fitted line
+    // to the true wall's point, px.
+    let mut used = vec![false; f.walls.len()];
+    for (k, tw) in t.walls.iter().enumerate() {
+        let item = format!("wall {}", k + 1);
+        let best = f
+            .walls
+            .iter()
+            .enumerate()
+            .filter(|(j, w)| !used[*j] && w.normal.dot(&tw.normal) > 25f64.to_radians().cos())
+            .max_by(|a, b| a.1.normal.dot(&tw.normal).total_cmp(&b.1.normal.dot(&tw.normal)));
+        match best {
+            Some((j, fw)) => {
+                used[j] = true;
+                let distance = fw.signed_distance(tw.point).abs();
+                out.push(ValueComparison {
+                    item: item.clone(),
+                    name: "position".into(),
+                    fitted: None,
+                    truth: None,
+                    error: Some(distance),
+                    relative_error: None,
+                    unit: "px".into(),
+                });
+                let angle = |n: Vec2| n.y.atan2(n.x).to_degrees();
+                out.push(compared(
+                    &item,
+                    "normal_angle",
+                    "deg",
+                    Some(angle(fw.normal)),
+                    Some(angle(tw.normal)),
+                    false,
+                ));
+                out.push(compared(
+                    &item,
+                    "restitution",
+                    "1",
+                    Some(fw.restitution),
+                    Some(tw.restitution),
+                    false,
+                ));
+            }
+            None => out.push(compared(
+                &item,
+                "restitution",
+                "1",
+                None,
+                Some(tw.restitution),
+                false,
+            )),
+        }
+    }
+    for (j, fw) in f.walls.iter().enumerate() {
+        if !used[j] {
+            out.push(compared(
+                "added wall",
+                "restitution",
+                "1",
+                Some(fw.restitution),
+                None,
+                false,
+            ));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRUTH: &str = r#"
+name = "t"
+[recording]
+fps = 50
+frames = 10
+[[particles]]
+id = "a"
+mass = 1
+position = [10, 10]
+[[particles]]
+id = "b"
+mass = 1
+position = [30, 10]
+[[particles]]
+id = "c"
+mass = 1
+position = [20, 30]
+[[springs]]
+between = ["a", "b"]
+length = 20
+stiffness = 100
+[[springs]]
+between = ["b", "c"]
+length = 22
+stiffness = 50
+[[springs]]
+between = ["a", "c"]
+length = 22
+stiffness = 40
+[physics]
+gravity = [0, 100]
+drag = 0.5
+[[physics.walls]]
+point = [0, 200]
+normal = [0, -1]
+restitution = 0.8
+"#;
+
+    fn truth_and_structure() -> (Scene, Scene) {
+        let truth = Scene::from_toml_str(TRUTH, "truth").unwrap();
+        let mut structure = truth.structure();
+        structure.springs.pop();
+        (truth, structure)
+    }
+
+    #[test]
+    fn the_truth_against_itself_has_no_error_and_every_effect_found() {
+        let (truth, structure) = truth_and_structure();
+        let c = compare_scenes(&truth, &truth, &structure);
+        assert_eq!(c.effects_concealed, ["gravity", "drag", "wall", "missing_spring"]);
+        assert_eq!(c.effects_found, c.effects_concealed);
+        assert!(c.missed.is_empty() && c.spurious.is_empty());
+        assert!(c.values.iter().all(|v| v.error.is_some_and(|e| e.abs() < 1e-12)));
+        assert!(c.max_bond_relative_error.is_some_and(|e| e < 1e-12));
+    }
+
+    #[test]
+    fn errors_missed_and_spurious_effects_are_reported() {
+        let (truth, structure) = truth_and_structure();
+        let mut fitted = structure.clone();
+        for (s, (l, k)) in fitted.springs.iter_mut().zip([(20.2, 99.0), (22.0, 55.0)]) {
+            s.rest_length = Some(l);
+            s.stiffness = Some(k);
+        }
+        fitted.physics.gravity = Vec2::new(0.0, 98.0);
+        fitted.physics.quadratic_drag = 0.01;
+        fitted
+            .physics
+            .walls
+            .push(crate::Wall::new(Vec2::new(5.0, 201.5), Vec2::new(0.0, -1.0), 0.75).unwrap());
+        let c = compare_scenes(&fitted, &truth, &structure);
+        assert_eq!(c.missed, ["drag", "missing_spring"]);
+        assert_eq!(c.spurious, ["quadratic_drag"]);
+        let get = |item: &str, name: &str| {
+            c.values
+                .iter()
+                .find(|v| v.item == item && v.name == name)
+                .unwrap()
+        };
+        assert!((get("spring a-b", "length").relative_error.unwrap() - 0.01).abs() < 1e-12);
+        assert!((get("spring b-c", "stiffness").relative_error.unwrap() - 0.1).abs() < 1e-12);
+        assert!((get("gravity", "magnitude").relative_error.unwrap() + 0.02).abs() < 1e-12);
+        assert!((get("wall 1", "position").error.unwrap() - 1.5).abs() < 1e-12);
+        assert!((get("wall 1", "restitution").error.unwrap() + 0.05).abs() < 1e-12);
+        assert!(get("spring a-c", "length").fitted.is_none());
+        assert!((c.max_bond_relative_error.unwrap() - 0.1).abs() < 1e-12);
+    }
+}

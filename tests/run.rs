@@ -1,0 +1,121 @@
+//! `physfit run` on a folder of frames: windows, frame rates, and failures that name their
+//! stage. (The default run is checked end to end by `getting_started`.)
+
+use predicates::prelude::*;
+
+use crate::util::{physfit, read_xy, scenes_dir, tempdir, write};
+
+#[test]
+fn a_window_and_a_frame_rate_are_honoured_on_a_folder_of_frames() {
+    let dir = tempdir();
+    let rendered = dir.path().join("r");
+    physfit()
+        .args(["-q", "render"])
+        .arg(scenes_dir().join("concealed-gravity.toml"))
+        .arg("--out")
+        .arg(&rendered)
+        .assert()
+        .success();
+    // The structure of a window starting at frame 60: positions of frame 60.
+    let (a, b) = (60usize, 259usize);
+    let truth = read_xy(&rendered.join("truth.csv"));
+    let mut structure = physfit_model::Scene::load(&rendered.join("structure.toml")).unwrap();
+    for p in &mut structure.particles {
+        let &(_, _, x, y) = truth
+            .iter()
+            .find(|t| t.0 == a && t.1 == p.id)
+            .expect("truth at frame a");
+        p.position = physfit_model::Vec2::new(x, y);
+    }
+    let structure_path = dir.path().join("structure-60.toml");
+    structure.save(&structure_path).unwrap();
+    // Claim twice the true frame rate: time halves, so accelerations read four times larger.
+    let fps = 2.0 * structure.recording.fps;
+    let out = dir.path().join("out");
+    physfit()
+        .args(["-q", "run", "--frames"])
+        .arg(rendered.join("frames"))
+        .arg("--structure")
+        .arg(&structure_path)
+        .args([
+            "--fps",
+            &fps.to_string(),
+            "--window",
+            &format!("{a}..{b}"),
+            "--out",
+        ])
+        .arg(&out)
+        .assert()
+        .success()
+        .stdout(predicate::str::is_empty());
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["given"]["kind"], "recording");
+    assert_eq!(report["tracking"]["frames"], serde_json::json!([a, b]));
+    assert_eq!(report["window"], serde_json::json!([a, b]));
+    let findings = report["findings"].as_array().unwrap();
+    assert_eq!(findings.len(), 1, "{findings:?}");
+    assert_eq!(findings[0]["effect"], "gravity");
+    let scene = physfit_model::Scene::load(&scenes_dir().join("concealed-gravity.toml")).unwrap();
+    let g = |name: &str| {
+        findings[0]["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .and_then(|p| p["value"].as_f64())
+            .unwrap()
+    };
+    let (gx, gy) = (g("gravity_x"), g("gravity_y"));
+    let expected = 4.0 * scene.physics.gravity;
+    assert!(
+        (gx - expected.x).hypot(gy - expected.y) < 0.02 * expected.norm(),
+        "gravity ({gx}, {gy}) against 4 x the truth {expected:?}"
+    );
+    let tracks = read_xy(&out.join("tracks.csv"));
+    assert!(tracks.iter().all(|t| (a..=b).contains(&t.0)));
+}
+
+#[test]
+fn a_failed_stage_is_named_and_leaves_no_report() {
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    write(&out, "report.md", "an earlier run's report");
+    let structure = write(
+        dir.path(),
+        "s.toml",
+        "name = \"s\"\n[recording]\nfps = 30\nframes = 2\n[[particles]]\nid = \"a\"\nmass = 1\nposition = [5, 5]\n",
+    );
+    let missing = dir.path().join("no-such-frames");
+    physfit()
+        .args(["run", "--frames"])
+        .arg(&missing)
+        .arg("--structure")
+        .arg(&structure)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("stage track").and(predicate::str::contains("no-such-frames")));
+    assert!(
+        !out.join("report.md").exists(),
+        "a stale report survived a failed run"
+    );
+
+    physfit()
+        .args(["run", "--frames"])
+        .arg(&missing)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("--structure"));
+    physfit()
+        .args(["run", "--frames"])
+        .arg(&missing)
+        .arg("--structure")
+        .arg(&structure)
+        .arg("--fps=-3")
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("--fps -3").and(predicate::str::contains("frame rate")));
+}
