@@ -51,7 +51,7 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
     /// Solid, dashed or dotted.
     pub style: LineStyle,
-    /// Index into the report palette ([`super::palette_colour`]); `None` takes the series' position in the chart.
+    /// Index into the report palette (`palette_colour`); `None` takes the series' position in the chart.
     /// Give the same index to the same particle's "before" and "after" series.
     pub colour: Option<usize>,
 }
@@ -144,6 +144,7 @@ pub(crate) struct PlotMapping {
     pub py: Range<i32>,
 }
 
+#[cfg(test)]
 impl PlotMapping {
     /// The pixel (column, row) where the data point (x, y) is drawn.
     pub fn to_pixel(&self, x: f64, y: f64) -> (i32, i32) {

@@ -13,14 +13,10 @@
 //! Text is drawn with DejaVu Sans embedded in the binary (`assets/fonts/`), so no picture depends on system fonts.
 //! Every file is written atomically (`physfit_model::write_atomic`).
 //!
-//! A key design decision: the report *formats* go through one small [`Exporter`] trait (hyperfine's
+//! A key design decision: the report *formats* go through one small `Exporter` trait (hyperfine's
 //! `src/export/mod.rs`), each implementation turning the same [`ReportDocument`] into the bytes of one file, so
 //! `report.md`, `report.html` and `report.json` can never drift apart in content; the pictures are separate free
 //! functions because each kind takes different data.
-
-// Mismatch markers, before/after line styles and the JSON/table helpers serve the diagnosis
-// report (issue 5), which `cmd/` does not produce yet.
-#![allow(dead_code, unused_imports)]
 
 mod chart;
 mod colour;
@@ -33,11 +29,10 @@ mod overlay;
 mod png;
 mod trajectory;
 
-pub use chart::{line_chart, render_line_chart, LineChart, LineStyle, Series};
-pub use colour::palette_colour;
-pub use export::{write_reports, Exporter, HtmlExporter, JsonExporter, MarkdownExporter, ReportDocument};
+pub use chart::{line_chart, LineChart, LineStyle, Series};
+pub use export::{write_reports, HtmlExporter, JsonExporter, MarkdownExporter, ReportDocument};
 pub use html::markdown_to_html_page;
 pub use markdown::{markdown_image, markdown_table};
 pub use overlay::{overlay_frame, Overlay, Prediction, Tail};
 pub use png::write_png;
-pub use trajectory::{render_trajectory_plot, trajectory_plot, Mismatch, ModelPaths, Track, TrajectoryPlot};
+pub use trajectory::{trajectory_plot, Mismatch, ModelPaths, Track, TrajectoryPlot};

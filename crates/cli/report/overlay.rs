@@ -8,7 +8,7 @@ use super::colour::palette_colour;
 /// One track's recent positions, drawn as a line that fades from its oldest point to its newest.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tail {
-    /// Palette index of the track ([`super::palette_colour`]), the same as in the trajectory plot.
+    /// Palette index of the track (`palette_colour`), the same as in the trajectory plot.
     pub colour: usize,
     /// The last N positions up to this frame (px, image coordinates), oldest first; NaN breaks the line.
     pub points: Vec<(f64, f64)>,

@@ -52,7 +52,7 @@ pub struct Mismatch {
 pub struct TrajectoryPlot {
     /// Title drawn above the plot.
     pub title: String,
-    /// Observed tracks, solid, one palette colour per track (track `i` gets [`super::palette_colour`]`(i)`).
+    /// Observed tracks, solid, one palette colour per track (track `i` gets `palette_colour(i)`).
     pub tracks: Vec<Track>,
     /// Predictions of at most two models: the first dashed, the second dotted.
     pub models: Vec<ModelPaths>,

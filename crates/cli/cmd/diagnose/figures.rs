@@ -6,7 +6,7 @@ use std::path::Path;
 use physfit_identify::diagnose::Diagnosis;
 use physfit_track::TrackTable;
 
-use crate::report::{self, LineChart, Mismatch, Series, Track, TrajectoryPlot};
+use crate::report::{self, LineChart, LineStyle, Mismatch, Series, Track, TrajectoryPlot};
 
 /// Jolts labelled on the mismatch picture, strongest first (the rest are circled unlabelled).
 const LABELLED_JOLTS: usize = 6;
@@ -74,6 +74,14 @@ pub fn residual_charts(out: &Path, d: &Diagnosis) -> anyhow::Result<String> {
                 Series::new(id, pts).with_colour(p)
             })
             .collect();
+        // A residual's magnitude from track noise alone has RMS sqrt(2) sigma.
+        if let (Some(&f0), Some(&f1)) = (r.frames.first(), r.frames.last()) {
+            let level = std::f64::consts::SQRT_2 * d.track_noise;
+            chart.series.push(
+                Series::new("track noise (RMS)", vec![(f0 as f64, level), (f1 as f64, level)])
+                    .with_style(LineStyle::Dashed),
+            );
+        }
         report::line_chart(&out.join(name), &chart)?;
         md.push_str(&report::markdown_image(title, name));
         md.push_str("\n\n");
@@ -149,17 +157,12 @@ pub fn mismatch_picture(
         "where the base model disagreed with the tracks".to_string()
     };
     let plot = TrajectoryPlot {
-        title,
         tracks: tracks_drawn,
-        models: Vec::new(),
         mismatches,
         background: backdrop.frame.map(|f| f.to_rgb8()),
-        frame_size: backdrop
-            .frame
-            .map(|f| (f.width(), f.height()))
-            .or(backdrop.frame_size),
-        width: 900,
+        frame_size: backdrop.frame_size,
         zoom: true,
+        ..TrajectoryPlot::new(title)
     };
     report::trajectory_plot(&out.join("mismatch.png"), &plot)?;
     Ok(format!(

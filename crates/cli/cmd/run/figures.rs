@@ -26,7 +26,7 @@ pub fn figures(
     out: &Path,
     frames_dir: &Path,
     tracks: &TrackTable,
-    base: &FitResult,
+    base: Option<&FitResult>,
     d: &Diagnosis,
 ) -> anyhow::Result<(String, Vec<String>)> {
     let paths = physfit_track::list_frames(frames_dir)?;
@@ -36,7 +36,7 @@ pub fn figures(
         .map(|p| image::open(p).with_context(|| format!("reading {}", p.display())))
         .transpose()?;
     let ids = &d.residuals.particles;
-    let base_paths = predicted(&base.fitted, ids, d)?;
+    let base_paths = base.map(|b| predicted(&b.fitted, ids, d)).transpose()?;
     let final_paths = predicted(&d.final_scene, ids, d)?;
     let mut md = String::new();
     let mut files = Vec::new();
@@ -67,15 +67,14 @@ pub fn figures(
         &TrajectoryPlot {
             title: "observed tracks (solid), base model (dashed), diagnosed model (dotted)".into(),
             tracks: track_lines,
-            models: vec![
-                model_lines("base model", &base_paths),
-                model_lines("diagnosed model", &final_paths),
-            ],
-            mismatches: Vec::new(),
+            models: base_paths
+                .iter()
+                .map(|p| model_lines("base model", p))
+                .chain([model_lines("diagnosed model", &final_paths)])
+                .collect(),
             background: first.as_ref().map(|f| f.to_rgb8()),
-            frame_size: first.as_ref().map(|f| (f.width(), f.height())),
-            width: 900,
             zoom: true,
+            ..TrajectoryPlot::new("")
         },
     )?;
     md.push_str(&report::markdown_image("trajectories", "trajectories.png"));
@@ -90,13 +89,16 @@ pub fn figures(
     files.extend(["mismatch.png", "residuals_before.png", "residuals_after.png"].map(String::from));
 
     let history: Vec<(f64, f64)> = base
-        .report
-        .history
-        .iter()
-        .enumerate()
-        .map(|(i, &c)| (i as f64, c))
-        .collect();
-    if history.len() > 1 {
+        .map(|b| {
+            b.report
+                .history
+                .iter()
+                .enumerate()
+                .map(|(i, &c)| (i as f64, c))
+                .collect()
+        })
+        .unwrap_or_default();
+    if let (Some(base), true) = (base, history.len() > 1) {
         let mut chart = LineChart::new("base fit: solver cost history", "iteration", "cost, px²");
         chart.log_y = true;
         chart.series = vec![Series::new(&base.report.method_used, history)];

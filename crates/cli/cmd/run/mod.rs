@@ -119,8 +119,9 @@ pub struct RunReport<'a> {
     pub given: &'a Given,
     /// What tracking measured.
     pub tracking: &'a Tracking,
-    /// The base fit of the structure alone (the content of `physfit fit --report`).
-    pub fit: &'a FitReport,
+    /// The base fit of the structure alone (the content of `physfit fit --report`); absent
+    /// when the structure has no unknown bond values.
+    pub fit: Option<&'a FitReport>,
     /// The diagnosis (flattened: its keys sit at the top level).
     #[serde(flatten)]
     pub diagnosis: &'a Diagnosis,
@@ -257,27 +258,33 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         }
     }
 
-    // Stage fit: the structure alone.
-    explain("fit: the structure's bond values by linear least squares on the equations of motion, refined on the multi-step prediction");
+    // Stage fit: the structure alone (when it has bond values to fit).
     let t = Instant::now();
-    let fit_options = FitOptions {
-        method: physfit_identify::Method::Lsq,
-        seed: args.seed,
-        window: args.window,
-        ..FitOptions::default()
+    let base = if structure.unknown_count() == 0 {
+        say("fit: the structure has no unknown bond values; the diagnosis fits the motion alone");
+        None
+    } else {
+        explain("fit: the structure's bond values by linear least squares on the equations of motion, refined on the multi-step prediction");
+        let fit_options = FitOptions {
+            method: physfit_identify::Method::Lsq,
+            seed: args.seed,
+            window: args.window,
+            ..FitOptions::default()
+        };
+        let mut base = physfit_identify::fit(&structure, &tracked.table, &fit_options, &())
+            .context("stage fit: tracks.csv against the structure")?;
+        if let Some(truth) = &truth {
+            base.report.compare_truth(truth);
+        }
+        say(&format!(
+            "fit: {} values of the structure alone, multi-step RMS {:.4} px (track noise {:.4} px)",
+            base.report.parameters.len(),
+            base.report.costs.multi_step_sequence.rms,
+            base.report.track_noise
+        ));
+        Some(base)
     };
-    let mut base = physfit_identify::fit(&structure, &tracked.table, &fit_options, &())
-        .context("stage fit: tracks.csv against the structure")?;
-    if let Some(truth) = &truth {
-        base.report.compare_truth(truth);
-    }
     times.fit = t.elapsed().as_secs_f64();
-    say(&format!(
-        "fit: {} values of the structure alone, multi-step RMS {:.4} px (track noise {:.4} px)",
-        base.report.parameters.len(),
-        base.report.costs.multi_step_sequence.rms,
-        base.report.track_noise
-    ));
 
     // Stage diagnose.
     explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
@@ -322,8 +329,8 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         window: args.window.map(|(a, b)| [a, b]),
         seed: args.seed,
     };
-    let (pictures, mut outputs) =
-        figures::figures(out, &frames_dir, &tracked.table, &base, &d).context("stage report: pictures")?;
+    let (pictures, mut outputs) = figures::figures(out, &frames_dir, &tracked.table, base.as_ref(), &d)
+        .context("stage report: pictures")?;
     outputs.splice(
         0..0,
         [
@@ -340,7 +347,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let report = RunReport {
         given: &given,
         tracking: &tracking,
-        fit: &base.report,
+        fit: base.as_ref().map(|b| &b.report),
         diagnosis: &d,
         truth: comparison.as_ref(),
         outputs,

@@ -261,7 +261,14 @@ pub fn lab_note(r: &RunReport, pictures: &str) -> String {
     }
 
     s.push_str("\n## Base fit: the structure alone\n\n");
-    s.push_str(&base_fit(r.fit));
+    match r.fit {
+        Some(fit) => s.push_str(&base_fit(fit)),
+        None => s.push_str(&format!(
+            "The structure has no unknown bond values: the base model is its particles moving freely \
+             from their fitted start state, multi-step RMS {:.4} px over the sequence.\n",
+            d.base.costs.multi_step.rms
+        )),
+    }
 
     s.push_str("\n## Where the base model disagreed\n\n");
     s.push_str(&sections::localisation(d));
@@ -287,12 +294,8 @@ pub fn lab_note(r: &RunReport, pictures: &str) -> String {
         s.push_str(&truth_section(c));
     }
 
-    let warnings: Vec<&String> = t
-        .warnings
-        .iter()
-        .chain(&r.fit.warnings)
-        .chain(&d.warnings)
-        .collect();
+    let fit_warnings = r.fit.map(|f| f.warnings.as_slice()).unwrap_or_default();
+    let warnings: Vec<&String> = t.warnings.iter().chain(fit_warnings).chain(&d.warnings).collect();
     s.push_str("\n## Warnings\n\n");
     if warnings.is_empty() {
         s.push_str("None.\n");
