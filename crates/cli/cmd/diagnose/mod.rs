@@ -22,7 +22,10 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         window: args.window,
         ..DiagnoseOptions::default()
     };
-    let d = diagnose(&structure, &tracks, &options, &()).with_context(|| {
+    let spinner = crate::progress::spinner(verbosity, "diagnose");
+    let diagnosed = diagnose(&structure, &tracks, &options, &spinner);
+    spinner.finish();
+    let d = diagnosed.with_context(|| {
         format!(
             "diagnosing {} against {}",
             args.structure.display(),

@@ -271,8 +271,10 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             window: args.window,
             ..FitOptions::default()
         };
-        let mut base = physfit_identify::fit(&structure, &tracked.table, &fit_options, &())
-            .context("stage fit: tracks.csv against the structure")?;
+        let spinner = progress::spinner(verbosity, "fit");
+        let fitted = physfit_identify::fit(&structure, &tracked.table, &fit_options, &spinner);
+        spinner.finish();
+        let mut base = fitted.context("stage fit: tracks.csv against the structure")?;
         if let Some(truth) = &truth {
             base.report.compare_truth(truth);
         }
@@ -289,7 +291,8 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     // Stage diagnose.
     explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
     let t = Instant::now();
-    let d = diagnose(
+    let spinner = progress::spinner(verbosity, "diagnose");
+    let diagnosed = diagnose(
         &structure,
         &tracked.table,
         &DiagnoseOptions {
@@ -297,9 +300,10 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             window: args.window,
             ..DiagnoseOptions::default()
         },
-        &(),
-    )
-    .context("stage diagnose: tracks.csv against the structure")?;
+        &spinner,
+    );
+    spinner.finish();
+    let d = diagnosed.context("stage diagnose: tracks.csv against the structure")?;
     times.diagnose = t.elapsed().as_secs_f64();
     if verbosity != Verbosity::Quiet {
         print!("diagnose: {}", super::diagnose::sections::summary(&d));
