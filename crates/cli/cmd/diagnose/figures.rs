@@ -6,7 +6,7 @@ use std::path::Path;
 use physfit_identify::diagnose::Diagnosis;
 use physfit_track::TrackTable;
 
-use crate::report::{self, LineChart, LineStyle, Mismatch, Series, Track, TrajectoryPlot};
+use crate::report::{self, LineChart, LineStyle, Mismatch, ModelPaths, Series, Track, TrajectoryPlot};
 
 /// Jolts labelled on the mismatch picture, strongest first (the rest are circled unlabelled).
 const LABELLED_JOLTS: usize = 6;
@@ -19,16 +19,95 @@ pub struct Backdrop<'a> {
     pub frame_size: Option<(u32, u32)>,
 }
 
-/// Draws every diagnosis picture into `out` and returns their Markdown lines.
+/// The pictures [`figures`] writes, relative to the output folder.
+pub const FIGURE_FILES: [&str; 4] = [
+    "trajectories.png",
+    "mismatch.png",
+    "residuals_before.png",
+    "residuals_after.png",
+];
+
+/// Draws every diagnosis picture into `out` ([`FIGURE_FILES`]) and returns their Markdown.
 pub fn figures(
     out: &Path,
     d: &Diagnosis,
     tracks: &TrackTable,
     backdrop: &Backdrop,
 ) -> anyhow::Result<String> {
-    let mut md = mismatch_picture(out, d, tracks, backdrop)?;
+    let mut md = prediction_picture(out, d, tracks, backdrop)?;
+    md.push_str(&mismatch_picture(out, d, tracks, backdrop)?);
     md.push_str(&residual_charts(out, d)?);
     Ok(md)
+}
+
+/// The observed tracks of the analysed frames, one per structure particle.
+fn observed_tracks(d: &Diagnosis, tracks: &TrackTable) -> Vec<Track> {
+    let by_particle = tracks.by_particle();
+    let in_window = |f: usize| f >= d.window[0] && f <= d.window[1];
+    d.residuals
+        .particles
+        .iter()
+        .map(|id| Track {
+            name: id.clone(),
+            points: by_particle
+                .get(id.as_str())
+                .map(|v| {
+                    v.iter()
+                        .filter(|q| in_window(q.frame))
+                        .map(|q| (q.x, q.y))
+                        .collect()
+                })
+                .unwrap_or_default(),
+        })
+        .collect()
+}
+
+/// The observed tracks with the base model's (dashed) and the diagnosed model's (dotted)
+/// multi-step predictions over the analysed frames: `trajectories.png`.
+pub fn prediction_picture(
+    out: &Path,
+    d: &Diagnosis,
+    tracks: &TrackTable,
+    backdrop: &Backdrop,
+) -> anyhow::Result<String> {
+    let ids = &d.residuals.particles;
+    let mut models = Vec::new();
+    if let Some(p) = &d.predictions {
+        let in_window = |f: usize| f >= d.window[0] && f <= d.window[1];
+        for (name, series) in [("base model", &p.base), ("diagnosed model", &p.final_model)] {
+            let paths = ids
+                .iter()
+                .map(|id| {
+                    let Some(k) = p.particles.iter().position(|q| q == id) else {
+                        return Vec::new();
+                    };
+                    p.frames
+                        .iter()
+                        .zip(series)
+                        .filter(|(&f, _)| in_window(f))
+                        .map(|(_, row)| row[k].map_or((f64::NAN, f64::NAN), |x| (x.x, x.y)))
+                        .collect()
+                })
+                .collect();
+            models.push(ModelPaths {
+                name: name.into(),
+                paths,
+            });
+        }
+    }
+    let plot = TrajectoryPlot {
+        tracks: observed_tracks(d, tracks),
+        models,
+        background: backdrop.frame.map(|f| f.to_rgb8()),
+        frame_size: backdrop.frame_size,
+        zoom: true,
+        ..TrajectoryPlot::new("observed tracks (solid), base model (dashed), diagnosed model (dotted)")
+    };
+    report::trajectory_plot(&out.join("trajectories.png"), &plot)?;
+    Ok(format!(
+        "{}\n\n",
+        report::markdown_image("observed and predicted trajectories", "trajectories.png")
+    ))
 }
 
 /// Residual magnitude per particle over time, before and after the diagnosis (one chart each,
@@ -99,23 +178,7 @@ pub fn mismatch_picture(
     backdrop: &Backdrop,
 ) -> anyhow::Result<String> {
     let ids = &d.residuals.particles;
-    let by_particle = tracks.by_particle();
-    let in_window = |f: usize| f >= d.window[0] && f <= d.window[1];
-    let tracks_drawn: Vec<Track> = ids
-        .iter()
-        .map(|id| Track {
-            name: id.clone(),
-            points: by_particle
-                .get(id.as_str())
-                .map(|v| {
-                    v.iter()
-                        .filter(|q| in_window(q.frame))
-                        .map(|q| (q.x, q.y))
-                        .collect()
-                })
-                .unwrap_or_default(),
-        })
-        .collect();
+    let tracks_drawn = observed_tracks(d, tracks);
     let mut mismatches = Vec::new();
     let circle = |region: &[f64; 4], label: String| Mismatch {
         position: (0.5 * (region[0] + region[2]), 0.5 * (region[1] + region[3])),

@@ -2,24 +2,18 @@
 //! predictions, the mismatch located on the image, residuals before and after, the base fit's
 //! cost history, and overlay frames of the input.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::Context;
 use physfit_identify::diagnose::Diagnosis;
 use physfit_identify::FitResult;
-use physfit_model::Scene;
 use physfit_track::TrackTable;
 
 use crate::cmd::diagnose::figures::{self as diagnosis_figures, Backdrop};
-use crate::report::{self, LineChart, ModelPaths, Overlay, Prediction, Series, Tail, Track, TrajectoryPlot};
+use crate::report::{self, LineChart, Overlay, Prediction, Series, Tail};
 
 /// Frames of track tail drawn on an overlay.
 const TAIL_FRAMES: usize = 10;
-
-/// A model's predicted positions, px, per particle (in the diagnosis's particle order) and
-/// absolute frame.
-type Paths = Vec<BTreeMap<usize, (f64, f64)>>;
 
 /// Draws every picture into `out`; returns their Markdown and the files written (relative).
 pub fn figures(
@@ -36,57 +30,16 @@ pub fn figures(
         .map(|p| image::open(p).with_context(|| format!("reading {}", p.display())))
         .transpose()?;
     let ids = &d.residuals.particles;
-    let base_paths = base.map(|b| predicted(&b.fitted, ids, d)).transpose()?;
-    let final_paths = predicted(&d.final_scene, ids, d)?;
+    let by_particle = tracks.by_particle();
     let mut md = String::new();
     let mut files = Vec::new();
-
-    let by_particle = tracks.by_particle();
-    let in_window = |f: usize| f >= d.window[0] && f <= d.window[1];
-    let track_lines: Vec<Track> = ids
-        .iter()
-        .map(|id| Track {
-            name: id.clone(),
-            points: by_particle
-                .get(id.as_str())
-                .map(|v| {
-                    v.iter()
-                        .filter(|q| in_window(q.frame))
-                        .map(|q| (q.x, q.y))
-                        .collect()
-                })
-                .unwrap_or_default(),
-        })
-        .collect();
-    let model_lines = |name: &str, p: &Paths| ModelPaths {
-        name: name.into(),
-        paths: p.iter().map(|m| m.values().copied().collect()).collect(),
-    };
-    report::trajectory_plot(
-        &out.join("trajectories.png"),
-        &TrajectoryPlot {
-            title: "observed tracks (solid), base model (dashed), diagnosed model (dotted)".into(),
-            tracks: track_lines,
-            models: base_paths
-                .iter()
-                .map(|p| model_lines("base model", p))
-                .chain([model_lines("diagnosed model", &final_paths)])
-                .collect(),
-            background: first.as_ref().map(|f| f.to_rgb8()),
-            zoom: true,
-            ..TrajectoryPlot::new("")
-        },
-    )?;
-    md.push_str(&report::markdown_image("trajectories", "trajectories.png"));
-    md.push_str("\n\n");
-    files.push("trajectories.png".to_string());
 
     let backdrop = Backdrop {
         frame: first.as_ref(),
         frame_size: None,
     };
     md.push_str(&diagnosis_figures::figures(out, d, tracks, &backdrop)?);
-    files.extend(["mismatch.png", "residuals_before.png", "residuals_after.png"].map(String::from));
+    files.extend(diagnosis_figures::FIGURE_FILES.map(String::from));
 
     let history: Vec<(f64, f64)> = base
         .map(|b| {
@@ -134,8 +87,11 @@ pub fn figures(
                     .map(|q| (q.x, q.y))
                     .collect(),
             });
-            if let Some(&position) = final_paths.get(k).and_then(|m| m.get(&f)) {
-                marks.predictions.push(Prediction { colour: k, position });
+            if let Some(x) = predicted_at(d, id, f) {
+                marks.predictions.push(Prediction {
+                    colour: k,
+                    position: (x.x, x.y),
+                });
             }
         }
         let name = format!("overlay/frame_{f:06}.png");
@@ -147,29 +103,10 @@ pub fn figures(
     Ok((md, files))
 }
 
-/// The positions `scene` predicts for each of `ids` over the diagnosis's analysed frames,
-/// simulated from the scene's frame-0 state (the fitted motion's).
-fn predicted(scene: &Scene, ids: &[String], d: &Diagnosis) -> anyhow::Result<Paths> {
-    let model = scene
-        .model()
-        .with_context(|| format!("the model {} cannot be simulated", scene.name))?;
-    let recording = physfit_model::simulate(
-        &model,
-        &scene.initial_state(),
-        &scene.integration_parameters(),
-        d.window[1] + 1,
-    );
-    Ok(ids
-        .iter()
-        .map(|id| {
-            let mut m = BTreeMap::new();
-            if let Some(p) = scene.particle_id(id) {
-                for f in d.window[0]..=d.window[1] {
-                    let x = recording.frame(f)[p.index()];
-                    m.insert(f, (x.x, x.y));
-                }
-            }
-            m
-        })
-        .collect())
+/// The diagnosed model's predicted position of particle `id` at frame `f`, px.
+fn predicted_at(d: &Diagnosis, id: &str, f: usize) -> Option<physfit_model::Vec2> {
+    let p = d.predictions.as_ref()?;
+    let k = p.particles.iter().position(|q| q == id)?;
+    let row = p.frames.iter().position(|&g| g == f)?;
+    p.final_model.get(row)?.get(k).copied().flatten()
 }
