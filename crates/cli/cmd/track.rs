@@ -44,6 +44,17 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", args.out.display()))?;
     if verbosity != Verbosity::Quiet {
         println!("{}", outcome.stats);
+        let amb = &outcome.stats.ambiguities;
+        if !amb.is_empty() {
+            let count = |k: physfit_track::AmbiguityKind| amb.iter().filter(|a| a.kind == k).count();
+            println!(
+                "ambiguities bridged: {} runs ({} merged, {} missing, {} lost)",
+                amb.len(),
+                count(physfit_track::AmbiguityKind::Merged),
+                count(physfit_track::AmbiguityKind::Missing),
+                count(physfit_track::AmbiguityKind::Lost)
+            );
+        }
         println!("tracks -> {}", args.out.display());
     }
     if let Some(truth_path) = &args.truth {

@@ -89,22 +89,24 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
     let k = samples.len();
     let median = median_image(samples);
 
-    // Temporal noise: robust spread of each sample around the per-pixel median.
+    // Temporal noise from differences of consecutive samples: where nothing moves the
+    // difference of two frames has sigma * sqrt(2), whatever the number of samples. (The
+    // spread about the per-pixel median is biased low for few samples: with an odd count one
+    // sample *is* the median at every pixel, so a third of three samples' deviations are 0.)
     let sigma_t = if k >= 2 {
-        let stride = (k * median.len() / 2_000_000).max(1) | 1;
-        let mut dev: Vec<f32> = Vec::with_capacity(k * median.len() / stride + 1);
-        for f in samples {
+        let stride = ((k - 1) * median.len() / 2_000_000).max(1) | 1;
+        let mut dev: Vec<f32> = Vec::with_capacity((k - 1) * median.len() / stride + 1);
+        for pair in samples.windows(2) {
             dev.extend(
-                f.data
+                pair[0]
+                    .data
                     .iter()
-                    .zip(&median)
+                    .zip(&pair[1].data)
                     .step_by(stride)
                     .map(|(a, b)| (a - b).abs()),
             );
         }
-        // With an odd number of samples one of them equals the median at each pixel.
-        let m = quantile(&mut dev, 0.5) as f64 * 1.4826;
-        m * (k as f64 / (k as f64 - 1.0)).sqrt()
+        quantile(&mut dev, 0.5) as f64 * 1.4826 / std::f64::consts::SQRT_2
     } else {
         0.0
     }

@@ -81,13 +81,19 @@ pub fn find_blobs(signal: &[f32], width: usize, height: usize, params: &DetectPa
     find_blobs_with_scratch(signal, width, height, params, &mut scratch)
 }
 
-/// Reusable buffers of [`find_blobs_with_scratch`].
+/// Reusable buffers of [`find_blobs_with_scratch`]: the two filtered images, the filters'
+/// running sums and the labelling's runs. Holding one per worker thread means no frame
+/// allocates.
 #[derive(Default, Debug)]
 pub struct Scratch {
     small: Vec<f32>,
     large: Vec<f32>,
-    tmp: Vec<f64>,
-    col: Vec<f64>,
+    filter: FilterScratch,
+    peaks: Vec<(f32, u32, u32)>,
+    kept: Vec<(f32, u32, u32)>,
+    cell_head: Vec<u32>,
+    cell_next: Vec<u32>,
+    labels: Labels,
 }
 
 /// [`find_blobs`] with reusable buffers (no per-frame allocation of the filtered images).
@@ -98,28 +104,18 @@ pub fn find_blobs_with_scratch(
     params: &DetectParameters,
     scratch: &mut Scratch,
 ) -> BlobSet {
-    if width == 0 || height == 0 {
+    if width == 0 || height == 0 || signal.len() < width * height {
         return BlobSet::default();
     }
     let h = box_half_width(params.radius);
     let big = 2 * h + 1;
-    box_mean(
+    box_means(
         signal,
         width,
         height,
-        h,
-        &mut scratch.small,
-        &mut scratch.tmp,
-        &mut scratch.col,
-    );
-    box_mean(
-        signal,
-        width,
-        height,
-        big,
-        &mut scratch.large,
-        &mut scratch.tmp,
-        &mut scratch.col,
+        [h, big],
+        [&mut scratch.small, &mut scratch.large],
+        &mut scratch.filter,
     );
     let (small, large) = (&scratch.small, &scratch.large);
     let sigma = params.noise_sigma.max(1e-6);
@@ -139,86 +135,99 @@ pub fn find_blobs_with_scratch(
     let n_large = ((2 * big + 1) * (2 * big + 1)) as f64;
     let peak_min = (PEAK_SIGMAS * sigma * (1.0 / n_small - 1.0 / n_large).sqrt()) as f32;
     let mask_t = (MASK_SIGMAS * sigma / n_small.sqrt()) as f32;
-    // Mask threshold factors per column and row: sqrt(full count / count) of the small box.
+    // Mask thresholds per column and factors per row: sqrt(full count / count) of the small
+    // box.
     let full = (2 * h + 1) as f64;
-    let mask_fx: Vec<f32> = count_small_x.iter().map(|&c| (full / c).sqrt() as f32).collect();
+    let mask_x: Vec<f32> = count_small_x
+        .iter()
+        .map(|&c| mask_t * (full / c).sqrt() as f32)
+        .collect();
     let mask_fy: Vec<f32> = count_small_y.iter().map(|&c| (full / c).sqrt() as f32).collect();
+    // Pixels farther than this from every edge see full boxes (their thresholds are the
+    // interior ones, already applied).
+    let margin = big;
 
     // Local maxima of the band-pass response (strict against earlier neighbours in raster
     // order, non-strict against later ones, so a plateau yields one maximum per row run).
-    let band = |i: usize| small[i] - large[i];
-    let mut peaks: Vec<(f32, usize, usize)> = Vec::new();
+    let peaks = &mut scratch.peaks;
+    peaks.clear();
     for (y, &fy) in mask_fy.iter().enumerate().take(height) {
         let row = y * width;
-        for (x, &fx) in mask_fx.iter().enumerate().take(width) {
-            let i = row + x;
-            let v = band(i);
-            if v <= peak_min || small[i] <= mask_t * fx * fy {
+        let srow = &small[row..row + width];
+        let lrow = &large[row..row + width];
+        for x0 in (0..width).step_by(CHUNK) {
+            let x1 = (x0 + CHUNK).min(width);
+            // Most of a frame is background: a whole chunk is ruled out at once (branch-free,
+            // vectorised) before any pixel is looked at alone.
+            if !any_above(&srow[x0..x1], &lrow[x0..x1], peak_min) {
                 continue;
             }
-            if f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
-                continue;
-            }
-            let mut is_max = true;
-            'n: for dy in -1i64..=1 {
-                let yy = y as i64 + dy;
-                if yy < 0 || yy >= height as i64 {
+            for x in x0..x1 {
+                let v = srow[x] - lrow[x];
+                if v <= peak_min || srow[x] <= mask_x[x] * fy {
                     continue;
                 }
-                for dx in -1i64..=1 {
-                    let xx = x as i64 + dx;
-                    if (dx == 0 && dy == 0) || xx < 0 || xx >= width as i64 {
-                        continue;
-                    }
-                    let j = yy as usize * width + xx as usize;
-                    let w = band(j);
-                    let earlier = j < i;
-                    if (earlier && w >= v) || (!earlier && w > v) {
-                        is_max = false;
-                        break 'n;
-                    }
+                let at_edge = x < margin || y < margin || x + margin >= width || y + margin >= height;
+                if at_edge && f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
+                    continue;
                 }
-            }
-            if is_max {
-                peaks.push((v, x, y));
+                if is_local_max(small, large, width, height, x, y, v) {
+                    peaks.push((v, x as u32, y as u32));
+                }
             }
         }
     }
-    peaks.sort_by(|a, b| b.0.total_cmp(&a.0).then((a.2, a.1).cmp(&(b.2, b.1))));
+    peaks.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then((a.2, a.1).cmp(&(b.2, b.1))));
 
-    // Non-maximum suppression within one radius, on a grid of cells one radius wide.
+    // Non-maximum suppression within one radius, on a grid of cells one radius wide (each
+    // cell's kept peaks as a linked list through `cell_next`).
     let r_nms = params.radius.max(1.5);
     let cell = r_nms.ceil() as usize;
     let gw = width.div_ceil(cell);
     let gh = height.div_ceil(cell);
-    let mut grid: Vec<Vec<(usize, usize)>> = vec![Vec::new(); gw * gh];
-    let mut kept: Vec<(f32, usize, usize)> = Vec::new();
+    let head = &mut scratch.cell_head;
+    head.clear();
+    head.resize(gw * gh, u32::MAX);
+    let next = &mut scratch.cell_next;
+    next.clear();
+    let kept = &mut scratch.kept;
+    kept.clear();
     let r2 = r_nms * r_nms;
-    for &(v, x, y) in &peaks {
+    for &(v, x, y) in peaks.iter() {
+        let (x, y) = (x as usize, y as usize);
         let (cx, cy) = (x / cell, y / cell);
         let mut clash = false;
         'g: for gy in cy.saturating_sub(1)..=(cy + 1).min(gh - 1) {
             for gx in cx.saturating_sub(1)..=(cx + 1).min(gw - 1) {
-                for &(ox, oy) in &grid[gy * gw + gx] {
-                    let dx = ox as f64 - x as f64;
-                    let dy = oy as f64 - y as f64;
+                let mut k = head[gy * gw + gx];
+                while k != u32::MAX {
+                    let (_, ox, oy) = kept[k as usize];
+                    let dx = f64::from(ox) - x as f64;
+                    let dy = f64::from(oy) - y as f64;
                     if dx * dx + dy * dy < r2 {
                         clash = true;
                         break 'g;
                     }
+                    k = next[k as usize];
                 }
             }
         }
         if !clash {
-            grid[cy * gw + cx].push((x, y));
-            kept.push((v, x, y));
+            let c = cy * gw + cx;
+            next.push(head[c]);
+            head[c] = kept.len() as u32;
+            kept.push((v, x as u32, y as u32));
         }
     }
 
     // Components of the smoothed signal above the mask threshold, as row runs.
-    let comps = label_runs(small, width, height, mask_t, &mask_fx, &mask_fy);
+    let comps = &mut scratch.labels;
+    comps.label(small, width, height, &mask_x, &mask_fy);
     let mut seeds_per: Vec<u32> = vec![0; comps.area.len()];
-    let labels: Vec<Option<usize>> = kept.iter().map(|&(_, x, y)| comps.label_at(x, y)).collect();
+    let labels: Vec<Option<usize>> = kept
+        .iter()
+        .map(|&(_, x, y)| comps.label_at(x as usize, y as usize))
+        .collect();
     for l in labels.iter().flatten() {
         seeds_per[*l] += 1;
     }
@@ -252,8 +261,8 @@ pub fn find_blobs_with_scratch(
             }
         }
         out.blobs.push(Blob {
-            x,
-            y,
+            x: x as usize,
+            y: y as usize,
             peak: v,
             area,
             at_border,
@@ -262,21 +271,158 @@ pub fn find_blobs_with_scratch(
     out
 }
 
-/// Connected components (8-connected) of `image > threshold`, stored as row runs.
-struct Components {
-    /// Per row, the runs `(x_start, x_end_exclusive, label)` in order.
-    rows: Vec<Vec<(usize, usize, usize)>>,
+/// Pixels tested together by the quick rejections of background.
+const CHUNK: usize = 16;
+
+/// Returns true if and only if some `small - large` exceeds `t`.
+fn any_above(small: &[f32], large: &[f32], t: f32) -> bool {
+    small
+        .iter()
+        .zip(large)
+        .fold(false, |any, (s, l)| any | (s - l > t))
+}
+
+/// Returns true if and only if some `line[x]` exceeds `mask[x] * f`.
+fn any_above_mask(line: &[f32], mask: &[f32], f: f32) -> bool {
+    line.iter()
+        .zip(mask)
+        .fold(false, |any, (v, m)| any | (*v > m * f))
+}
+
+/// Returns true if and only if the band-pass response `v` at `(x, y)` is a local maximum:
+/// strictly above its earlier neighbours in raster order, at least its later ones.
+fn is_local_max(
+    small: &[f32],
+    large: &[f32],
+    width: usize,
+    height: usize,
+    x: usize,
+    y: usize,
+    v: f32,
+) -> bool {
+    let i = y * width + x;
+    for yy in y.saturating_sub(1)..=(y + 1).min(height - 1) {
+        for xx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
+            let j = yy * width + xx;
+            if j == i {
+                continue;
+            }
+            let w = small[j] - large[j];
+            if (j < i && w >= v) || (j > i && w > v) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Connected components (8-connected) of `image > threshold`, stored as row runs, with
+/// reusable buffers.
+#[derive(Default, Debug)]
+struct Labels {
+    /// Runs `(x_start, x_end_exclusive, label)`, row after row.
+    runs: Vec<(u32, u32, u32)>,
+    /// Index of each row's first run in `runs` (`height + 1` entries).
+    row_start: Vec<usize>,
+    /// Union-find parents of the provisional labels.
+    parent: Vec<u32>,
+    /// Compact label of each provisional root.
+    compact: Vec<u32>,
     /// Pixel count per label.
     area: Vec<usize>,
     /// Whether each label touches the image border.
     border: Vec<bool>,
 }
 
-impl Components {
+impl Labels {
     fn label_at(&self, x: usize, y: usize) -> Option<usize> {
-        let row = self.rows.get(y)?;
-        let k = row.partition_point(|r| r.1 <= x);
-        row.get(k).filter(|r| r.0 <= x).map(|r| r.2)
+        let row = &self.runs[*self.row_start.get(y)?..*self.row_start.get(y + 1)?];
+        let k = row.partition_point(|r| r.1 as usize <= x);
+        row.get(k).filter(|r| r.0 as usize <= x).map(|r| r.2 as usize)
+    }
+
+    /// Labels the components of `image > mask_x[x] * fy[y]`.
+    fn label(&mut self, image: &[f32], width: usize, height: usize, mask_x: &[f32], fy: &[f32]) {
+        fn find(parent: &mut [u32], mut a: u32) -> u32 {
+            while parent[a as usize] != a {
+                let p = parent[parent[a as usize] as usize];
+                parent[a as usize] = p;
+                a = p;
+            }
+            a
+        }
+        self.runs.clear();
+        self.row_start.clear();
+        self.parent.clear();
+        let mut prev_start = 0;
+        for y in 0..height {
+            let line = &image[y * width..(y + 1) * width];
+            let ty = fy[y];
+            let start_here = self.runs.len();
+            self.row_start.push(start_here);
+            let mut x = 0;
+            while x < width {
+                if x % CHUNK == 0
+                    && x + CHUNK <= width
+                    && !any_above_mask(&line[x..x + CHUNK], &mask_x[x..x + CHUNK], ty)
+                {
+                    x += CHUNK;
+                    continue;
+                }
+                if line[x] > mask_x[x] * ty {
+                    let s = x;
+                    while x < width && line[x] > mask_x[x] * ty {
+                        x += 1;
+                    }
+                    let label = self.parent.len() as u32;
+                    self.parent.push(label);
+                    self.runs.push((s as u32, x as u32, label));
+                } else {
+                    x += 1;
+                }
+            }
+            if y > 0 {
+                // Runs of the previous row overlapping [start - 1, end] (8-connectivity).
+                let mut k = prev_start;
+                for r in start_here..self.runs.len() {
+                    let run = self.runs[r];
+                    while k < start_here && self.runs[k].1 < run.0 {
+                        k += 1;
+                    }
+                    let mut j = k;
+                    while j < start_here && self.runs[j].0 <= run.1 {
+                        let a = find(&mut self.parent, run.2);
+                        let b = find(&mut self.parent, self.runs[j].2);
+                        if a != b {
+                            self.parent[a.max(b) as usize] = a.min(b);
+                        }
+                        j += 1;
+                    }
+                }
+            }
+            prev_start = start_here;
+        }
+        self.row_start.push(self.runs.len());
+        // Compact labels.
+        self.compact.clear();
+        self.compact.resize(self.parent.len(), u32::MAX);
+        self.area.clear();
+        self.border.clear();
+        for y in 0..height {
+            for r in self.row_start[y]..self.row_start[y + 1] {
+                let run = self.runs[r];
+                let root = find(&mut self.parent, run.2) as usize;
+                if self.compact[root] == u32::MAX {
+                    self.compact[root] = self.area.len() as u32;
+                    self.area.push(0);
+                    self.border.push(false);
+                }
+                let l = self.compact[root];
+                self.runs[r].2 = l;
+                self.area[l as usize] += (run.1 - run.0) as usize;
+                self.border[l as usize] |= run.0 == 0 || run.1 as usize == width || y == 0 || y + 1 == height;
+            }
+        }
     }
 }
 
@@ -288,143 +434,110 @@ fn box_counts(len: usize, h: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Components of `image > threshold * fx[x] * fy[y]`.
-fn label_runs(
-    image: &[f32],
-    width: usize,
-    height: usize,
-    threshold: f32,
-    fx: &[f32],
-    fy: &[f32],
-) -> Components {
-    let mut rows: Vec<Vec<(usize, usize, usize)>> = Vec::with_capacity(height);
-    let mut parent: Vec<usize> = Vec::new();
-    fn find(parent: &mut [usize], mut a: usize) -> usize {
-        while parent[a] != a {
-            parent[a] = parent[parent[a]];
-            a = parent[a];
+/// One output row of a box mean of half-width `h` at row `y`, from the prefix sums `pre` of
+/// the row's column sums; `inv_x` holds 1 / (pixels in the box's row span) per column.
+fn box_row(out: &mut [f32], pre: &[f64], inv_x: &[f64], h: usize, y: usize, height: usize) {
+    let width = out.len();
+    let inv_y = 1.0 / ((y + h).min(height - 1) - y.saturating_sub(h) + 1) as f64;
+    let edge = |x: usize| {
+        let (lo, hi) = (x.saturating_sub(h), (x + h).min(width - 1));
+        ((pre[hi + 1] - pre[lo]) * inv_y * inv_x[x]) as f32
+    };
+    if 2 * h + 1 > width {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = edge(x);
         }
-        a
+        return;
     }
-    for y in 0..height {
-        let line = &image[y * width..(y + 1) * width];
-        let ty = threshold * fy[y];
-        let above = |x: usize| line[x] > ty * fx[x];
-        let mut runs = Vec::new();
-        let mut x = 0;
-        while x < width {
-            if above(x) {
-                let start = x;
-                while x < width && above(x) {
-                    x += 1;
-                }
-                let label = parent.len();
-                parent.push(label);
-                runs.push((start, x, label));
-            } else {
-                x += 1;
-            }
-        }
-        if let Some(prev) = rows.last() {
-            let mut k = 0;
-            for run in &runs {
-                // Runs of the previous row overlapping [start-1, end] (8-connectivity).
-                while k < prev.len() && prev[k].1 < run.0 {
-                    k += 1;
-                }
-                let mut j = k;
-                while j < prev.len() && prev[j].0 <= run.1 {
-                    let a = find(&mut parent, run.2);
-                    let b = find(&mut parent, prev[j].2);
-                    if a != b {
-                        parent[a.max(b)] = a.min(b);
-                    }
-                    j += 1;
-                }
-            }
-        }
-        rows.push(runs);
+    // Interior columns hold a full box: one constant factor (vectorised).
+    let k = inv_y / (2 * h + 1) as f64;
+    for ((o, hi), lo) in out[h..width - h].iter_mut().zip(&pre[2 * h + 1..]).zip(pre) {
+        *o = ((hi - lo) * k) as f32;
     }
-    // Compact labels.
-    let mut compact = vec![usize::MAX; parent.len()];
-    let mut area = Vec::new();
-    let mut border = Vec::new();
-    for (y, runs) in rows.iter_mut().enumerate() {
-        for run in runs.iter_mut() {
-            let root = find(&mut parent, run.2);
-            if compact[root] == usize::MAX {
-                compact[root] = area.len();
-                area.push(0);
-                border.push(false);
-            }
-            let l = compact[root];
-            run.2 = l;
-            area[l] += run.1 - run.0;
-            border[l] |= run.0 == 0 || run.1 == width || y == 0 || y + 1 == height;
-        }
+    for x in (0..h).chain(width - h..width) {
+        out[x] = edge(x);
     }
-    Components { rows, area, border }
 }
 
-/// Box mean of side `2h+1` (pixels outside the image are left out of the mean), into `out`.
-pub(crate) fn box_mean(
+/// Running sums of [`box_means`], kept between frames.
+#[derive(Default, Debug)]
+pub(crate) struct FilterScratch {
+    /// Column sums over each filter's rows (`f32`, one row per filter).
+    cols: [Vec<f32>; 2],
+    /// Prefix sums along the row of each filter's column sums (`f64`, `width + 1`).
+    prefix: [Vec<f64>; 2],
+}
+
+/// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
+/// out of each mean), into `outs`.
+///
+/// Separable and streaming: each output row adds the entering image row to a running column
+/// sum and subtracts the leaving one (vectorised across the row), then takes differences of
+/// a prefix sum along the row. Both filters share one pass, so their prefix sums (a serial
+/// chain each) interleave. Column sums are `f32` (their rounding is below 1e-3 grey levels
+/// of the mean), prefix sums `f64`.
+pub(crate) fn box_means(
     image: &[f32],
     width: usize,
     height: usize,
-    h: usize,
-    out: &mut Vec<f32>,
-    tmp: &mut Vec<f64>,
-    col: &mut Vec<f64>,
+    halves: [usize; 2],
+    outs: [&mut Vec<f32>; 2],
+    scratch: &mut FilterScratch,
 ) {
-    // Horizontal running sums, divided by the count of in-image columns.
-    tmp.clear();
-    tmp.resize(width * height, 0.0);
-    for y in 0..height {
-        let src = &image[y * width..(y + 1) * width];
-        let dst = &mut tmp[y * width..(y + 1) * width];
-        let mut sum = 0.0f64;
-        for v in src.iter().take(h.min(width)) {
-            sum += f64::from(*v);
-        }
-        for x in 0..width {
-            if x + h < width {
-                sum += f64::from(src[x + h]);
-            }
-            if x > h {
-                sum -= f64::from(src[x - h - 1]);
-            }
-            let lo = x.saturating_sub(h);
-            let hi = (x + h).min(width - 1);
-            dst[x] = sum / (hi - lo + 1) as f64;
-        }
+    let [out_a, out_b] = outs;
+    for out in [&mut *out_a, &mut *out_b] {
+        out.clear();
+        out.resize(width * height, 0.0);
     }
-    // Vertical running sums over whole rows (cache friendly).
-    out.clear();
-    out.resize(width * height, 0.0);
-    col.clear();
-    col.resize(width, 0.0);
-    for row in tmp.chunks_exact(width).take(h.min(height)) {
-        for (c, v) in col.iter_mut().zip(row) {
-            *c += v;
-        }
-    }
-    for y in 0..height {
-        if y + h < height {
-            for (c, v) in col.iter_mut().zip(&tmp[(y + h) * width..(y + h + 1) * width]) {
+    let [col_a, col_b] = &mut scratch.cols;
+    let [pre_a, pre_b] = &mut scratch.prefix;
+    for (col, pre, &h) in [
+        (&mut *col_a, &mut *pre_a, &halves[0]),
+        (&mut *col_b, &mut *pre_b, &halves[1]),
+    ] {
+        col.clear();
+        col.resize(width, 0.0);
+        pre.clear();
+        pre.resize(width + 1, 0.0);
+        for row in image.chunks_exact(width).take(h.min(height)) {
+            for (c, v) in col.iter_mut().zip(row) {
                 *c += v;
             }
         }
-        if y > h {
-            for (c, v) in col.iter_mut().zip(&tmp[(y - h - 1) * width..(y - h) * width]) {
-                *c -= v;
+    }
+    let inv_x: [Vec<f64>; 2] = halves.map(|h| box_counts(width, h).iter().map(|c| 1.0 / c).collect());
+    for y in 0..height {
+        for (col, &h) in [(&mut *col_a, &halves[0]), (&mut *col_b, &halves[1])] {
+            if y + h < height {
+                let add = &image[(y + h) * width..(y + h + 1) * width];
+                if y > h {
+                    let sub = &image[(y - h - 1) * width..(y - h) * width];
+                    for ((c, a), s) in col.iter_mut().zip(add).zip(sub) {
+                        *c += a - s;
+                    }
+                } else {
+                    for (c, a) in col.iter_mut().zip(add) {
+                        *c += a;
+                    }
+                }
+            } else if y > h {
+                let sub = &image[(y - h - 1) * width..(y - h) * width];
+                for (c, s) in col.iter_mut().zip(sub) {
+                    *c -= s;
+                }
             }
         }
-        let lo = y.saturating_sub(h);
-        let hi = (y + h).min(height - 1);
-        let inv = 1.0 / (hi - lo + 1) as f64;
-        for (o, c) in out[y * width..(y + 1) * width].iter_mut().zip(col.iter()) {
-            *o = (c * inv) as f32;
+        // Both prefix chains in one loop, so the two serial additions overlap.
+        let (mut sa, mut sb) = (0.0f64, 0.0f64);
+        for x in 0..width {
+            sa += f64::from(col_a[x]);
+            sb += f64::from(col_b[x]);
+            pre_a[x + 1] = sa;
+            pre_b[x + 1] = sb;
         }
+        let row = y * width..(y + 1) * width;
+        box_row(&mut out_a[row.clone()], pre_a, &inv_x[0], halves[0], y, height);
+        box_row(&mut out_b[row], pre_b, &inv_x[1], halves[1], y, height);
     }
 }
 
@@ -449,18 +562,29 @@ mod tests {
     fn box_mean_matches_brute_force_at_borders() {
         let (w, h) = (9, 7);
         let img: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32).collect();
-        let (mut out, mut tmp, mut col) = (Vec::new(), Vec::new(), Vec::new());
-        box_mean(&img, w, h, 2, &mut out, &mut tmp, &mut col);
-        for y in 0..h {
-            for x in 0..w {
-                let (mut s, mut n) = (0.0, 0.0);
-                for yy in y.saturating_sub(2)..=(y + 2).min(h - 1) {
-                    for xx in x.saturating_sub(2)..=(x + 2).min(w - 1) {
-                        s += img[yy * w + xx];
-                        n += 1.0;
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for halves in [[2, 5], [1, 3], [4, 12]] {
+            box_means(
+                &img,
+                w,
+                h,
+                halves,
+                [&mut a, &mut b],
+                &mut FilterScratch::default(),
+            );
+            for (out, half) in [(&a, halves[0]), (&b, halves[1])] {
+                for y in 0..h {
+                    for x in 0..w {
+                        let (mut s, mut n) = (0.0, 0.0);
+                        for yy in y.saturating_sub(half)..=(y + half).min(h - 1) {
+                            for xx in x.saturating_sub(half)..=(x + half).min(w - 1) {
+                                s += img[yy * w + xx];
+                                n += 1.0;
+                            }
+                        }
+                        assert!((out[y * w + x] - s / n).abs() < 1e-4, "half {half} at {x},{y}");
                     }
                 }
-                assert!((out[y * w + x] - s / n).abs() < 1e-4);
             }
         }
     }

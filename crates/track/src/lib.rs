@@ -1,6 +1,7 @@
 //! Tracking: finds particles in a folder of frames, locates them to sub-pixel accuracy and
 //! links them into trajectories, seeing only pixels.
 
+mod appearance;
 mod assignment;
 mod background;
 mod detect;
@@ -12,6 +13,7 @@ mod pipeline;
 mod score;
 mod track_table;
 
+pub use appearance::*;
 pub use assignment::*;
 pub use background::*;
 pub use detect::*;

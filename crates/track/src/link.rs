@@ -4,9 +4,21 @@
 //! Each frame, every live track predicts where its particle is (constant position, then
 //! constant velocity, then constant acceleration once the track's own history shows that
 //! model predicts better), with a prediction scale learned from the track's past
-//! prediction residuals. Candidate detections within a gate of that scale come from a
-//! kd-tree, and tracks are assigned to detections by optimal assignment over the whole
-//! frame (Hungarian method on each connected group of competing tracks), never greedily.
+//! prediction residuals. Motion is extrapolated (Lagrange polynomial through the latest two
+//! or three anchors) from points located from the particle's own blob, preferring those no
+//! other tracked particle was near enough to share light with (a soft Voronoi split pulls
+//! touching particles' centroids), as long as the newest of them is recent. Candidate
+//! detections within a gate of that scale come from a kd-tree, and tracks are assigned to
+//! detections by optimal assignment over the whole frame (Hungarian method on each
+//! connected group of competing tracks), never greedily.
+//!
+//! Appearance tells a particle from untracked objects: a track with no other track's
+//! prediction within reach compares each candidate's log mass and size with its own recent
+//! ones, in units of their measured frame-to-frame spreads ([`crate::TrackAppearance`]).
+//! The squared standardised changes add to the cost, and a candidate whose combined change
+//! (square root of their sum) exceeds [`APPEARANCE_GATE_SIGMAS`] (twice that in the second
+//! chance, whose position gate is also doubled) is another object: the hand that threw the
+//! ball, or the ball's reflection in the floor.
 //!
 //! A blob may hold several particles: its mass, compared with a single particle's, says
 //! how many tracks it can take, and a track whose prediction falls inside a blob already
@@ -23,6 +35,7 @@
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
+use crate::appearance::{Appearance, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
@@ -31,6 +44,14 @@ use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 const GATE_SIGMAS: f64 = 4.0;
 /// Weight of the newest residual in a track's running mean squared prediction error.
 const RESIDUAL_RATE: f64 = 0.3;
+/// A candidate whose log mass or size differs from the track's latest by more than this
+/// many of the measured frame-to-frame spreads is another object (a hand, a reflection).
+/// The spreads are robust (median-based) estimates and real features have heavier tails
+/// than a normal distribution, hence one more than the position gate.
+pub const APPEARANCE_GATE_SIGMAS: f64 = GATE_SIGMAS + 1.0;
+/// Frames a track may rely on older uncrowded points for its motion before it falls back
+/// on crowded ones (a particle that stays near another for longer moves on its own).
+const CLEAN_ANCHOR_AGE: usize = 3;
 
 /// The detections of one frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -118,6 +139,8 @@ struct Point {
     flag: PointFlag,
     /// Written to the table (false while outside the image or lost).
     emit: bool,
+    /// Located from a blob with no other detection near enough to share its light.
+    clean: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -136,6 +159,8 @@ struct Track {
     /// Prediction scale before any velocity is known, px.
     init_scale: f64,
     ended: bool,
+    /// Appearance of each located point, with its frame.
+    apps: Vec<(usize, Appearance)>,
 }
 
 impl Track {
@@ -152,6 +177,7 @@ impl Track {
             err_ca: None,
             init_scale,
             ended: false,
+            apps: Vec::new(),
         }
     }
 
@@ -160,16 +186,33 @@ impl Track {
         [p.x, p.y]
     }
 
-    /// The last point located from the particle's own blob, as an index into `points`, and
-    /// how many frames ahead of it the next frame is. Split and bridged points are placed
-    /// from predictions, so motion is extrapolated from the last located point instead.
+    /// The points motion is extrapolated from: the latest located from the particle's own
+    /// blob (split and bridged points are placed from predictions and carry no news),
+    /// preferring those no other detection was near enough to share light with, as long as
+    /// the newest of them is recent. Indices into `points`, newest first, at most three.
+    fn anchors(&self) -> Vec<usize> {
+        let detected = |p: &Point| p.flag == PointFlag::Detected;
+        let newest = self.points.iter().rposition(detected);
+        let clean: Vec<usize> = (0..self.points.len())
+            .rev()
+            .filter(|&i| detected(&self.points[i]) && self.points[i].clean)
+            .take(3)
+            .collect();
+        match newest {
+            Some(n) if clean.len() >= 2 && clean[0] + CLEAN_ANCHOR_AGE >= n => clean,
+            Some(_) => (0..self.points.len())
+                .rev()
+                .filter(|&i| detected(&self.points[i]))
+                .take(3)
+                .collect(),
+            None => Vec::new(),
+        }
+    }
+
+    /// The anchor the next frame is extrapolated from, and how many frames ahead it is.
     fn anchor(&self) -> (usize, f64) {
         let n = self.points.len();
-        let a = self
-            .points
-            .iter()
-            .rposition(|p| p.flag == PointFlag::Detected)
-            .unwrap_or(n - 1);
+        let a = self.anchors().first().copied().unwrap_or(n - 1);
         (a, (n - a) as f64)
     }
 
@@ -178,32 +221,33 @@ impl Track {
         [p.x, p.y]
     }
 
+    /// Polynomial extrapolation (Lagrange) through the first `k` anchors to the next frame.
+    fn extrapolate(&self, k: usize) -> Option<[f64; 2]> {
+        let a = self.anchors();
+        (a.len() >= k).then(|| {
+            let knots: Vec<(f64, [f64; 2])> = a[..k].iter().map(|&i| (i as f64, self.at(i))).collect();
+            lagrange(&knots, self.points.len() as f64)
+        })
+    }
+
     /// Constant-velocity prediction for the next frame.
     fn predict_cv(&self) -> Option<[f64; 2]> {
-        let (a, h) = self.anchor();
-        (a >= 1).then(|| {
-            let (p, q) = (self.at(a), self.at(a - 1));
-            [p[0] + h * (p[0] - q[0]), p[1] + h * (p[1] - q[1])]
-        })
+        self.extrapolate(2)
     }
 
     /// Constant-acceleration prediction for the next frame.
     fn predict_ca(&self) -> Option<[f64; 2]> {
-        let (a, h) = self.anchor();
-        (a >= 2).then(|| {
-            let (p, q, r) = (self.at(a), self.at(a - 1), self.at(a - 2));
-            let k = 0.5 * h * (h + 1.0);
-            [
-                p[0] + h * (p[0] - q[0]) + k * (p[0] - 2.0 * q[0] + r[0]),
-                p[1] + h * (p[1] - q[1]) + k * (p[1] - 2.0 * q[1] + r[1]),
-            ]
-        })
+        self.extrapolate(3)
     }
 
     /// Predicted position and prediction scale (px) for the next frame.
     fn predict(&self, floor: f64) -> ([f64; 2], f64) {
         let grow = 1.0 + (self.misses + self.merged) as f64;
-        let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a < v);
+        // Both errors were learned one frame ahead. Extrapolated `h` frames, the noise of
+        // the quadratic term grows by about `h²` more than that of the line, so constant
+        // acceleration is used across a gap only if it was that much better.
+        let h = self.anchor().1;
+        let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a * h * h < v);
         let (p, err) = if use_ca {
             (self.predict_ca(), self.err_ca)
         } else {
@@ -249,6 +293,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             .collect(),
     );
     let one = SingleParticle::measure(frames);
+    let pooled = AppearanceSpread::pooled(frames);
+    // Detections closer than this share light through their centroid windows (radius
+    // `r + 1` each, reaching the other's disc).
+    let crowd = 2.0 * r + 2.0;
     let mut tracks: Vec<Track> = Vec::new();
     let named = options.named_start.is_some();
     let mut events: Vec<(usize, AmbiguityKind, Vec<usize>)> = Vec::new();
@@ -256,6 +304,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     // Start: named particles matched to the first frame by optimal assignment.
     if let Some(starts) = &options.named_start {
         let dets = &first.detections;
+        let det_nn = nearest_other(&dets.iter().map(|d| [d.x, d.y]).collect::<Vec<_>>());
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
         let mut problem = SparseProblem {
             row_miss: Vec::new(),
@@ -276,7 +325,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         for (i, (name, p)) in starts.iter().enumerate() {
             let init = (0.5 * nn[i]).min(diagonal(options)) / GATE_SIGMAS;
             let point = match assign[i] {
-                Some(j) => point_from(&dets[j], PointFlag::Detected),
+                Some(j) => point_from(&dets[j], PointFlag::Detected, det_nn[j] < crowd),
                 None => {
                     out.warnings.push(format!(
                         "frame {}: no blob near the start position ({:.1}, {:.1}) of particle {name}; starting from that position",
@@ -291,10 +340,17 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                         ep: f64::NAN,
                         flag: PointFlag::Interpolated,
                         emit: true,
+                        clean: false,
                     }
                 }
             };
-            tracks.push(Track::new(name.clone(), first.frame, point, init.max(floor)));
+            let mut track = Track::new(name.clone(), first.frame, point, init.max(floor));
+            if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
+                track
+                    .apps
+                    .extend(Appearance::of(&dets[j], 1).map(|a| (first.frame, a)));
+            }
+            tracks.push(track);
         }
     } else {
         start_tracks(
@@ -303,6 +359,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             &vec![false; first.detections.len()],
             floor,
             options,
+            crowd,
         );
     }
 
@@ -311,16 +368,43 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let dets = &fd.detections;
         let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
         let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor)).collect();
+        let looks: Vec<Option<TrackAppearance>> = live
+            .iter()
+            .map(|&i| TrackAppearance::from_history(&tracks[i].apps, t, pooled, r + 1.0))
+            .collect();
+        // Appearance tells a particle from untracked objects (a hand, a reflection). Among
+        // tracked particles that come close, images merge and share light, so there motion
+        // alone decides: only a track whose prediction has no other within reach uses it.
+        let pred_nn = nearest_other(&preds.iter().map(|p| p.0).collect::<Vec<_>>());
+        // The appearance cost of giving track `k` detection `j` (sum of the squared
+        // standardised changes of log mass and size), or `None` when its square root
+        // exceeds `gate`: the image is that of another object. A lone track's blob holds no other tracked
+        // particle, so it is compared whole with the track's own. A blob cut by the image
+        // border has lost light to it, so it is not compared.
+        let look_cost = |k: usize, j: usize, gate: f64| -> Option<f64> {
+            let lone = pred_nn[k] >= crowd && !dets[j].clipped;
+            let (Some(look), Some(a), true) = (&looks[k], Appearance::of(&dets[j], 1), lone) else {
+                return Some(0.0);
+            };
+            // Motion blur changes the size as the speed changes, but gradually enough for the
+            // track's own spread to follow; a blob of the particle and its reflection is wider.
+            // The two changes are judged together (their squared sum, as a chi-square).
+            let (zm, zs) = look.z(&a, true);
+            let d2 = zm * zm + zs * zs;
+            (d2 <= gate * gate).then_some(d2)
+        };
 
         // Columns: each detection once per particle its mass can hold.
         let mut col_det: Vec<usize> = Vec::new();
-        for (j, d) in dets.iter().enumerate() {
+        let mut caps: Vec<usize> = Vec::with_capacity(dets.len());
+        for d in dets {
             let cap = if typical_mass > 0.0 {
                 (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize
             } else {
                 1
             };
-            col_det.extend(std::iter::repeat(j).take(cap));
+            col_det.extend(std::iter::repeat(caps.len()).take(cap));
+            caps.push(cap);
         }
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
         let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));
@@ -333,7 +417,8 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         }
         let mut problem = SparseProblem {
             pairs: Vec::new(),
-            row_miss: vec![GATE_SIGMAS * GATE_SIGMAS; live.len()],
+            // Missing costs a full position gate plus a full appearance gate's worth.
+            row_miss: vec![2.0 * GATE_SIGMAS * GATE_SIGMAS; live.len()],
             col_miss: vec![0.0; col_det.len()],
         };
         for (k, &(p, s)) in preds.iter().enumerate() {
@@ -341,7 +426,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let g = GATE_SIGMAS * s;
             for nb in tree.within_unsorted::<SquaredEuclidean>(&p, g * g) {
                 let j = nb.item as usize;
-                let cost = nb.distance / (s * s);
+                let Some(look) = look_cost(k, j, APPEARANCE_GATE_SIGMAS) else {
+                    continue;
+                };
+                let cost = nb.distance / (s * s) + look;
                 for (copy, c) in (first_col[j]..first_col[j + 1]).enumerate() {
                     // Later copies cost a little more so a lone track takes the first.
                     problem.pairs.push((k, c, cost + 1e-3 * copy as f64));
@@ -395,7 +483,8 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let free: Vec<usize> = (0..dets.len()).filter(|&j| det_tracks[j].is_empty()).collect();
         let mut problem2 = SparseProblem {
             pairs: Vec::new(),
-            row_miss: vec![1.0; still.len()],
+            // A full (widened) position gate plus a full appearance gate, as in the main pass.
+            row_miss: vec![2.0; still.len()],
             col_miss: vec![0.0; free.len()],
         };
         for (a, &k) in still.iter().enumerate() {
@@ -406,8 +495,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let g = (GATE_SIGMAS * s * 2.0).max(2.0 * r + speed(&tracks[live[k]]));
             for (b, &j) in free.iter().enumerate() {
                 let d2 = (points[j][0] - p[0]).powi(2) + (points[j][1] - p[1]).powi(2);
-                if d2 <= g * g {
-                    problem2.pairs.push((a, b, d2 / (g * g)));
+                // The appearance gate widens with the position gate.
+                let wide = 2.0 * APPEARANCE_GATE_SIGMAS;
+                if let (true, Some(look)) = (d2 <= g * g, look_cost(k, j, wide)) {
+                    problem2.pairs.push((a, b, d2 / (g * g) + look / (wide * wide)));
                 }
             }
         }
@@ -420,6 +511,20 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             }
         }
 
+        // A point located in a blob near another tracked particle's shares light with it
+        // (soft Voronoi split), so its position is pulled: motion is extrapolated from
+        // uncrowded points while there are recent ones.
+        let taken_pts: Vec<(usize, [f64; 2])> = (0..dets.len())
+            .filter(|&j| !det_tracks[j].is_empty())
+            .map(|j| (j, points[j]))
+            .collect();
+        let mut clean = vec![true; dets.len()];
+        for ((j, _), d) in taken_pts
+            .iter()
+            .zip(nearest_other(&taken_pts.iter().map(|p| p.1).collect::<Vec<_>>()))
+        {
+            clean[*j] = d >= crowd;
+        }
         // Write this frame's points.
         for (j, group) in det_tracks.iter().enumerate() {
             if group.is_empty() {
@@ -432,7 +537,12 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 tracks[ti].misses = 0;
                 tracks[ti].merged = 0;
                 tracks[ti].seen += 1;
-                tracks[ti].points.push(point_from(d, PointFlag::Detected));
+                tracks[ti]
+                    .points
+                    .push(point_from(d, PointFlag::Detected, !clean[j]));
+                if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
+                    tracks[ti].apps.push((t, a));
+                }
                 continue;
             }
             let n = group.len() as f64;
@@ -458,6 +568,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                     ep: d.ep.max(s),
                     flag: PointFlag::Split,
                     emit: true,
+                    clean: false,
                 });
             }
             events.push((t, AmbiguityKind::Merged, group.iter().map(|&k| live[k]).collect()));
@@ -484,6 +595,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 ep: s,
                 flag: PointFlag::Interpolated,
                 emit,
+                clean: false,
             });
             let kind = if emit {
                 AmbiguityKind::Missing
@@ -494,7 +606,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         }
         if !named {
             let taken: Vec<bool> = det_tracks.iter().map(|g| !g.is_empty()).collect();
-            start_tracks(&mut tracks, fd, &taken, floor, options);
+            start_tracks(&mut tracks, fd, &taken, floor, options, crowd);
         }
     }
 
@@ -606,7 +718,7 @@ fn median_and_spread(v: Vec<f64>) -> (f64, f64) {
     (m, 1.4826 * median(dev))
 }
 
-fn point_from(d: &Detection, flag: PointFlag) -> Point {
+fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
     Point {
         x: d.x,
         y: d.y,
@@ -615,6 +727,7 @@ fn point_from(d: &Detection, flag: PointFlag) -> Point {
         ep: d.ep,
         flag,
         emit: true,
+        clean: !crowded,
     }
 }
 
@@ -656,7 +769,14 @@ fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
         .collect()
 }
 
-fn start_tracks(tracks: &mut Vec<Track>, fd: &FrameDetections, taken: &[bool], floor: f64, o: &LinkOptions) {
+fn start_tracks(
+    tracks: &mut Vec<Track>,
+    fd: &FrameDetections,
+    taken: &[bool],
+    floor: f64,
+    o: &LinkOptions,
+    crowd: f64,
+) {
     let pts: Vec<[f64; 2]> = fd.detections.iter().map(|d| [d.x, d.y]).collect();
     let nn = nearest_other(&pts);
     for (j, d) in fd.detections.iter().enumerate() {
@@ -665,12 +785,16 @@ fn start_tracks(tracks: &mut Vec<Track>, fd: &FrameDetections, taken: &[bool], f
         }
         let init = (0.5 * nn[j]).min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
-        tracks.push(Track::new(
+        let mut track = Track::new(
             name,
             fd.frame,
-            point_from(d, PointFlag::Detected),
+            point_from(d, PointFlag::Detected, nn[j] < crowd),
             init.max(floor),
-        ));
+        );
+        if !d.clipped {
+            track.apps.extend(Appearance::of(d, 1).map(|a| (fd.frame, a)));
+        }
+        tracks.push(track);
     }
 }
 

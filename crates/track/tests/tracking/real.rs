@@ -20,7 +20,6 @@ fn real_dir(name: &str) -> Option<PathBuf> {
 }
 
 #[test]
-#[ignore = "known failure (issue 3): with no velocity yet, the first link takes the hand 14 px away instead of the ball 70 px away; run with --ignored"]
 fn ball_toss_follows_the_hand_clicks_within_two_pixels() {
     let Some(dir) = real_dir("ball-toss") else { return };
     let out = track(
@@ -60,7 +59,7 @@ fn ball_toss_follows_the_hand_clicks_within_two_pixels() {
 }
 
 #[test]
-#[ignore = "known failure (issue 3): the ball is read as dark on light and its track steps 77 px in one frame; run with --ignored"]
+#[ignore = "known failure (issue 3): passes with the working-tree detector of 08:40 (largest step 32.5 px, lows 354.5-359.4 px), but with the committed detector the track steps 383 px and follows the floor; run with --ignored"]
 fn bouncing_ball_is_followed_through_every_frame() {
     let Some(dir) = real_dir("bouncing-ball") else {
         return;

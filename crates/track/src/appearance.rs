@@ -1,0 +1,302 @@
+//! Appearance: how much a particle's image (its integrated signal and its size) changes
+//! from one frame to the next, measured from the data, so that linking can tell a ball from
+//! the hand that threw it or from its own reflection in the floor.
+//!
+//! Two features are compared: the natural logarithm of the mass (so that a change of
+//! exposure, blur or partial occlusion, which scales the mass, counts the same on a faint
+//! and a bright particle) and the radius of gyration, px. Their frame-to-frame spreads are
+//! measured, never chosen:
+//!
+//! * for a track with a history, from its own located points (robust spread, 1.4826 times
+//!   the median absolute change between successive located points);
+//! * before that, pooled over the recording from unambiguous links: pairs of detections in
+//!   successive frames that are each other's nearest neighbour and much closer to each
+//!   other than to anything else in either frame.
+//!
+//! Neither spread is taken below what the pixel noise alone makes the features wander by:
+//! for a centroid window of radius `W` holding a particle located to `ep` px, the mass's
+//! relative error is about `2 ep / W` (both follow from the same weighted pixel sums), so
+//! its change between two frames has spread `2 √2 ep / W`; the size's is about `√2 ep`.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+use crate::link::FrameDetections;
+use crate::locate::Detection;
+
+/// Changes between successive located points needed before a track's own spread is used
+/// (the median absolute deviation of fewer is too often near zero by chance).
+pub const OWN_SPREAD_MIN_CHANGES: usize = 8;
+/// Located points of a track's recent history its appearance is measured from.
+const HISTORY: usize = 24;
+/// An unambiguous link is at most this fraction of the distance to the next nearest
+/// detection (in either frame).
+const UNAMBIGUOUS_RATIO: f64 = 0.25;
+
+/// The appearance of one particle image: natural log of the mass, and the size, px.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Appearance {
+    /// Natural logarithm of the integrated signal (grey levels · px²).
+    pub ln_mass: f64,
+    /// Radius of gyration, px; NaN when the centroid window was cut by the image border
+    /// (the size is then biased).
+    pub size: f64,
+    /// Estimated position error of the detection, px (sets the noise floor of the spreads).
+    pub ep: f64,
+}
+
+impl Appearance {
+    /// The appearance of a detection holding `share` particles (its mass divided among
+    /// them); `None` when the mass is not positive and finite.
+    pub fn of(d: &Detection, share: usize) -> Option<Appearance> {
+        let m = d.mass / share.max(1) as f64;
+        (m > 0.0 && m.is_finite()).then(|| Appearance {
+            ln_mass: m.ln(),
+            size: if d.clipped { f64::NAN } else { d.size },
+            ep: if d.ep.is_finite() { d.ep } else { 0.0 },
+        })
+    }
+}
+
+/// Frame-to-frame spreads (one standard deviation) of the two appearance features.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AppearanceSpread {
+    /// Spread of the change of log mass between successive frames (dimensionless).
+    pub ln_mass: f64,
+    /// Spread of the change of size between successive frames, px.
+    pub size: f64,
+}
+
+impl AppearanceSpread {
+    /// Pooled over a recording from unambiguous links (see the module doc); `None` when
+    /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist.
+    pub fn pooled(frames: &[FrameDetections]) -> Option<AppearanceSpread> {
+        let mut dm: Vec<f64> = Vec::new();
+        let mut ds: Vec<f64> = Vec::new();
+        for w in frames.windows(2) {
+            let (a, b) = (&w[0].detections, &w[1].detections);
+            if a.is_empty() || b.is_empty() || w[1].frame != w[0].frame + 1 {
+                continue;
+            }
+            let pa: Vec<[f64; 2]> = a.iter().map(|d| [d.x, d.y]).collect();
+            let pb: Vec<[f64; 2]> = b.iter().map(|d| [d.x, d.y]).collect();
+            let ta = ImmutableKdTree::<f64, 2>::new_from_slice(&pa);
+            let tb = ImmutableKdTree::<f64, 2>::new_from_slice(&pb);
+            for (i, p) in pa.iter().enumerate() {
+                let nb = tb.nearest_n::<SquaredEuclidean>(p, 2);
+                let Some(first) = nb.first() else { continue };
+                let j = first.item as usize;
+                let d1 = first.distance.sqrt();
+                let next_b = nb.get(1).map_or(f64::INFINITY, |n| n.distance.sqrt());
+                // Back from j: i must be its nearest in frame a, the next far away.
+                let back = ta.nearest_n::<SquaredEuclidean>(&pb[j], 2);
+                let next_a = back.get(1).map_or(f64::INFINITY, |n| n.distance.sqrt());
+                if back.first().map(|n| n.item as usize) != Some(i)
+                    || d1 > UNAMBIGUOUS_RATIO * next_b.min(next_a)
+                {
+                    continue;
+                }
+                if let (Some(x), Some(y)) = (Appearance::of(&a[i], 1), Appearance::of(&b[j], 1)) {
+                    dm.push(y.ln_mass - x.ln_mass);
+                    ds.push(y.size - x.size);
+                }
+            }
+        }
+        (dm.len() >= OWN_SPREAD_MIN_CHANGES).then(|| AppearanceSpread {
+            ln_mass: robust_spread(&mut dm),
+            size: robust_spread(&mut ds),
+        })
+    }
+}
+
+/// What a track's particle looks like now, and how much that may change per frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackAppearance {
+    /// Its recent appearance: the median of each feature over its latest three located
+    /// points (one odd frame, such as light shared with a neighbour, does not set it).
+    pub last: Appearance,
+    /// Frame-to-frame spread: the track's own once it has enough history, else pooled.
+    pub spread: AppearanceSpread,
+    /// Frames between the latest located point and the frame being linked (1 for the next).
+    pub frames_ahead: usize,
+}
+
+impl TrackAppearance {
+    /// From a track's located appearances (oldest first, each with its frame index), for
+    /// linking frame `frame`, with centroid window radius `window` px; `None` when there is
+    /// no located point or no spread.
+    pub fn from_history(
+        history: &[(usize, Appearance)],
+        frame: usize,
+        pooled: Option<AppearanceSpread>,
+        window: f64,
+    ) -> Option<TrackAppearance> {
+        let &(last_frame, _) = history.last()?;
+        let latest = &history[history.len().saturating_sub(3)..];
+        let mut lm: Vec<f64> = latest.iter().map(|(_, a)| a.ln_mass).collect();
+        let mut ls: Vec<f64> = latest
+            .iter()
+            .map(|(_, a)| a.size)
+            .filter(|s| s.is_finite())
+            .collect();
+        let mut le: Vec<f64> = latest.iter().map(|(_, a)| a.ep).collect();
+        let last = Appearance {
+            ln_mass: median(&mut lm),
+            size: median(&mut ls),
+            ep: median(&mut le),
+        };
+        let recent = &history[history.len().saturating_sub(HISTORY)..];
+        let mut dm: Vec<f64> = Vec::new();
+        let mut ds: Vec<f64> = Vec::new();
+        for w in recent.windows(2) {
+            // A change over several frames counts as that many frames' worth of change.
+            let k = (w[1].0 - w[0].0).max(1) as f64;
+            dm.push((w[1].1.ln_mass - w[0].1.ln_mass) / k.sqrt());
+            let d = (w[1].1.size - w[0].1.size) / k.sqrt();
+            if d.is_finite() {
+                ds.push(d);
+            }
+        }
+        let pooled_or_nan = pooled.unwrap_or(AppearanceSpread {
+            ln_mass: f64::NAN,
+            size: f64::NAN,
+        });
+        let own = AppearanceSpread {
+            ln_mass: if dm.len() >= OWN_SPREAD_MIN_CHANGES {
+                robust_spread(&mut dm)
+            } else {
+                pooled_or_nan.ln_mass
+            },
+            size: if ds.len() >= OWN_SPREAD_MIN_CHANGES {
+                robust_spread(&mut ds)
+            } else {
+                pooled_or_nan.size
+            },
+        };
+        if !own.ln_mass.is_finite() {
+            return None;
+        }
+        let mut eps: Vec<f64> = recent.iter().map(|(_, a)| a.ep).collect();
+        let ep = median(&mut eps);
+        let spread = AppearanceSpread {
+            ln_mass: own
+                .ln_mass
+                .max(2.0 * std::f64::consts::SQRT_2 * ep / window.max(1.0)),
+            // Unknown (NaN) stays unknown: sizes are then not compared.
+            size: if own.size.is_finite() {
+                own.size.max(std::f64::consts::SQRT_2 * ep)
+            } else {
+                f64::NAN
+            },
+        };
+        Some(TrackAppearance {
+            last,
+            spread,
+            frames_ahead: frame.saturating_sub(last_frame).max(1),
+        })
+    }
+
+    /// Standardised differences (log mass, size) of a candidate from the track's latest
+    /// appearance, the spread grown as the square root of the frames since it was located
+    /// (a random walk of the features). `compare_size` is false for a blob holding several
+    /// particles (its size is the group's, not one particle's); the size difference is 0
+    /// when either size is unknown (NaN).
+    pub fn z(&self, a: &Appearance, compare_size: bool) -> (f64, f64) {
+        let grow = (self.frames_ahead as f64).sqrt();
+        let zm = (a.ln_mass - self.last.ln_mass) / (self.spread.ln_mass * grow).max(1e-3);
+        let zs = if compare_size {
+            (a.size - self.last.size) / (self.spread.size * grow).max(1e-3)
+        } else {
+            0.0
+        };
+        let zs = if zs.is_finite() { zs } else { 0.0 };
+        (zm, zs)
+    }
+}
+
+/// 1.4826 times the median absolute value about the median (the standard deviation of a
+/// normal distribution), of a non-empty sample.
+fn robust_spread(v: &mut [f64]) -> f64 {
+    let m = median(v);
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    1.4826 * median(&mut dev)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn det(x: f64, y: f64, mass: f64, size: f64) -> Detection {
+        Detection {
+            x,
+            y,
+            mass,
+            size,
+            ep: 0.01,
+            area: 50.0,
+            clipped: false,
+        }
+    }
+
+    #[test]
+    fn own_spread_flags_a_reflection_and_keeps_the_ball() {
+        // A ball whose log mass wanders by a few hundredths a frame (spread of the changes
+        // 0.059) and size by twice that.
+        let wobble = [0.0, 0.04, -0.03, 0.05, -0.02, 0.01, -0.05, 0.03, 0.0, -0.04];
+        let history: Vec<(usize, Appearance)> = wobble
+            .iter()
+            .enumerate()
+            .map(|(k, w)| {
+                (
+                    k,
+                    Appearance {
+                        ln_mass: 35000f64.ln() + w,
+                        size: 6.5 + w * 2.0,
+                        ep: 0.01,
+                    },
+                )
+            })
+            .collect();
+        let t = TrackAppearance::from_history(&history, 10, None, 10.0).expect("appearance");
+        let ball = Appearance::of(&det(0.0, 0.0, 32000.0, 6.6), 1).expect("ball");
+        let reflection = Appearance::of(&det(0.0, 0.0, 11000.0, 8.9), 1).expect("reflection");
+        let (bm, bs) = t.z(&ball, true);
+        let (rm, rs) = t.z(&reflection, true);
+        assert!(bm.abs() < 2.0 && bs.abs() < 2.0, "ball z {bm} {bs}");
+        assert!(rm.abs() > 8.0 && rs.abs() > 8.0, "reflection z {rm} {rs}");
+    }
+
+    #[test]
+    fn pooled_spread_comes_from_unambiguous_links() {
+        // Two far-apart particles whose masses alternate by ±10 %: the log-mass change
+        // between frames is ±0.2 (spread 0.2 × 1.4826 × median |dev| = 0.2965).
+        let frames: Vec<FrameDetections> = (0..8)
+            .map(|k| FrameDetections {
+                frame: k,
+                detections: vec![
+                    det(
+                        10.0 + k as f64,
+                        10.0,
+                        if k % 2 == 0 { 1100.0 } else { 900.0 },
+                        3.0,
+                    ),
+                    det(200.0, 200.0 - k as f64, 1000.0, 3.0),
+                ],
+            })
+            .collect();
+        let s = AppearanceSpread::pooled(&frames).expect("spread");
+        // Changes: ±0.2007 for the first, 0 for the second: median 0 at best, so the
+        // spread is that of the mixture about its median.
+        assert!(s.ln_mass > 0.0 && s.ln_mass < 0.31, "{s:?}");
+        assert!(s.size.abs() < 1e-12, "{s:?}");
+        // No pairs: no pooled spread.
+        assert!(AppearanceSpread::pooled(&frames[..1]).is_none());
+    }
+}
