@@ -21,7 +21,7 @@ use serde::{Deserialize, Serialize};
 use crate::solvers::{anneal, genetic, genetic_local, AnnealOptions, GaOptions};
 use crate::{
     fit_start_state, linear_estimate, refine, uncertainty, CostFunction, FitCosts, FitReport, IdentifyError,
-    MultiStepCost, Observations, Observer, OneStepCost, Problem, RefineOptions, Refinement,
+    LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem, RefineOptions, Refinement,
 };
 
 /// How the parameters are searched for.
@@ -101,6 +101,9 @@ pub struct FitOptions {
     pub refine: RefineOptions,
     /// Weak-form test window, frames (`None`: from the data).
     pub test_window: Option<usize>,
+    /// Levenberg-Marquardt iterations that polish the result of `anneal`, `ga` and `ga-local`
+    /// on the cost they searched (0: report the search's own best). Default 50.
+    pub polish_iterations: usize,
 }
 
 impl Default for FitOptions {
@@ -116,6 +119,7 @@ impl Default for FitOptions {
             ga,
             refine: RefineOptions::default(),
             test_window: None,
+            polish_iterations: 50,
         }
     }
 }
@@ -264,7 +268,14 @@ fn settings_json(options: &FitOptions, ga: &GaOptions) -> serde_json::Value {
     let lsq = serde_json::json!({ "test_window": options.test_window, "refine": options.refine });
     match options.method {
         Method::Lsq => v["lsq"] = lsq,
-        Method::Anneal => v["anneal"] = serde_json::to_value(&options.anneal).unwrap_or_default(),
+        Method::Anneal => {
+            v["anneal"] = serde_json::to_value(&options.anneal).unwrap_or_default();
+            v["polish_iterations"] = options.polish_iterations.into();
+        }
+        Method::Ga | Method::GaLocal if options.polish_iterations > 0 => {
+            v["ga"] = serde_json::to_value(ga).unwrap_or_default();
+            v["polish_iterations"] = options.polish_iterations.into();
+        }
         Method::Ga | Method::GaLocal => v["ga"] = serde_json::to_value(ga).unwrap_or_default(),
         Method::Auto => {
             v["lsq"] = lsq;
@@ -325,9 +336,12 @@ fn solve_paper(
     options: &FitOptions,
     observer: &dyn Observer,
 ) -> Result<Solved, IdentifyError> {
-    let cost = OneStepCost::with_problem(problem.clone(), obs)?;
+    let mut cost = OneStepCost::with_problem(problem.clone(), obs)?;
+    if method == Method::GaLocal {
+        cost = cost.with_split(LocalSplit::OwnPrediction);
+    }
     let layout = &problem.layout;
-    let outcome = match method {
+    let mut outcome = match method {
         Method::Anneal => anneal(
             &cost,
             layout,
@@ -344,6 +358,17 @@ fn solve_paper(
             method: method.name().into(),
             detail: format!("{} cost evaluations", outcome.cost_count),
         });
+    }
+    if options.polish_iterations > 0 {
+        if let Some(p) = cost.polish(&outcome.best, options.polish_iterations, observer) {
+            if p.best_cost <= outcome.best_cost {
+                outcome.best = p.best;
+                outcome.best_cost = p.best_cost;
+            }
+            outcome.history.extend(p.history);
+            outcome.iteration_count += p.iteration_count;
+            outcome.cost_count += p.cost_count;
+        }
     }
     Ok(Solved {
         params: outcome.best,

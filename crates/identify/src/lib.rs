@@ -86,7 +86,7 @@ pub use lsq::{
 };
 pub use multi_step::{MultiStepCost, MultiStepFit};
 pub use observations::{Observations, VELOCITY_FIT_POINTS};
-pub use one_step::{neighbour_pairs, OneStepCost};
+pub use one_step::{neighbour_pairs, LocalSplit, OneStepCost};
 pub use problem::Problem;
 pub use refine::{fit_start_state, refine, RefineOptions, Refinement};
 pub use report::{BondKeys, FitCosts, FitReport, ParameterReport, TruthComparison};

@@ -27,7 +27,8 @@
 
 use super::stopping::Stagnation;
 use super::{
-    check_option, finite_observed, is_rest_length, observed_range, parameter_bonds, sane, SolverError,
+    check_option, finite_observed, is_rest_length, observed_mean, observed_range, parameter_bonds, sane,
+    SolverError,
 };
 use crate::{
     BondGenes, CostFunction, Layout, LocalCostFunction, Observer, Parameter, ParameterKind, SolverOutcome,
@@ -87,6 +88,19 @@ pub struct GaOptions {
     pub stagnation: usize,
     /// Relative decrease of the best cost that counts as an improvement; >= 0. Default 1e-9.
     pub stagnation_tolerance: f64,
+    /// Mutates a bond with both values unknown in its *pre-stress coordinates*: a stiffness
+    /// `K` is mutated keeping the bond's mean force `K (g_mean - R)` (`g_mean` its observed
+    /// mean distance or cosine, `R` its rest value), and a rest value by mutating its offset
+    /// `g_mean - R` from the observed mean. The force `K (g - R)` of a bond that moves a little
+    /// about `g_mean` is set by these two almost independently, whereas a plain mutation of `K`
+    /// also changes the mean force by `dK (g_mean - R)`: the couple `(R, K)` is then a narrow
+    /// diagonal valley that mutations along the axes cross instead of following. Default true.
+    pub prestress_mutation: bool,
+    /// Fraction of the children rebuilt by crossover that also take a *differential* step: the
+    /// difference of two random survivors (over the region's parameters), times a factor
+    /// uniform in [0.4, 0.9]. It moves along the directions the population is spread in, which
+    /// for a sloppy cost are its long valleys; in [0, 1]. Default 0.5.
+    pub differential: f64,
 }
 
 impl Default for GaOptions {
@@ -106,6 +120,8 @@ impl Default for GaOptions {
             target_cost: 0.0,
             stagnation: 100,
             stagnation_tolerance: 1e-9,
+            prestress_mutation: true,
+            differential: 0.5,
         }
     }
 }
@@ -196,6 +212,8 @@ impl GaOptions {
             },
             stagnation: self.stagnation,
             stagnation_tolerance: in_or(self.stagnation_tolerance, 0.0, f64::MAX, d.stagnation_tolerance),
+            prestress_mutation: self.prestress_mutation,
+            differential: in_or(self.differential, 0.0, 1.0, d.differential),
         }
     }
 }
@@ -310,6 +328,17 @@ struct Gene {
     /// The rest length's parameter index and the spring's finite observed distances (px),
     /// for the rest-length mutation.
     rest_length: Option<(usize, Vec<f64>)>,
+    /// For a bond with both values unknown: its rest value's and stiffness's parameter indices
+    /// and its observed mean geometry (px or cosine), for the pre-stress mutation.
+    couple: Option<Couple>,
+}
+
+/// A bond's rest value and stiffness, with its observed mean geometry.
+#[derive(Clone, Copy)]
+struct Couple {
+    rest: usize,
+    stiffness: usize,
+    mean: f64,
 }
 
 /// What one sorting criterion acts on.
@@ -377,7 +406,30 @@ fn genes(layout: &Layout) -> Vec<Gene> {
                     let observed: Vec<f64> = finite_observed(bond).filter(|&v| v > 0.0).collect();
                     (!observed.is_empty()).then_some((p, observed))
                 });
-            Gene { params, rest_length }
+            let kind = |p: usize| layout.parameters[p].kind;
+            let rest = params
+                .iter()
+                .copied()
+                .find(|&p| matches!(kind(p), ParameterKind::RestLength | ParameterKind::RestCos));
+            let stiffness = params.iter().copied().find(|&p| {
+                matches!(
+                    kind(p),
+                    ParameterKind::SpringStiffness | ParameterKind::TorsionStiffness
+                )
+            });
+            let couple = match (rest, stiffness, observed_mean(bond)) {
+                (Some(rest), Some(stiffness), Some(mean)) => Some(Couple {
+                    rest,
+                    stiffness,
+                    mean,
+                }),
+                _ => None,
+            };
+            Gene {
+                params,
+                rest_length,
+                couple,
+            }
         })
         .filter(|g| !g.params.is_empty())
         .collect();
@@ -385,6 +437,7 @@ fn genes(layout: &Layout) -> Vec<Gene> {
     genes.extend((0..d).filter(|&p| owner[p].is_none()).map(|p| Gene {
         params: vec![p],
         rest_length: None,
+        couple: None,
     }));
     genes
 }
@@ -467,9 +520,43 @@ struct Engine<'a> {
     param_regions: Vec<f64>,
     /// Per gene, the number of regions that hold it (at least 1).
     gene_regions: Vec<f64>,
+    /// Per parameter, the gene holding it.
+    couple_of: Vec<Option<usize>>,
 }
 
 impl Engine<'_> {
+    /// Mutates parameter `p` of `genome` with temperature `t` and standard normal `noise`:
+    /// multiplicatively, or in pre-stress coordinates (see [`GaOptions::prestress_mutation`]).
+    fn mutate_parameter(&self, genome: &mut [f64], p: usize, t: f64, noise: f64) {
+        let params = &self.layout.parameters;
+        let couple = if self.options.prestress_mutation {
+            self.couple_of[p].map(|g| (g, self.genes[g].couple))
+        } else {
+            None
+        };
+        match couple {
+            Some((_, Some(c))) if c.stiffness == p => {
+                // K' = K (1 + t n), rest value moved so that K (g_mean - R) is unchanged.
+                let k = genome[p];
+                let k_new = clamp_to(&params[p], mutate(k, t, self.mutation_floor[p], noise));
+                genome[p] = k_new;
+                if k_new > 0.0 && k > 0.0 {
+                    let offset = (c.mean - genome[c.rest]) * k / k_new;
+                    genome[c.rest] = clamp_to(&params[c.rest], c.mean - offset);
+                }
+            }
+            Some((_, Some(c))) if c.rest == p => {
+                // The offset from the observed mean, multiplicatively (floored like the value).
+                let offset = c.mean - genome[p];
+                let moved = mutate(offset, t, self.mutation_floor[p], noise);
+                genome[p] = clamp_to(&params[p], c.mean - moved);
+            }
+            _ => {
+                genome[p] = clamp_to(&params[p], mutate(genome[p], t, self.mutation_floor[p], noise));
+            }
+        }
+    }
+
     /// Steps 2-4 of one generation (the sort of step 1 included), given each region's
     /// mutation temperature.
     fn breed(&self, pop: &mut Population, rng: &mut ChaCha8Rng, temperature: &[f64]) {
@@ -525,6 +612,20 @@ impl Engine<'_> {
                         pop.genomes[child][p] = pop.genomes[parent][p];
                     }
                 }
+                if parents.len() >= 2 && rng.gen::<f64>() < self.options.differential {
+                    // Difference of two survivors, over this region's parameters: a step along
+                    // the directions the surviving population is spread in (its valleys).
+                    let a = parents[rng.gen_range(0..parents.len())];
+                    let mut b = parents[rng.gen_range(0..parents.len())];
+                    if b == a {
+                        b = parents[(parents.iter().position(|&i| i == a).unwrap_or(0) + 1) % parents.len()];
+                    }
+                    let f = 0.4 + 0.5 * rng.gen::<f64>();
+                    for &p in &region.params {
+                        let x = pop.genomes[child][p] + f * (pop.genomes[a][p] - pop.genomes[b][p]);
+                        pop.genomes[child][p] = clamp_to(&self.layout.parameters[p], x);
+                    }
+                }
                 pop.dirty[child] = true;
             }
 
@@ -550,8 +651,7 @@ impl Engine<'_> {
                         }
                         MutationSchedule::FollowCost => temperature[r],
                     };
-                    let x = mutate(pop.genomes[i][p], t, self.mutation_floor[p], noise);
-                    pop.genomes[i][p] = clamp_to(&self.layout.parameters[p], x);
+                    self.mutate_parameter(&mut pop.genomes[i], p, t, noise);
                     pop.dirty[i] = true;
                 }
             }
@@ -750,6 +850,12 @@ fn run(
         region.params.iter().for_each(|&p| param_regions[p] += 1.0);
         region.genes.iter().for_each(|&g| gene_regions[g] += 1.0);
     }
+    let mut couple_of = vec![None; d];
+    for (g, gene) in genes.iter().enumerate() {
+        for &p in &gene.params {
+            couple_of[p] = Some(g);
+        }
+    }
     let engine = Engine {
         layout,
         options: options.clone(),
@@ -758,6 +864,7 @@ fn run(
         mutation_floor,
         param_regions: param_regions.into_iter().map(|c| c.max(1.0)).collect(),
         gene_regions: gene_regions.into_iter().map(|c| c.max(1.0)).collect(),
+        couple_of,
     };
     let mut reference = vec![f64::NAN; region_count];
     let mut stagnation = Stagnation::new(
