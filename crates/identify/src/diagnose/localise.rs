@@ -17,7 +17,7 @@ use rand_distr::{Distribution, Normal};
 use super::family::Family;
 use super::jolts::Jolt;
 use super::report::{BondResidual, Localisation, ParticleResidual, ResidualSeries};
-use super::shooting::ShotFit;
+use super::support::Support;
 use super::weak::{residuals, solve, WeakForm};
 use crate::Observations;
 
@@ -41,14 +41,13 @@ fn acceleration_residuals(family: &Family, weak: &WeakForm, theta: Option<&[f64]
 /// The localisation of the base model's residuals (see the module doc).
 pub fn localise(
     family: &Family,
-    fit: &ShotFit,
     obs: &Observations,
     weak: &WeakForm,
     series: &ResidualSeries,
     jolts: &[Jolt],
+    supports: &[Support],
     seed: u64,
 ) -> Localisation {
-    let _ = fit;
     let structure = &family.structure;
     let n = obs.particle_count();
     let sigma = obs.noise;
@@ -298,6 +297,7 @@ pub fn localise(
     if !jolts.is_empty() {
         summary.push(format!("{} jolt(s) (bounces) found in the tracks", jolts.len()));
     }
+    summary.extend(supports.iter().map(|s| s.text.clone()));
     if summary.is_empty() {
         summary.push("the base model's residuals are at the level of the track noise".into());
     }
@@ -306,6 +306,7 @@ pub fn localise(
         bonds,
         frames,
         jolts: jolts.to_vec(),
+        supports: supports.to_vec(),
         summary,
     }
 }

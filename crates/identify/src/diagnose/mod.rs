@@ -31,6 +31,7 @@ mod report;
 mod score_test;
 mod search;
 mod shooting;
+mod support;
 #[cfg(test)]
 mod tests;
 mod weak;
@@ -40,8 +41,9 @@ pub use effect::Effect;
 pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
-    ParticleResidual, RejectedCandidate, ResidualSeries, Seen,
+    ParticleResidual, Predictions, RejectedCandidate, ResidualSeries, Seen,
 };
+pub use support::Support;
 
 use std::time::Instant;
 
@@ -107,6 +109,18 @@ pub fn diagnose_observations(
     options: &DiagnoseOptions,
     observer: &dyn Observer,
 ) -> Result<Diagnosis, IdentifyError> {
+    diagnose_inner(structure, sequence, options, observer, &[])
+}
+
+/// The diagnosis; `held_before` are the supports that held particles before the window (the
+/// window then starts at their release and is not trimmed again).
+fn diagnose_inner(
+    structure: &Scene,
+    sequence: &Observations,
+    options: &DiagnoseOptions,
+    observer: &dyn Observer,
+    held_before: &[Support],
+) -> Result<Diagnosis, IdentifyError> {
     let t0 = Instant::now();
     if !(options.holdout_fraction > 0.0 && options.holdout_fraction <= 0.5) {
         return Err(IdentifyError::InvalidOption(format!(
@@ -144,38 +158,72 @@ pub fn diagnose_observations(
         }
         excluded
     };
+    // The rough model (the structure and a uniform field, weak-form estimate) removes smooth
+    // forces from the jolt test (an apex under gravity is no bounce) and gives the field the
+    // support test needs; twice, the second time without the first pass's bounces and supports.
     let (rough, _) = jolts::find_jolts(&obs, None);
-    let weak = WeakForm::new(&family0, &obs, w, &exclusion(&rough), &held);
-    let rough_params = Context {
-        obs: &obs,
-        weak: &weak,
-        shot: &shot,
-        held: &held,
-        start: &start,
-        scales: &scales,
-    }
-    .joint_estimate(&family0, &[]);
-    let rough_model = family0.model(&rough_params, None);
-    let model_acc: Vec<Option<Vec<physfit_model::Vec2>>> = (0..frames)
-        .map(|k| {
-            let s = obs.state(k)?;
-            let mut a = vec![physfit_model::Vec2::zeros(); s.len()];
-            rough_model.accelerations(&s, &mut a);
-            Some(a)
-        })
-        .collect();
-    let (jolt_list, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
-    if std::env::var_os("PHYSFIT_DEBUG").is_some() {
-        eprintln!(
-            " rough jolts {}, jolts {} (scale {jolt_scale:.2} px/s)",
-            rough.len(),
-            jolt_list.len()
-        );
-        for j in &jolt_list {
-            eprintln!("   {j:?}");
+    let mut excluded = exclusion(&rough);
+    let mut jolt_list = Vec::new();
+    let mut supports = Vec::new();
+    for _ in 0..2 {
+        let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
+        let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales);
+        let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
+        jolt_list = found;
+        excluded = exclusion(&jolt_list);
+        supports = support::find_supports(&obs, &model_acc, field, &excluded);
+        for s in &supports {
+            for e in &mut excluded[s.frames[0] - obs.first_frame..=s.frames[1] - obs.first_frame] {
+                *e = true;
+            }
+        }
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            eprintln!(
+                " rough jolts {}, jolts {} (scale {jolt_scale:.2} px/s), field {field:?}, supports {supports:?}",
+                rough.len(),
+                jolt_list.len()
+            );
+            for j in &jolt_list {
+                eprintln!("   {j:?}");
+            }
         }
     }
-    let excluded = exclusion(&jolt_list);
+    // A support from the first analysed frame: a simulation started there would fall through
+    // it, so the analysis starts where the last such support releases its particle.
+    let release = supports
+        .iter()
+        .filter(|s| s.frames[0] == obs.first_frame)
+        .map(|s| s.frames[1])
+        .max();
+    if let (Some(release), true) = (release, held_before.is_empty()) {
+        if obs.last_frame() + 1 >= release + MIN_DIAGNOSIS_FRAMES {
+            let trimmed = DiagnoseOptions {
+                window: Some((release, obs.last_frame())),
+                ..options.clone()
+            };
+            let leading: Vec<Support> = supports
+                .iter()
+                .filter(|s| s.frames[0] == obs.first_frame)
+                .cloned()
+                .collect();
+            let mut d = diagnose_inner(structure, sequence, &trimmed, observer, &leading)?;
+            d.warnings.push(format!(
+                "frames {}-{} left out: {} supported from the first frame (see the localisation); the analysis starts at frame {release}",
+                obs.first_frame,
+                release.saturating_sub(1),
+                leading
+                    .iter()
+                    .map(|s| s.particle.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+            d.seconds = t0.elapsed().as_secs_f64();
+            return Ok(d);
+        }
+    }
+    for s in held_before.iter().rev() {
+        supports.insert(0, s.clone());
+    }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
     let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
     let ctx = Context {
@@ -202,7 +250,6 @@ pub fn diagnose_observations(
     let mut current = base.clone();
     let mut accepted: Vec<(Proposal, report::Evidence, usize)> = Vec::new();
     let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
-    let mut jolt_list = jolt_list;
     let mut guesses = guesses;
     let mut round = 0;
     let mut restarts = 0;
@@ -403,6 +450,7 @@ pub fn diagnose_observations(
         anchor: all_shot.anchor,
         accepted: &accepted,
         jolts: &jolt_list,
+        supports: &supports,
         weak: &weak,
         seed: options.seed,
     });
@@ -430,6 +478,7 @@ pub fn diagnose_observations(
         warnings,
         seconds: t0.elapsed().as_secs_f64(),
         final_scene: outcome.scene,
+        predictions: outcome.predictions,
     })
 }
 
@@ -524,4 +573,39 @@ fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (V
             test_window: w,
         },
     )
+}
+
+/// The rough model's accelerations at every complete frame (px/s²) and its uniform field
+/// (px/s²): the structure and a field, estimated together in the weak form.
+fn rough_model(
+    family0: &Family,
+    obs: &Observations,
+    weak: &WeakForm,
+    shot: &Shot<'_>,
+    held: &[bool],
+    start: &physfit_model::State,
+    scales: &DataScales,
+) -> (Vec<Option<Vec<physfit_model::Vec2>>>, physfit_model::Vec2) {
+    let family = family0.with_effects(vec![Effect::Gravity]);
+    let params = Context {
+        obs,
+        weak,
+        shot,
+        held,
+        start,
+        scales,
+    }
+    .joint_estimate(&family, &vec![0.0; family.dim()]);
+    let nb = family.bond_dim();
+    let field = physfit_model::Vec2::new(params[nb], params[nb + 1]);
+    let model = family.model(&params, None);
+    let acc = (0..obs.frame_count())
+        .map(|k| {
+            let s = obs.state(k)?;
+            let mut a = vec![physfit_model::Vec2::zeros(); s.len()];
+            model.accelerations(&s, &mut a);
+            Some(a)
+        })
+        .collect();
+    (acc, field)
 }

@@ -9,9 +9,12 @@ use super::effect::Effect;
 use super::family::{DataScales, Family};
 use super::jolts::Jolt;
 use super::localise::localise;
-use super::report::{Evidence, Finding, FittedValue, Localisation, ModelSummary, ResidualSeries, Seen};
+use super::report::{
+    Evidence, Finding, FittedValue, Localisation, ModelSummary, Predictions, ResidualSeries, Seen,
+};
 use super::search::Proposal;
 use super::shooting::{Shot, ShotFit};
+use super::support::Support;
 use super::weak::WeakForm;
 use crate::Observations;
 
@@ -28,6 +31,7 @@ pub struct Inputs<'a> {
     pub anchor: usize,
     pub accepted: &'a [(Proposal, Evidence, usize)],
     pub jolts: &'a [Jolt],
+    pub supports: &'a [Support],
     pub weak: &'a WeakForm,
     pub seed: u64,
 }
@@ -41,6 +45,7 @@ pub struct Outcome {
     pub residuals: ResidualSeries,
     pub localisation: Localisation,
     pub warnings: Vec<String>,
+    pub predictions: Option<Predictions>,
 }
 
 fn unit(effect: Effect, name: &str) -> &'static str {
@@ -81,29 +86,42 @@ fn summary(
     )
 }
 
-/// Observed minus predicted positions over the whole sequence, `[frame][particle]`.
-fn residual_series(
+/// Multi-step predicted positions over the whole sequence, `[frame][particle]` (`None`
+/// before the anchor frame), from the sequence fit `seq`; `None` if it cannot be simulated.
+fn prediction(
     family: &Family,
     seq: Option<&(ShotFit, usize)>,
+    sequence: &Observations,
+) -> Option<Vec<Vec<Option<Vec2>>>> {
+    let (fit, _) = seq?;
+    let shot = Shot::new(sequence, family, None).ok()?;
+    let traj = shot.trajectory(family, &fit.params, &fit.state)?;
+    let n = sequence.particle_count();
+    Some(
+        traj.into_iter()
+            .map(|f| match f {
+                Some(x) => x.into_iter().take(n).map(Some).collect(),
+                None => vec![None; n],
+            })
+            .collect(),
+    )
+}
+
+/// Observed minus predicted positions over the whole sequence, `[frame][particle]` (`None`
+/// for pinned particles, untracked ones and frames without a prediction).
+fn residual_series(
+    predicted: Option<&Vec<Vec<Option<Vec2>>>>,
     sequence: &Observations,
 ) -> Vec<Vec<Option<[f64; 2]>>> {
     let n = sequence.particle_count();
     let frames = sequence.frame_count();
     let mut out = vec![vec![None; n]; frames];
-    let Some((fit, _)) = seq else { return out };
-    let Ok(shot) = Shot::new(sequence, family, None) else {
-        return out;
-    };
-    let Some(traj) = shot.trajectory(family, &fit.params, &fit.state) else {
-        return out;
-    };
-    for k in 0..frames {
-        if let Some(pred) = &traj[k] {
-            for p in 0..n {
-                if let (Some(o), false) = (sequence.positions[k][p], sequence.fixed[p]) {
-                    let e = o - pred[p];
-                    out[k][p] = Some([e.x, e.y]);
-                }
+    let Some(pred) = predicted else { return out };
+    for (k, row) in out.iter_mut().enumerate() {
+        for (p, r) in row.iter_mut().enumerate() {
+            if let (Some(o), Some(x), false) = (sequence.positions[k][p], pred[k][p], sequence.fixed[p]) {
+                let e = o - x;
+                *r = Some([e.x, e.y]);
             }
         }
     }
@@ -262,19 +280,32 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
     let frames: Vec<usize> = (0..inp.sequence.frame_count())
         .map(|k| inp.sequence.first_frame + k)
         .collect();
+    let base_prediction = prediction(inp.base_family, base_seq.as_ref(), inp.sequence);
+    let final_prediction = prediction(fam, final_seq.as_ref(), inp.sequence);
+    let particles: Vec<String> = inp.structure.particles.iter().map(|p| p.id.clone()).collect();
     let residuals = ResidualSeries {
-        particles: inp.structure.particles.iter().map(|p| p.id.clone()).collect(),
-        frames,
-        before: residual_series(inp.base_family, base_seq.as_ref(), inp.sequence),
-        after: residual_series(fam, final_seq.as_ref(), inp.sequence),
+        particles: particles.clone(),
+        frames: frames.clone(),
+        before: residual_series(base_prediction.as_ref(), inp.sequence),
+        after: residual_series(final_prediction.as_ref(), inp.sequence),
+    };
+    let predictions = match (base_prediction, final_prediction) {
+        (Some(base), Some(final_model)) => Some(Predictions {
+            frames,
+            particles,
+            observed: inp.sequence.positions.clone(),
+            base,
+            final_model,
+        }),
+        _ => None,
     };
     let localisation = localise(
         inp.base_family,
-        inp.base_fit,
         inp.obs,
         inp.weak,
         &residuals,
         inp.jolts,
+        inp.supports,
         inp.seed,
     );
 
@@ -287,6 +318,7 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
         residuals,
         localisation,
         warnings,
+        predictions,
     }
 }
 

@@ -15,7 +15,7 @@
 //! Costs are in px² (one-step: squared distance errors over pairs at most two bonds apart;
 //! multi-step: squared position errors from a fitted start state, with their RMS in px).
 
-use physfit_model::Scene;
+use physfit_model::{Scene, Vec2};
 use serde::Serialize;
 
 use crate::MultiStepFit;
@@ -206,6 +206,9 @@ pub struct Localisation {
     pub frames: Vec<[usize; 2]>,
     /// The impulsive events found (bounces).
     pub jolts: Vec<super::jolts::Jolt>,
+    /// Runs of frames where a particle is held against the field (a contact the model
+    /// cannot simulate: a shelf, a floor it rests on); see `docs/diagnosis.md`.
+    pub supports: Vec<super::support::Support>,
     /// Summary sentences.
     pub summary: Vec<String>,
 }
@@ -221,6 +224,28 @@ pub struct ResidualSeries {
     pub before: Vec<Vec<Option<[f64; 2]>>>,
     /// Final model.
     pub after: Vec<Vec<Option<[f64; 2]>>>,
+}
+
+/// Observed and multi-step predicted positions over the tracked sequence, for pictures of
+/// "the base and the diagnosed model against the observed tracks". Each model's prediction is
+/// its simulation from the start state that fits it best over the whole sequence (the same
+/// runs that give [`ModelSummary::costs`]'s multi-step cost and [`ResidualSeries`]), so
+/// `observed - predicted` is the residual series. Positions are image pixels (x right, y
+/// down, pixel centres at integer coordinates).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Predictions {
+    /// Absolute frame indices (the outer index of every series), the tracked sequence's.
+    pub frames: Vec<usize>,
+    /// Particle ids of the structure (the inner index), pinned ones included.
+    pub particles: Vec<String>,
+    /// Tracked positions, px: `observed[f][p]`, `None` where the particle is not tracked.
+    pub observed: Vec<Vec<Option<Vec2>>>,
+    /// The base model's (structure alone) multi-step prediction, px: `base[f][p]`, `None`
+    /// before the first completely tracked frame (where the simulation starts) or where the
+    /// model could not be simulated.
+    pub base: Vec<Vec<Option<Vec2>>>,
+    /// The diagnosed model's (structure plus findings) multi-step prediction, px, as `base`.
+    pub final_model: Vec<Vec<Option<Vec2>>>,
 }
 
 /// The diagnosis (the content of `report.json`; the diagnosed scene is [`Diagnosis::final_scene`]).
@@ -259,6 +284,11 @@ pub struct Diagnosis {
     /// particles; frame-0 state from the fit. Saved by the CLI as `fitted.toml`.
     #[serde(skip)]
     pub final_scene: Scene,
+    /// Observed and predicted positions per frame for plots (not in `report.json`: the
+    /// residual series carry the same information there); `None` if the models could not be
+    /// simulated over the sequence.
+    #[serde(skip)]
+    pub predictions: Option<Predictions>,
 }
 
 impl Diagnosis {

@@ -492,3 +492,79 @@ fn a_lone_ball_gets_its_field_and_floor() {
         .wall(0)
         .cost_near_truth();
 }
+
+/// A ball rolling along a shelf for the first `held` gaps, then falling under a field onto a
+/// floor (the real bouncing-ball recording's story): the truth scene of the fall (from the
+/// shelf's edge at frame `held`), and tracks with the rolling frames prepended.
+fn shelf_ball(held: usize, sigma: f64, seed: u64) -> (Scene, TrackTable) {
+    let fps = 29.97;
+    let (x0, y0, vx) = (24.0, 16.0, 100.0);
+    let frames = 87;
+    let text = format!(
+        r#"
+        name = "shelf-ball"
+        [recording]
+        fps = {fps}
+        frames = {}
+        substeps = 20
+        [[particles]]
+        id = "ball"
+        mass = 1.0
+        position = [{}, {y0}]
+        velocity = [{vx}, 0.0]
+        [physics]
+        gravity = [0.0, 1600.0]
+        [[physics.walls]]
+        point = [0.0, 360.0]
+        normal = [0.0, -1.0]
+        restitution = 0.6
+    "#,
+        frames - held,
+        x0 + vx * held as f64 / fps
+    );
+    let fall = Scene::from_toml_str(&text, "shelf-ball").unwrap_or_else(|e| panic!("{e}"));
+    let mut t = tracks(&fall, sigma, seed);
+    for p in &mut t.points {
+        p.frame += held;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5e1f);
+    let normal = rand_distr::Normal::new(0.0, sigma).unwrap_or_else(|e| panic!("{e}"));
+    use rand_distr::Distribution;
+    for k in 0..held {
+        t.points.push(physfit_track::TrackPoint::new(
+            k,
+            "ball",
+            x0 + vx * k as f64 / fps + normal.sample(&mut rng),
+            y0 + normal.sample(&mut rng),
+        ));
+    }
+    t.points.sort_by_key(|p| p.frame);
+    (fall, t)
+}
+
+#[test]
+#[ignore = "debugging aid"]
+fn explore_shelf() {
+    let held: usize = std::env::var("DIAG_HELD")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(3);
+    let (fall, t) = shelf_ball(held, 0.1, 1);
+    let d =
+        diagnose(&fall.structure(), &t, &DiagnoseOptions::default(), &()).unwrap_or_else(|e| panic!("{e}"));
+    for f in &d.findings {
+        eprintln!(
+            "{} {:?}",
+            f.label,
+            f.parameters
+                .iter()
+                .map(|p| (p.name.as_str(), p.value))
+                .collect::<Vec<_>>()
+        );
+    }
+    eprintln!("{:#?}", d.localisation.summary);
+    eprintln!(
+        "costs {:?} -> {:?}; warnings {:?}",
+        d.base.costs.multi_step, d.final_model.costs.multi_step, d.warnings
+    );
+}
