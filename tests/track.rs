@@ -29,6 +29,8 @@ fn track_names_particles_after_the_structure_and_matches_the_truth() {
         .arg(dir.path().join("structure.toml"))
         .arg("--truth")
         .arg(dir.path().join("truth.csv"))
+        .arg("--detections")
+        .arg(dir.path().join("detections.csv"))
         .assert()
         .success()
         .stdout(predicate::str::contains("identity switches | 0"));
@@ -52,6 +54,34 @@ fn track_names_particles_after_the_structure_and_matches_the_truth() {
         worst = worst.max((g.2 - t.2).abs()).max((g.3 - t.3).abs());
     }
     assert!(worst < 0.02, "largest localisation error {worst} px");
+
+    // The detections before linking: every true centre has one within 0.02 px in its frame.
+    let text = std::fs::read_to_string(dir.path().join("detections.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("frame,x,y,mass,size,ep,area,clipped"));
+    let dets: Vec<(usize, f64, f64)> = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (
+                f[0].parse().unwrap(),
+                f[1].parse().unwrap(),
+                f[2].parse().unwrap(),
+            )
+        })
+        .collect();
+    for t in &truth {
+        let nearest = dets
+            .iter()
+            .filter(|d| d.0 == t.0)
+            .map(|d| (d.1 - t.2).hypot(d.2 - t.3))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest < 0.02,
+            "frame {} {}: nearest detection {nearest} px",
+            t.0,
+            t.1
+        );
+    }
 }
 
 #[test]

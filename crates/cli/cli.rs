@@ -84,6 +84,10 @@ pub struct TrackArgs {
     /// Score the tracks against true centres (`frame,particle,x,y`) and print the figures.
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// Also write every frame's detections before linking
+    /// (`frame,x,y,mass,size,ep,area,clipped` CSV).
+    #[arg(long)]
+    pub detections: Option<PathBuf>,
 }
 
 /// `physfit fit`.

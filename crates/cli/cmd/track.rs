@@ -42,6 +42,10 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         .table
         .write_csv(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
+    if let Some(path) = &args.detections {
+        physfit_track::write_detections_csv(&outcome.detections, path)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     if verbosity != Verbosity::Quiet {
         println!("{}", outcome.stats);
         let amb = &outcome.stats.ambiguities;

@@ -69,6 +69,9 @@ pub struct Background {
     pub structured_fraction: f64,
     /// Frames the estimate was made from.
     pub sample_count: usize,
+    /// The samples' mean [`Background::frame_gain`]: what a frame's own gain is compared
+    /// with (about 1).
+    pub reference_gain: f64,
 }
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
@@ -164,6 +167,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         noise_sigma: sigma_t,
         structured_fraction,
         sample_count: k,
+        reference_gain: 1.0,
     };
     bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
     // The lowest signal a pixel can show: its value at the clip level (0 where particles
@@ -219,10 +223,58 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
             }
         }
     }
+    bg.reference_gain = samples.iter().map(|f| bg.frame_gain(f)).sum::<f64>() / k as f64;
     bg
 }
 
 impl Background {
+    /// The brightness gain of `frame` against the background image: the median over a
+    /// sample of pixels of `pixel / background` (each pixel dithered over one grey level, so
+    /// that 8-bit frames do not make the median jump), with pixels darker than 16 levels in
+    /// the background left out. Most pixels are background, so this follows a camera's
+    /// automatic exposure or a flicker of the light and ignores the particles; 1 when no
+    /// pixel qualifies.
+    pub fn frame_gain(&self, frame: &Frame) -> f64 {
+        let n = frame.data.len().min(self.image.len());
+        let stride = (n / 20_000).max(1) | 1;
+        let mut ratios: Vec<f32> = (0..n)
+            .step_by(stride)
+            .enumerate()
+            .filter(|&(_, i)| self.image[i] >= 16.0)
+            .map(|(j, i)| (frame.data[i] + dither(j)) / self.image[i])
+            .collect();
+        if ratios.len() < 16 {
+            return 1.0;
+        }
+        f64::from(quantile(&mut ratios, 0.5))
+    }
+
+    /// The particle signal of `frame` against its background scaled by the frame's
+    /// [`Background::frame_gain`] relative to the samples' [`Background::reference_gain`]
+    /// (grey levels, one value per pixel). Under a steady light the gain is 1 within a
+    /// fraction of the noise; under automatic exposure it removes the offset, proportional
+    /// to the background's brightness, that would otherwise add light to every centroid
+    /// window in proportion to its area (and make the measured size grow with the window).
+    #[must_use]
+    pub fn levelled_signal(&self, frame: &Frame) -> Vec<f32> {
+        let mut out = self.signal(frame);
+        let g = self.frame_gain(frame) / self.reference_gain;
+        // A gain whose effect stays below a tenth of the noise on the brightest background
+        // is left alone: it is the estimate's own scatter.
+        let brightest = self.image.iter().fold(0.0f32, |m, &v| m.max(v));
+        if ((g - 1.0) * f64::from(brightest)).abs() < 0.1 * self.noise_sigma {
+            return out;
+        }
+        let g = g as f32;
+        let c = self.channels;
+        for ((o, b), _) in out.iter_mut().zip(self.image.chunks_exact(c)).zip(0..) {
+            // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b
+            let ub: f32 = b.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
+            *o -= (g - 1.0) * ub;
+        }
+        out
+    }
+
     /// The particle signal of `frame` (see the module doc), grey levels, one value per pixel.
     #[must_use]
     pub fn signal(&self, frame: &Frame) -> Vec<f32> {

@@ -23,4 +23,4 @@ pub use link::*;
 pub use locate::*;
 pub use pipeline::{track_folder, TrackOptions, TrackOutcome, TrackStats};
 pub use score::*;
-pub use track_table::{PointFlag, TrackPoint, TrackTable};
+pub use track_table::{write_detections_csv, PointFlag, TrackPoint, TrackTable};

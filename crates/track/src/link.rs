@@ -382,14 +382,32 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         // particle, so it is compared whole with the track's own. A blob cut by the image
         // border has lost light to it, so it is not compared.
         let look_cost = |k: usize, j: usize, gate: f64| -> Option<f64> {
-            let lone = pred_nn[k] >= crowd && !dets[j].clipped;
+            let lone = pred_nn[k] >= crowd;
             let (Some(look), Some(a), true) = (&looks[k], Appearance::of(&dets[j], 1), lone) else {
                 return Some(0.0);
             };
             // Motion blur changes the size as the speed changes, but gradually enough for the
             // track's own spread to follow; a blob of the particle and its reflection is wider.
             // The two changes are judged together (their squared sum, as a chi-square).
-            let (zm, zs) = look.z(&a, true);
+            // A blob cut by the image border has lost light to it, but less than half of it
+            // while its centroid is inside the image: its mass is compared one-sidedly (the
+            // particle's could be anywhere from the measured mass to twice it), its size not.
+            let (zm, zs) = if dets[j].clipped {
+                let (lo, _) = look.z(&a, false);
+                let doubled = Appearance {
+                    ln_mass: a.ln_mass + std::f64::consts::LN_2,
+                    ..a
+                };
+                let (hi, _) = look.z(&doubled, false);
+                let zm = if lo <= 0.0 && hi >= 0.0 {
+                    0.0
+                } else {
+                    lo.abs().min(hi.abs())
+                };
+                (zm, 0.0)
+            } else {
+                look.z(&a, true)
+            };
             let d2 = zm * zm + zs * zs;
             (d2 <= gate * gate).then_some(d2)
         };
@@ -509,6 +527,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 Some(b) => det_tracks[free[b]].push(k),
                 None => missing.push(k),
             }
+        }
+        if named && !missing.is_empty() {
+            missing = reacquire(&tracks, &live, &missing, dets, &mut det_tracks, r);
         }
 
         // A point located in a blob near another tracked particle's shares light with it
@@ -729,6 +750,91 @@ fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
         emit: true,
         clean: !crowded,
     }
+}
+
+/// Re-acquisition of named tracks that neither pass linked: a hypothesis test of each
+/// free detection within the particle's physical reach, "my particle" against "clutter".
+/// A real particle's image changes abruptly where the gates assume it changes smoothly (at a
+/// bounce, motion blur and contact with a surface halve its mass within a frame or two, and
+/// the velocity reverses); then the nearest and by far strongest blob is refused by both
+/// passes and the track, bridged along its old motion, never returns. Here a free detection
+/// is the track's particle if its log mass is nearer the track's recent log mass than the
+/// median log mass of the frame's other detections (the clutter, measured in the frame
+/// itself), and it lies within `(misses + 1) (2 r + v_max)` of the track's last located
+/// point (`v_max` the track's largest frame-to-frame step). Ties between tracks are settled
+/// by optimal assignment on the log-mass distance. Returns the tracks still missing.
+fn reacquire(
+    tracks: &[Track],
+    live: &[usize],
+    missing: &[usize],
+    dets: &[Detection],
+    det_tracks: &mut [Vec<usize>],
+    r: f64,
+) -> Vec<usize> {
+    let free: Vec<usize> = (0..dets.len())
+        .filter(|&j| det_tracks[j].is_empty() && dets[j].mass > 0.0 && dets[j].mass.is_finite())
+        .collect();
+    if free.is_empty() {
+        return missing.to_vec();
+    }
+    let mut problem = SparseProblem {
+        pairs: Vec::new(),
+        row_miss: vec![1.0; missing.len()],
+        col_miss: vec![0.0; free.len()],
+    };
+    for (a, &k) in missing.iter().enumerate() {
+        let tr = &tracks[live[k]];
+        // The track's recent log mass (median of its last located points) and its last
+        // located position.
+        let recent: Vec<f64> = tr.apps.iter().rev().take(5).map(|(_, a)| a.ln_mass).collect();
+        if recent.is_empty() {
+            continue;
+        }
+        let own = median(recent);
+        let Some((last_i, last)) = tr
+            .points
+            .iter()
+            .enumerate()
+            .rev()
+            .find(|(_, p)| p.flag == PointFlag::Detected)
+        else {
+            continue;
+        };
+        let v_max = tr
+            .points
+            .windows(2)
+            .filter(|w| w[0].flag == PointFlag::Detected && w[1].flag == PointFlag::Detected)
+            .map(|w| (w[1].x - w[0].x).hypot(w[1].y - w[0].y))
+            .fold(0.0, f64::max);
+        let since = (tr.points.len() - last_i) as f64;
+        let reach = since * (2.0 * r + v_max);
+        for (b, &j) in free.iter().enumerate() {
+            let d = &dets[j];
+            if (d.x - last.x).hypot(d.y - last.y) > reach {
+                continue;
+            }
+            let clutter: Vec<f64> = free
+                .iter()
+                .filter(|&&i| i != j)
+                .map(|&i| dets[i].mass.ln())
+                .collect();
+            let mine = (d.mass.ln() - own).abs();
+            let accepted = clutter.is_empty() || mine < (d.mass.ln() - median(clutter)).abs();
+            if accepted {
+                let cost = (mine / (mine + 1.0)).min(0.999);
+                problem.pairs.push((a, b, cost));
+            }
+        }
+    }
+    let assign = solve_sparse(&problem);
+    let mut still = Vec::new();
+    for (a, &k) in missing.iter().enumerate() {
+        match assign[a] {
+            Some(b) => det_tracks[free[b]].push(k),
+            None => still.push(k),
+        }
+    }
+    still
 }
 
 fn speed(tr: &Track) -> f64 {

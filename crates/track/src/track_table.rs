@@ -164,21 +164,7 @@ impl TrackTable {
         let bytes = w
             .into_inner()
             .map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
-        let dir = path
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let tmp = dir.join(format!(
-            ".{}.{}.tmp",
-            path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
-            std::process::id()
-        ));
-        std::fs::write(&tmp, &bytes)
-            .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                io_err(e)
-            })
+        write_atomic(path, &bytes)
     }
 
     /// Track names in order of first appearance.
@@ -207,6 +193,48 @@ impl TrackTable {
     pub fn frame_end(&self) -> usize {
         self.points.iter().map(|p| p.frame + 1).max().unwrap_or(0)
     }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder, renamed into place:
+/// a failed write never leaves a half-written file under the final name.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrackError> {
+    let io_err = |source| TrackError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
+        std::process::id()
+    ));
+    std::fs::write(&tmp, bytes)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            io_err(e)
+        })
+}
+
+/// Writes every frame's located detections, before linking, as CSV
+/// `frame,x,y,mass,size,ep,area,clipped` (trackpy's `locate` output with physfit's extra
+/// columns; units as in [`crate::Detection`]), atomically.
+pub fn write_detections_csv(frames: &[crate::FrameDetections], path: &Path) -> Result<(), TrackError> {
+    use std::fmt::Write as _;
+    let mut text = String::from("frame,x,y,mass,size,ep,area,clipped\n");
+    for f in frames {
+        for d in &f.detections {
+            let _ = writeln!(
+                text,
+                "{},{},{},{},{},{},{},{}",
+                f.frame, d.x, d.y, d.mass, d.size, d.ep, d.area, d.clipped
+            );
+        }
+    }
+    write_atomic(path, text.as_bytes())
 }
 
 #[cfg(test)]
