@@ -18,7 +18,7 @@ use physfit_identify::{
     Observations, OneStepCost, ParameterKind, Problem, SolverOutcome,
 };
 use physfit_model::scene::{ParticleFile, RecordingFile, SceneFile, SpringFile, TorsionFile};
-use physfit_model::{simulate, IntegratorKind, Scene};
+use physfit_model::{IntegratorKind, Scene};
 use physfit_track::{TrackPoint, TrackTable};
 
 /// Position noise of the noisy runs, px.
@@ -47,15 +47,7 @@ fn load(name: &str) -> anyhow::Result<Scene> {
 /// The scene's simulated positions as tracks, with Gaussian noise `sigma` px (Box-Muller on a
 /// splitmix64 stream from `seed`, so every run draws the same noise).
 fn tracks(scene: &Scene, sigma: f64, seed: u64) -> anyhow::Result<TrackTable> {
-    let model = scene
-        .model()
-        .context("the benchmark scene must have every value")?;
-    let rec = simulate(
-        &model,
-        &scene.initial_state(),
-        &scene.integration_parameters(),
-        scene.recording.frames,
-    );
+    let rec = crate::cmd::simulate_scene(scene, &scene_path(&scene.name))?;
     let mut state = seed;
     let mut uniform = move || {
         state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
@@ -191,15 +183,7 @@ fn paper_way(scene: &Scene, frames: usize) -> anyhow::Result<Scene> {
 
 /// Exact observations (positions and the integrator's velocities) of `scene`'s recording.
 fn exact_observations(scene: &Scene) -> anyhow::Result<Observations> {
-    let model = scene
-        .model()
-        .context("the benchmark scene must have every value")?;
-    let rec = simulate(
-        &model,
-        &scene.initial_state(),
-        &scene.integration_parameters(),
-        scene.recording.frames,
-    );
+    let rec = crate::cmd::simulate_scene(scene, &scene_path(&scene.name))?;
     Ok(Observations::from_recording(&rec, scene, 0))
 }
 

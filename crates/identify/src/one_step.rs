@@ -301,18 +301,30 @@ impl OneStepCost {
         self.for_each_error(params, |q, e| term(q, e * e))
     }
 
-    /// Calls `term(pair_index, distance_error)` for every compared pair and frame; returns
-    /// false if and only if a prediction was not finite.
-    fn for_each_error(&self, params: &[f64], mut term: impl FnMut(usize, f64)) -> bool {
+    /// Steps every transition from its observed state with `params` and calls
+    /// `visit(transition_index, predicted_state)`; stops and returns false as soon as
+    /// `visit` does (a prediction that was not finite).
+    fn for_each_prediction(&self, params: &[f64], mut visit: impl FnMut(usize, &State) -> bool) -> bool {
         let model = self.problem.model(params);
         let mut scratch = StepScratch::new(self.particle_count);
         let mut state = State::default();
-        for (start, observed) in &self.transitions {
+        for (t, (start, _)) in self.transitions.iter().enumerate() {
             state.clone_from(start);
             scratch.invalidate();
             step_frame(&model, &self.stepping, &mut state, &mut scratch);
+            if !visit(t, &state) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Calls `term(pair_index, distance_error)` for every compared pair and frame; returns
+    /// false if and only if a prediction was not finite.
+    fn for_each_error(&self, params: &[f64], mut term: impl FnMut(usize, f64)) -> bool {
+        self.for_each_prediction(params, |t, state| {
             let x = &state.positions;
-            for (q, (&[a, b], &d_obs)) in self.pairs.iter().zip(observed).enumerate() {
+            for (q, (&[a, b], &d_obs)) in self.pairs.iter().zip(&self.transitions[t].1).enumerate() {
                 if d_obs.is_nan() {
                     continue;
                 }
@@ -322,28 +334,15 @@ impl OneStepCost {
                 }
                 term(q, e);
             }
-        }
-        true
-    }
-}
-
-impl OneStepCost {
-    /// Adds each particle's own-prediction terms to `out[p]`; false if a prediction was not
-    /// finite.
-    fn own_prediction_terms(&self, params: &[f64], out: &mut [f64]) -> bool {
-        self.own_prediction_errors(params, |p, e| out[p] += e * e)
+            true
+        })
     }
 
     /// Calls `term(particle, distance_error)` for each own-prediction term; false if a
     /// prediction was not finite.
     fn own_prediction_errors(&self, params: &[f64], mut term: impl FnMut(usize, f64)) -> bool {
-        let model = self.problem.model(params);
-        let mut scratch = StepScratch::new(self.particle_count);
-        let mut state = State::default();
-        for ((start, _), target) in self.transitions.iter().zip(&self.targets) {
-            state.clone_from(start);
-            scratch.invalidate();
-            step_frame(&model, &self.stepping, &mut state, &mut scratch);
+        self.for_each_prediction(params, |t, state| {
+            let target = &self.targets[t];
             for (p, near) in self.within2.iter().enumerate() {
                 let (Some(xp_obs), xp) = (target[p], state.positions[p]) else {
                     continue;
@@ -359,8 +358,8 @@ impl OneStepCost {
                     term(p, e);
                 }
             }
-        }
-        true
+            true
+        })
     }
 }
 
@@ -398,7 +397,7 @@ impl LocalCostFunction for OneStepCost {
                     out[b] += 0.5 * e2;
                 })
             }
-            LocalSplit::OwnPrediction => self.own_prediction_terms(params, out),
+            LocalSplit::OwnPrediction => self.own_prediction_errors(params, |p, e| out[p] += e * e),
         };
         if !ok {
             out.iter_mut().for_each(|c| *c = f64::INFINITY);

@@ -37,6 +37,10 @@ const UNAMBIGUOUS_RATIO: f64 = 0.25;
 pub struct Appearance {
     /// Natural logarithm of the integrated signal (grey levels · px²).
     pub ln_mass: f64,
+    /// Largest natural log mass the particle may have: `ln_mass`, or `ln_mass + ln 2` when
+    /// the centroid window was cut by the image border (the blob lost light to the border,
+    /// but less than half of it while its centroid is inside the image).
+    pub ln_mass_upper: f64,
     /// Radius of gyration, px; NaN when the centroid window was cut by the image border
     /// (the size is then biased).
     pub size: f64,
@@ -51,6 +55,11 @@ impl Appearance {
         let m = d.mass / share.max(1) as f64;
         (m > 0.0 && m.is_finite()).then(|| Appearance {
             ln_mass: m.ln(),
+            ln_mass_upper: if d.clipped {
+                m.ln() + std::f64::consts::LN_2
+            } else {
+                m.ln()
+            },
             size: if d.clipped { f64::NAN } else { d.size },
             ep: if d.ep.is_finite() { d.ep } else { 0.0 },
         })
@@ -139,8 +148,10 @@ impl TrackAppearance {
             .filter(|s| s.is_finite())
             .collect();
         let mut le: Vec<f64> = latest.iter().map(|(_, a)| a.ep).collect();
+        let ln_mass = median(&mut lm);
         let last = Appearance {
-            ln_mass: median(&mut lm),
+            ln_mass,
+            ln_mass_upper: ln_mass,
             size: median(&mut ls),
             ep: median(&mut le),
         };
@@ -199,10 +210,21 @@ impl TrackAppearance {
     /// appearance, the spread grown as the square root of the frames since it was located
     /// (a random walk of the features). `compare_size` is false for a blob holding several
     /// particles (its size is the group's, not one particle's); the size difference is 0
-    /// when either size is unknown (NaN).
+    /// when either size is unknown (NaN). The log-mass difference is the distance from the
+    /// track's to the candidate's range `[ln_mass, ln_mass_upper]` (0 inside it; a blob cut
+    /// by the border is thus compared one-sidedly), signed as the candidate is lighter or
+    /// heavier.
     pub fn z(&self, a: &Appearance, compare_size: bool) -> (f64, f64) {
         let grow = (self.frames_ahead as f64).sqrt();
-        let zm = (a.ln_mass - self.last.ln_mass) / (self.spread.ln_mass * grow).max(1e-3);
+        let own = self.last.ln_mass;
+        let dm = if own < a.ln_mass {
+            a.ln_mass - own
+        } else if own > a.ln_mass_upper {
+            a.ln_mass_upper - own
+        } else {
+            0.0
+        };
+        let zm = dm / (self.spread.ln_mass * grow).max(1e-3);
         let zs = if compare_size {
             (a.size - self.last.size) / (self.spread.size * grow).max(1e-3)
         } else {
@@ -258,6 +280,7 @@ mod tests {
                     k,
                     Appearance {
                         ln_mass: 35000f64.ln() + w,
+                        ln_mass_upper: 35000f64.ln() + w,
                         size: 6.5 + w * 2.0,
                         ep: 0.01,
                     },

@@ -72,6 +72,9 @@ pub struct Background {
     /// The samples' mean [`Background::frame_gain`]: what a frame's own gain is compared
     /// with (about 1).
     pub reference_gain: f64,
+    /// The brightest background value, grey levels: the scale against which a change of
+    /// gain is judged significant (see [`Background::remove_gain`]).
+    pub brightest: f64,
 }
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
@@ -168,6 +171,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         structured_fraction,
         sample_count: k,
         reference_gain: 1.0,
+        brightest: 0.0,
     };
     bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
     // The lowest signal a pixel can show: its value at the clip level (0 where particles
@@ -224,6 +228,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         }
     }
     bg.reference_gain = samples.iter().map(|f| bg.frame_gain(f)).sum::<f64>() / k as f64;
+    bg.brightest = f64::from(bg.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     bg
 }
 
@@ -249,30 +254,26 @@ impl Background {
         f64::from(quantile(&mut ratios, 0.5))
     }
 
-    /// The particle signal of `frame` against its background scaled by the frame's
-    /// [`Background::frame_gain`] relative to the samples' [`Background::reference_gain`]
-    /// (grey levels, one value per pixel). Under a steady light the gain is 1 within a
-    /// fraction of the noise; under automatic exposure it removes the offset, proportional
-    /// to the background's brightness, that would otherwise add light to every centroid
-    /// window in proportion to its area (and make the measured size grow with the window).
-    #[must_use]
-    pub fn levelled_signal(&self, frame: &Frame) -> Vec<f32> {
-        let mut out = self.signal(frame);
+    /// Turns `signal` (the [`Background::signal`] of `frame`) into the signal against the
+    /// background scaled by the frame's [`Background::frame_gain`] relative to the samples'
+    /// [`Background::reference_gain`], in place (grey levels). Under a steady light the gain
+    /// is 1 within a fraction of the noise; under automatic exposure it removes the offset,
+    /// proportional to the background's brightness, that would otherwise add light to every
+    /// centroid window in proportion to its area (and make the measured size grow with the
+    /// window).
+    pub fn remove_gain(&self, frame: &Frame, signal: &mut [f32]) {
         let g = self.frame_gain(frame) / self.reference_gain;
         // A gain whose effect stays below a tenth of the noise on the brightest background
         // is left alone: it is the estimate's own scatter.
-        let brightest = self.image.iter().fold(0.0f32, |m, &v| m.max(v));
-        if ((g - 1.0) * f64::from(brightest)).abs() < 0.1 * self.noise_sigma {
-            return out;
+        if ((g - 1.0) * self.brightest).abs() < 0.1 * self.noise_sigma {
+            return;
         }
         let g = g as f32;
-        let c = self.channels;
-        for ((o, b), _) in out.iter_mut().zip(self.image.chunks_exact(c)).zip(0..) {
+        for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
             // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b
             let ub: f32 = b.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
             *o -= (g - 1.0) * ub;
         }
-        out
     }
 
     /// The particle signal of `frame` (see the module doc), grey levels, one value per pixel.

@@ -209,54 +209,41 @@ impl Track {
         }
     }
 
-    /// The anchor the next frame is extrapolated from, and how many frames ahead it is.
-    fn anchor(&self) -> (usize, f64) {
-        let n = self.points.len();
-        let a = self.anchors().first().copied().unwrap_or(n - 1);
-        (a, (n - a) as f64)
-    }
-
     fn at(&self, i: usize) -> [f64; 2] {
         let p = &self.points[i];
         [p.x, p.y]
     }
 
-    /// Polynomial extrapolation (Lagrange) through the first `k` anchors to the next frame.
-    fn extrapolate(&self, k: usize) -> Option<[f64; 2]> {
-        let a = self.anchors();
-        (a.len() >= k).then(|| {
-            let knots: Vec<(f64, [f64; 2])> = a[..k].iter().map(|&i| (i as f64, self.at(i))).collect();
+    /// Polynomial extrapolation (Lagrange) through the first `k` of `anchors` (from
+    /// [`Track::anchors`]) to the next frame: constant velocity for 2, constant
+    /// acceleration for 3.
+    fn extrapolate(&self, anchors: &[usize], k: usize) -> Option<[f64; 2]> {
+        (anchors.len() >= k).then(|| {
+            let knots: Vec<(f64, [f64; 2])> = anchors[..k].iter().map(|&i| (i as f64, self.at(i))).collect();
             lagrange(&knots, self.points.len() as f64)
         })
-    }
-
-    /// Constant-velocity prediction for the next frame.
-    fn predict_cv(&self) -> Option<[f64; 2]> {
-        self.extrapolate(2)
-    }
-
-    /// Constant-acceleration prediction for the next frame.
-    fn predict_ca(&self) -> Option<[f64; 2]> {
-        self.extrapolate(3)
     }
 
     /// Predicted position and prediction scale (px) for the next frame.
     fn predict(&self, floor: f64) -> ([f64; 2], f64) {
         let grow = 1.0 + (self.misses + self.merged) as f64;
+        let anchors = self.anchors();
+        let n = self.points.len();
+        let newest = anchors.first().copied().unwrap_or(n - 1);
         // Both errors were learned one frame ahead. Extrapolated `h` frames, the noise of
         // the quadratic term grows by about `h²` more than that of the line, so constant
         // acceleration is used across a gap only if it was that much better.
-        let h = self.anchor().1;
+        let h = (n - newest) as f64;
         let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a * h * h < v);
         let (p, err) = if use_ca {
-            (self.predict_ca(), self.err_ca)
+            (self.extrapolate(&anchors, 3), self.err_ca)
         } else {
-            (self.predict_cv(), self.err_cv)
+            (self.extrapolate(&anchors, 2), self.err_cv)
         };
         match (p, err) {
             (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
             (Some(p), None) => (p, self.init_scale.max(floor) * grow),
-            _ => (self.at(self.anchor().0), self.init_scale.max(floor) * grow),
+            _ => (self.at(newest), self.init_scale.max(floor) * grow),
         }
     }
 
@@ -271,7 +258,8 @@ impl Track {
                 });
             }
         };
-        let (cv, ca) = (self.predict_cv(), self.predict_ca());
+        let anchors = self.anchors();
+        let (cv, ca) = (self.extrapolate(&anchors, 2), self.extrapolate(&anchors, 3));
         upd(&mut self.err_cv, cv);
         upd(&mut self.err_ca, ca);
     }
@@ -378,9 +366,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let pred_nn = nearest_other(&preds.iter().map(|p| p.0).collect::<Vec<_>>());
         // The appearance cost of giving track `k` detection `j` (sum of the squared
         // standardised changes of log mass and size), or `None` when its square root
-        // exceeds `gate`: the image is that of another object. A lone track's blob holds no other tracked
-        // particle, so it is compared whole with the track's own. A blob cut by the image
-        // border has lost light to it, so it is not compared.
+        // exceeds `gate`: the image is that of another object. A lone track's blob holds no
+        // other tracked particle, so it is compared whole with the track's own (a blob cut by
+        // the image border on its mass alone, one-sidedly: see [`TrackAppearance::z`]).
         let look_cost = |k: usize, j: usize, gate: f64| -> Option<f64> {
             let lone = pred_nn[k] >= crowd;
             let (Some(look), Some(a), true) = (&looks[k], Appearance::of(&dets[j], 1), lone) else {
@@ -389,40 +377,20 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             // Motion blur changes the size as the speed changes, but gradually enough for the
             // track's own spread to follow; a blob of the particle and its reflection is wider.
             // The two changes are judged together (their squared sum, as a chi-square).
-            // A blob cut by the image border has lost light to it, but less than half of it
-            // while its centroid is inside the image: its mass is compared one-sidedly (the
-            // particle's could be anywhere from the measured mass to twice it), its size not.
-            let (zm, zs) = if dets[j].clipped {
-                let (lo, _) = look.z(&a, false);
-                let doubled = Appearance {
-                    ln_mass: a.ln_mass + std::f64::consts::LN_2,
-                    ..a
-                };
-                let (hi, _) = look.z(&doubled, false);
-                let zm = if lo <= 0.0 && hi >= 0.0 {
-                    0.0
-                } else {
-                    lo.abs().min(hi.abs())
-                };
-                (zm, 0.0)
-            } else {
-                look.z(&a, true)
-            };
+            let (zm, zs) = look.z(&a, true);
             let d2 = zm * zm + zs * zs;
             (d2 <= gate * gate).then_some(d2)
         };
 
         // Columns: each detection once per particle its mass can hold.
         let mut col_det: Vec<usize> = Vec::new();
-        let mut caps: Vec<usize> = Vec::with_capacity(dets.len());
-        for d in dets {
+        for (j, d) in dets.iter().enumerate() {
             let cap = if typical_mass > 0.0 {
                 (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize
             } else {
                 1
             };
-            col_det.extend(std::iter::repeat(caps.len()).take(cap));
-            caps.push(cap);
+            col_det.extend(std::iter::repeat(j).take(cap));
         }
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
         let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));

@@ -144,12 +144,7 @@ pub fn refine_centroids_with_scratch(
             if !active[i] || !alive[i] {
                 continue;
             }
-            splits.clear();
-            for &j in &neighbours[offsets[i]..offsets[i + 1]] {
-                if alive[j as usize] {
-                    push_split(splits, pos[i], pos[j as usize]);
-                }
-            }
+            collect_splits(splits, i, &pos, &alive, &neighbours[offsets[i]..offsets[i + 1]]);
             let st = window_stats(&image, pos[i], window, splits, rows);
             let c = [st.sx / st.mass, st.sy / st.mass];
             if st.mass <= 0.0 || (c[0] - seeds[i][0]).hypot(c[1] - seeds[i][1]) > window {
@@ -197,12 +192,7 @@ pub fn refine_centroids_with_scratch(
         let st = if converged {
             stats[i]
         } else {
-            splits.clear();
-            for &j in &neighbours[offsets[i]..offsets[i + 1]] {
-                if alive[j as usize] {
-                    push_split(splits, pos[i], pos[j as usize]);
-                }
-            }
+            collect_splits(splits, i, &pos, &alive, &neighbours[offsets[i]..offsets[i + 1]]);
             window_stats(&image, pos[i], window, splits, rows)
         };
         if st.mass <= 0.0 {
@@ -280,6 +270,23 @@ struct WindowStats {
     /// Σ w² r² about the window centre.
     w2r2: f64,
     clipped: bool,
+}
+
+/// Replaces `splits` with the bisectors between estimate `i` and each of its live
+/// `neighbours` (indices into `pos`).
+fn collect_splits(
+    splits: &mut Vec<([f64; 2], f64)>,
+    i: usize,
+    pos: &[[f64; 2]],
+    alive: &[bool],
+    neighbours: &[u32],
+) {
+    splits.clear();
+    for &j in neighbours {
+        if alive[j as usize] {
+            push_split(splits, pos[i], pos[j as usize]);
+        }
+    }
 }
 
 /// Adds the bisector between `c` and a neighbour at `o`: the unit normal towards the
