@@ -7,8 +7,12 @@
 //! maxima of that response above `PEAK_SIGMAS` times its noise, the noise being propagated
 //! from the measured pixel noise, so no brightness threshold has to be chosen by hand.
 //! Maxima closer than one particle radius to a stronger one are dropped (a disc has one
-//! centre). Each candidate then belongs to a connected component of the smoothed signal
-//! above `MASK_SIGMAS` times its noise; a component's area per candidate tells a particle
+//! centre). Each candidate then owns a blob: the pixels connected to it where the smoothed
+//! signal is at least half way from the local background to the candidate's peak (and above
+//! `MASK_SIGMAS` times its noise), shared with any weaker candidate inside it. Measured
+//! against each candidate's own contrast, a blob's size does not depend on the brightness
+//! offsets real video leaves in the signal (exposure changes, shadows). A blob's area per
+//! candidate tells a particle
 //! from a large object (a hand, a floor edge) or from a speck much smaller than the
 //! expected particle, and such candidates are rejected.
 
@@ -16,16 +20,19 @@
 pub const PEAK_SIGMAS: f64 = 5.0;
 /// Blob masks are the smoothed signal above this many standard deviations of its noise.
 pub const MASK_SIGMAS: f64 = 3.0;
-/// A candidate whose component area per candidate exceeds this many expected particle
+/// A candidate whose blob area per candidate exceeds this many expected particle
 /// areas is part of a large object, not a particle.
 pub const MAX_AREA_RATIO: f64 = 4.0;
-/// A component holding several candidates is a large object, not touching particles, when
+/// A blob holding several candidates is a large object, not touching particles, when
 /// its area exceeds this many expected particle areas per candidate (touching discs cover
 /// less than the sum of their areas; a lone particle may be smeared by motion blur, so it
 /// gets the looser [`MAX_AREA_RATIO`]).
 pub const MERGED_AREA_RATIO: f64 = 1.5;
-/// A candidate whose component (not touching the image border) is smaller than this
-/// fraction of the expected particle area is a speck, not a particle.
+/// A blob's flood fill stops after this many times `radius²` pixels (about 13 particle
+/// areas): a blob that large is rejected as a large object whatever its exact size.
+pub const FLOOD_CAP_AREAS: f64 = 40.0;
+/// A candidate whose extent (not touching the image border) is smaller than this fraction
+/// of the expected particle extent is a speck, not a particle.
 pub const MIN_AREA_RATIO: f64 = 0.2;
 
 /// What [`find_blobs`] needs to know.
@@ -35,9 +42,18 @@ pub struct DetectParameters {
     pub radius: f64,
     /// Standard deviation of the per-pixel signal noise, grey levels.
     pub noise_sigma: f64,
-    /// Expected component area of one particle, px² (measured from the data); `None`
-    /// disables the size rejection.
-    pub expected_area: Option<f64>,
+    /// One particle's expected blob measures (measured from the data); `None` disables the
+    /// size rejection.
+    pub expected: Option<BlobSize>,
+}
+
+/// What one particle's blob measures, px²: [`Blob::area`] and [`Blob::extent`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlobSize {
+    /// Area at half contrast per candidate, px²: large objects exceed it.
+    pub area: f64,
+    /// Area above the noise mask per candidate, px²: noise peaks and texture specks fall short.
+    pub extent: f64,
 }
 
 /// A detected blob, located to the pixel.
@@ -49,9 +65,14 @@ pub struct Blob {
     pub y: usize,
     /// Band-pass response at the peak, grey levels.
     pub peak: f32,
-    /// Area of the blob's connected component divided by the candidates it holds, px².
+    /// Area of the blob (its pixels at least half way from the local background to the peak)
+    /// divided by the candidates it holds, px².
     pub area: f64,
-    /// Returns true if and only if the blob's component touches the image border.
+    /// Area of the connected component of the smoothed signal above `MASK_SIGMAS` times its
+    /// noise that holds the peak, divided by the candidates in it, px²: how far the blob
+    /// stands out of the noise (a noise peak barely does; a particle's skirt does too).
+    pub extent: f64,
+    /// Returns true if and only if the blob touches the image border.
     pub at_border: bool,
 }
 
@@ -94,6 +115,7 @@ pub struct Scratch {
     cell_head: Vec<u32>,
     cell_next: Vec<u32>,
     labels: Labels,
+    regions: Regions,
 }
 
 /// [`find_blobs`] with reusable buffers (no per-frame allocation of the filtered images).
@@ -220,42 +242,76 @@ pub fn find_blobs_with_scratch(
         }
     }
 
-    // Components of the smoothed signal above the mask threshold, as row runs.
+    // Each candidate's extent: the component of the smoothed signal above the noise mask
+    // that holds it, shared among its candidates. A noise peak or a speck of texture barely
+    // rises above the mask; a particle stands out of it with its whole skirt.
     let comps = &mut scratch.labels;
     comps.label(small, width, height, &mask_x, &mask_fy);
-    let mut seeds_per: Vec<u32> = vec![0; comps.area.len()];
+    let mut seeds_per_comp: Vec<u32> = vec![0; comps.area.len()];
     let labels: Vec<Option<usize>> = kept
         .iter()
         .map(|&(_, x, y)| comps.label_at(x as usize, y as usize))
         .collect();
     for l in labels.iter().flatten() {
-        seeds_per[*l] += 1;
+        seeds_per_comp[*l] += 1;
     }
+
+    // Each candidate's blob: the pixels connected to it where the smoothed signal is at least
+    // half way from the local background (the wide box mean) to the candidate's peak. A
+    // candidate already inside a stronger one's blob shares it. Measured against the
+    // candidate's own contrast, the blob does not grow with an offset left in the signal (an
+    // exposure change, a shadow) nor take in texture at its edge, as a noise-mask component
+    // does.
+    let regions = &mut scratch.regions;
+    regions.reset(width * height);
+    let cap = ((FLOOD_CAP_AREAS * params.radius * params.radius).ceil() as usize).max(64);
+    let mut seeds_per: Vec<u32> = Vec::with_capacity(kept.len());
+    let mut in_region: Vec<usize> = Vec::with_capacity(kept.len());
+    for &(v, x, y) in kept.iter() {
+        let i = y as usize * width + x as usize;
+        let region = match regions.region_at(i) {
+            Some(r) => r,
+            None => {
+                let floor = mask_x[x as usize] * mask_fy[y as usize];
+                let level = (large[i] + 0.5 * v).max(floor);
+                regions.grow(small, width, height, i, level, cap)
+            }
+        };
+        if region >= seeds_per.len() {
+            seeds_per.resize(region + 1, 0);
+        }
+        seeds_per[region] += 1;
+        in_region.push(region);
+    }
+
     let mut out = BlobSet::default();
-    for (&(v, x, y), label) in kept.iter().zip(&labels) {
-        let (area, at_border) = match label {
+    for ((&(v, x, y), &region), label) in kept.iter().zip(&in_region).zip(&labels) {
+        let seeds = seeds_per[region].max(1);
+        let area = regions.area[region] as f64 / f64::from(seeds);
+        let at_border = regions.border[region];
+        let (extent, extent_at_border) = match label {
             Some(l) => (
-                comps.area[*l] as f64 / f64::from(seeds_per[*l].max(1)),
+                comps.area[*l] as f64 / f64::from(seeds_per_comp[*l].max(1)),
                 comps.border[*l],
             ),
             None => (1.0, false),
         };
-        if let Some(expected) = params.expected_area {
-            // Judge the whole component, not its share per seed: a large object (a hand, the
+        if let Some(expected) = params.expected {
+            // Judge the whole blob, not its share per seed: a large object (a hand, the
             // edge of a floor) carries several spurious peaks (its corners), which would
             // otherwise divide its area down to a particle's. Touching particles carry one
             // peak each, and their union covers less than the sum of their areas.
-            let seeds = label.map_or(1, |l| seeds_per[l].max(1)) as f64;
+            let seeds = f64::from(seeds);
             let limit = if seeds > 1.0 {
-                MERGED_AREA_RATIO * expected * seeds
+                MERGED_AREA_RATIO * expected.area * seeds
             } else {
-                MAX_AREA_RATIO * expected
+                MAX_AREA_RATIO * expected.area
             };
             if area * seeds > limit {
                 out.too_large_count += 1;
                 continue;
             }
-            if !at_border && area < MIN_AREA_RATIO * expected {
+            if !extent_at_border && extent < MIN_AREA_RATIO * expected.extent {
                 out.too_small_count += 1;
                 continue;
             }
@@ -265,6 +321,7 @@ pub fn find_blobs_with_scratch(
             y: y as usize,
             peak: v,
             area,
+            extent,
             at_border,
         });
     }
@@ -423,6 +480,85 @@ impl Labels {
                 self.border[l as usize] |= run.0 == 0 || run.1 as usize == width || y == 0 || y + 1 == height;
             }
         }
+    }
+}
+
+/// The blobs of one frame's candidates, grown by flood fill, with reusable buffers.
+#[derive(Default, Debug)]
+struct Regions {
+    /// Region of each pixel (`u32::MAX`: none).
+    owner: Vec<u32>,
+    /// Pixels given a region this frame (reset by the next [`Regions::reset`]).
+    claimed: Vec<u32>,
+    /// Flood-fill work list.
+    stack: Vec<u32>,
+    /// Pixel count per region.
+    area: Vec<usize>,
+    /// Whether each region touches the image border.
+    border: Vec<bool>,
+}
+
+impl Regions {
+    /// Forgets every region, for a frame of `pixels` pixels.
+    fn reset(&mut self, pixels: usize) {
+        if self.owner.len() == pixels {
+            for &p in &self.claimed {
+                self.owner[p as usize] = u32::MAX;
+            }
+        } else {
+            self.owner.clear();
+            self.owner.resize(pixels, u32::MAX);
+        }
+        self.claimed.clear();
+        self.area.clear();
+        self.border.clear();
+    }
+
+    fn region_at(&self, pixel: usize) -> Option<usize> {
+        let r = *self.owner.get(pixel)?;
+        (r != u32::MAX).then_some(r as usize)
+    }
+
+    /// Grows a new region from `seed` over the 8-connected unclaimed pixels where `image` is
+    /// at least `level`, stopping after `cap` pixels; returns its index.
+    fn grow(
+        &mut self,
+        image: &[f32],
+        width: usize,
+        height: usize,
+        seed: usize,
+        level: f32,
+        cap: usize,
+    ) -> usize {
+        let id = self.area.len();
+        let mut area = 0;
+        let mut border = false;
+        self.stack.clear();
+        self.stack.push(seed as u32);
+        self.owner[seed] = id as u32;
+        self.claimed.push(seed as u32);
+        while let Some(p) = self.stack.pop() {
+            let p = p as usize;
+            area += 1;
+            let (x, y) = (p % width, p / width);
+            border |= x == 0 || y == 0 || x + 1 == width || y + 1 == height;
+            if area + self.stack.len() >= cap {
+                continue;
+            }
+            for yy in y.saturating_sub(1)..=(y + 1).min(height - 1) {
+                for xx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
+                    let q = yy * width + xx;
+                    if self.owner[q] == u32::MAX && image[q] >= level {
+                        self.owner[q] = id as u32;
+                        self.claimed.push(q as u32);
+                        self.stack.push(q as u32);
+                    }
+                }
+            }
+        }
+        self.area.push(area);
+        self.border.push(border);
+        id
     }
 }
 
@@ -601,11 +737,14 @@ mod tests {
         let mut p = DetectParameters {
             radius: 4.0,
             noise_sigma: 1.0,
-            expected_area: None,
+            expected: None,
         };
         let all = find_blobs(&img, w, h, &p);
         let single = all.blobs.iter().find(|b| b.x.abs_diff(60) <= 1).unwrap();
-        p.expected_area = Some(single.area);
+        p.expected = Some(BlobSize {
+            area: single.area,
+            extent: single.extent,
+        });
         let set = find_blobs(&img, w, h, &p);
         let mut found: Vec<(usize, usize)> = set.blobs.iter().map(|b| (b.x, b.y)).collect();
         found.sort_unstable();

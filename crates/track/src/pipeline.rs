@@ -12,8 +12,8 @@ use rayon::prelude::*;
 
 use crate::{
     estimate_background, find_blobs, link_detections, list_frames, load_frame, refine_centroids, Ambiguity,
-    AmbiguityKind, Background, BackgroundChoice, BackgroundModel, DetectParameters, Frame, FrameDetections,
-    LinkOptions, PointFlag, TrackError, TrackTable,
+    AmbiguityKind, Background, BackgroundChoice, BackgroundModel, Blob, BlobSize, DetectParameters,
+    Detection, Frame, FrameDetections, LinkOptions, PointFlag, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -218,15 +218,22 @@ fn track_paths(
         .iter()
         .map(|frame| SampleSignals::of(&background, frame))
         .collect();
+    // With named particles, their frame-A blobs are the particles: the sizes are measured on
+    // them alone, so that texture or clutter, however plentiful, cannot set the scale.
+    let starts: Option<Vec<[f64; 2]>> = options
+        .named_start
+        .as_ref()
+        .map(|named| named.iter().map(|(_, p)| *p).collect());
+    let starts = starts.as_deref();
     let (radius, radius_estimated) = match options.radius {
         Some(r) => (r, false),
-        None => (estimate_radius(&background, &estimation), true),
+        None => (estimate_radius(&background, &estimation, starts), true),
     };
-    let expected_area = expected_area(&background, &estimation, radius);
+    let expected = expected_size(&background, &estimation, radius, starts);
     let params = DetectParameters {
         radius,
         noise_sigma: background.noise_sigma,
-        expected_area,
+        expected,
     };
     let window = locate_window(radius);
 
@@ -411,35 +418,35 @@ impl SampleSignals {
 /// the current estimate, re-measure) until it changes by less than 0.01 px make the answer
 /// independent of the starting value.
 ///
-fn estimate_radius(background: &Background, frames: &[SampleSignals]) -> f64 {
-    let (width, height) = (background.width, background.height);
+/// With `starts` (the named particles' positions in the first frame of `frames`), only the
+/// blob nearest each start in that frame is measured; otherwise every blob of every frame.
+/// On real video the blobs are mostly texture specks and clutter, and their median is not
+/// the particles' size; the structure's start positions say which blobs are particles.
+fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Option<&[[f64; 2]]>) -> f64 {
     let mut radius = START_RADIUS;
     for _ in 0..RADIUS_ROUNDS {
-        let params = DetectParameters {
-            radius,
-            noise_sigma: background.noise_sigma,
-            expected_area: None,
-        };
         let mut sizes: Vec<f64> = Vec::new();
-        for frame in frames {
-            let blobs = find_blobs(&frame.plain, width, height, &params);
-            let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
-            let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
-            let found = refine_centroids(
-                &frame.levelled,
-                width,
-                height,
-                &seeds,
-                &areas,
-                locate_window(radius),
-                background.noise_sigma,
-            );
-            sizes.extend(
-                found
-                    .iter()
-                    .filter(|d| !d.clipped && d.size.is_finite())
-                    .map(|d| d.size),
-            );
+        let measured = |frame: &SampleSignals| locate_unfiltered(background, frame, radius);
+        match starts {
+            Some(starts) if !frames.is_empty() => {
+                let found = measured(&frames[0]);
+                sizes.extend(
+                    nearest_each(&found, starts, |d| [d.x, d.y])
+                        .into_iter()
+                        .filter(|d| !d.clipped && d.size.is_finite())
+                        .map(|d| d.size),
+                );
+            }
+            _ => {
+                for frame in frames {
+                    sizes.extend(
+                        measured(frame)
+                            .iter()
+                            .filter(|d| !d.clipped && d.size.is_finite())
+                            .map(|d| d.size),
+                    );
+                }
+            }
         }
         if sizes.is_empty() {
             break;
@@ -454,35 +461,85 @@ fn estimate_radius(background: &Background, frames: &[SampleSignals]) -> f64 {
     radius
 }
 
-/// The median component area of one particle at `radius`, px², from a few frames' plain
-/// signals (as blobs are found); `None` when no blob is found (size rejection is then off).
-///
-/// Known weakness on real video (issue 3): the median is over every blob, and texture specks
-/// outnumber the particles there. On the bouncing ball no blob is found in 19 of 87 frames.
-/// Weighting the median (and the radius's) by each blob's light lets the ball be followed
-/// through every bounce, but also lets the hand in ball-toss pass the size test.
-fn expected_area(background: &Background, frames: &[SampleSignals], radius: f64) -> Option<f64> {
+/// Every blob of one estimation frame at `radius`, with no size rejection, located in the
+/// gain-corrected signal.
+fn locate_unfiltered(background: &Background, frame: &SampleSignals, radius: f64) -> Vec<Detection> {
+    let (width, height) = (background.width, background.height);
+    let blobs = unfiltered_blobs(background, frame, radius);
+    let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
+    let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
+    refine_centroids(
+        &frame.levelled,
+        width,
+        height,
+        &seeds,
+        &areas,
+        locate_window(radius),
+        background.noise_sigma,
+    )
+}
+
+/// Every blob of one estimation frame's plain signal at `radius`, with no size rejection.
+fn unfiltered_blobs(background: &Background, frame: &SampleSignals, radius: f64) -> Vec<Blob> {
     let params = DetectParameters {
         radius,
         noise_sigma: background.noise_sigma,
-        expected_area: None,
+        expected: None,
     };
-    let mut areas: Vec<f64> = frames
+    find_blobs(&frame.plain, background.width, background.height, &params).blobs
+}
+
+/// For each start position, the item nearest to it (none when `items` is empty); an item
+/// nearest to two starts is counted once per start.
+fn nearest_each<'a, T>(items: &'a [T], starts: &[[f64; 2]], at: impl Fn(&T) -> [f64; 2]) -> Vec<&'a T> {
+    starts
         .iter()
-        .flat_map(|frame| {
-            find_blobs(&frame.plain, background.width, background.height, &params)
-                .blobs
-                .into_iter()
-                .filter(|b| !b.at_border)
-                .map(|b| b.area)
-                .collect::<Vec<_>>()
+        .filter_map(|s| {
+            items.iter().min_by(|a, b| {
+                let da = at(a);
+                let db = at(b);
+                let da = (da[0] - s[0]).hypot(da[1] - s[1]);
+                let db = (db[0] - s[0]).hypot(db[1] - s[1]);
+                da.total_cmp(&db)
+            })
         })
-        .collect();
-    if areas.is_empty() {
-        None
-    } else {
-        Some(median(&mut areas))
+        .collect()
+}
+
+/// One particle's blob measures at `radius` (medians of [`Blob::area`] and
+/// [`Blob::extent`], as blobs are found, in the plain signal); `None` when no blob is found
+/// (size rejection is then off). With `starts`, of the blobs nearest the named particles'
+/// start positions in the first frame; otherwise of every blob in `frames` (see
+/// [`estimate_radius`] for why).
+fn expected_size(
+    background: &Background,
+    frames: &[SampleSignals],
+    radius: f64,
+    starts: Option<&[[f64; 2]]>,
+) -> Option<BlobSize> {
+    let blobs: Vec<Blob> = match starts {
+        Some(starts) if !frames.is_empty() => {
+            let blobs = unfiltered_blobs(background, &frames[0], radius);
+            nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
+                .into_iter()
+                .copied()
+                .collect()
+        }
+        _ => frames
+            .iter()
+            .flat_map(|frame| unfiltered_blobs(background, frame, radius))
+            .collect(),
+    };
+    let inside: Vec<&Blob> = blobs.iter().filter(|b| !b.at_border).collect();
+    if inside.is_empty() {
+        return None;
     }
+    let mut areas: Vec<f64> = inside.iter().map(|b| b.area).collect();
+    let mut extents: Vec<f64> = inside.iter().map(|b| b.extent).collect();
+    Some(BlobSize {
+        area: median(&mut areas),
+        extent: median(&mut extents),
+    })
 }
 
 fn median(v: &mut [f64]) -> f64 {

@@ -59,7 +59,6 @@ fn ball_toss_follows_the_hand_clicks_within_two_pixels() {
 }
 
 #[test]
-#[ignore = "known failure (issue 3): the radius reads 9.16 px (right) but no blob is found in 19 frames (frame 0 among them) and the track is lost over frames 8-18 (76 of 87 points); with the expected area and radius weighted by light the ball is followed through every bounce (largest step 32.7 px, 79 of 87 detected, first five lows 360-368 px) but ball-toss then fails; run with --ignored"]
 fn bouncing_ball_is_followed_through_every_frame() {
     let Some(dir) = real_dir("bouncing-ball") else {
         return;
@@ -90,14 +89,86 @@ fn bouncing_ball_is_followed_through_every_frame() {
         "bouncing-ball: largest step {biggest:.1} px, {detected} of 87 detected, lowest points {lows:?}"
     );
     assert!(biggest <= 60.0, "largest step between frames {biggest:.1} px");
-    assert!(lows.len() >= 2, "at least two bounces: {lows:?}");
-    // Every bounce happens on the same floor: the lowest points agree within a few pixels.
-    let ys: Vec<f64> = lows.iter().map(|l| l.2).collect();
-    let (lo, hi) = ys.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| {
-        (a.min(y), b.max(y))
-    });
-    assert!(hi - lo < 8.0, "bounce heights {ys:?}");
+    assert!(detected >= 85, "the ball detected in {detected} of 87 frames");
+    assert!(lows.len() >= 4, "at least four bounces: {lows:?}");
+    // Between bounces the ball flies free: each arc is a parabola in time to within the
+    // tracking error (a lost or swapped point would stand pixels off it), and every arc shows
+    // nearly the same downward acceleration (measured 1573-1820 px/s^2: air drag slows the
+    // fast early arcs least in their mean, and the last arc has only 7 points).
+    let fps = 29.97;
+    let mut fields = Vec::new();
+    for pair in lows.windows(2) {
+        let arc: Vec<_> = ball
+            .iter()
+            .filter(|p| p.frame > pair[0].0 && p.frame < pair[1].0)
+            .collect();
+        if arc.len() < 6 {
+            continue;
+        }
+        let t: Vec<f64> = arc.iter().map(|p| p.frame as f64 / fps).collect();
+        let y: Vec<f64> = arc.iter().map(|p| p.y).collect();
+        let (coef, rms) = parabola(&t, &y);
+        println!(
+            "bouncing-ball: arc frames {}-{}: downward acceleration {:.0} px/s^2, rms off the parabola {rms:.2} px",
+            arc[0].frame,
+            arc[arc.len() - 1].frame,
+            2.0 * coef[2]
+        );
+        assert!(
+            rms < 1.0,
+            "arc after frame {}: {rms:.2} px off a parabola",
+            pair[0].0
+        );
+        fields.push(2.0 * coef[2]);
+    }
+    assert!(fields.len() >= 3, "at least three complete arcs: {fields:?}");
+    let (lo, hi) = fields
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &g| {
+            (a.min(g), b.max(g))
+        });
+    assert!(
+        lo > 0.0 && hi / lo < 1.25,
+        "the arcs disagree on the field: {fields:?}"
+    );
     write_for_inspection(&out.table);
+}
+
+/// Least-squares `y = c0 + c1 t + c2 t^2`: the coefficients and the RMS residual.
+fn parabola(t: &[f64], y: &[f64]) -> ([f64; 3], f64) {
+    let mut a = [[0.0; 4]; 3];
+    for (&ti, &yi) in t.iter().zip(y) {
+        let basis = [1.0, ti, ti * ti];
+        for r in 0..3 {
+            for c in 0..3 {
+                a[r][c] += basis[r] * basis[c];
+            }
+            a[r][3] += basis[r] * yi;
+        }
+    }
+    // Gauss-Jordan elimination with partial pivoting on the 3x3 normal equations.
+    for col in 0..3 {
+        let pivot = (col..3)
+            .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
+            .expect("rows");
+        a.swap(col, pivot);
+        let pivot_row = a[col];
+        for (r, row) in a.iter_mut().enumerate() {
+            if r != col {
+                let f = row[col] / pivot_row[col];
+                for (x, p) in row.iter_mut().zip(pivot_row).skip(col) {
+                    *x -= f * p;
+                }
+            }
+        }
+    }
+    let coef = [a[0][3] / a[0][0], a[1][3] / a[1][1], a[2][3] / a[2][2]];
+    let ss: f64 = t
+        .iter()
+        .zip(y)
+        .map(|(&ti, &yi)| (yi - coef[0] - coef[1] * ti - coef[2] * ti * ti).powi(2))
+        .sum();
+    (coef, (ss / t.len() as f64).sqrt())
 }
 
 /// Leaves the track where a person can look at it when asked to (PHYSFIT_KEEP_TRACKS).
