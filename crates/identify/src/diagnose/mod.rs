@@ -350,12 +350,26 @@ fn diagnose_inner(
                 eprintln!("   verified {effects:?}: {:?}", v.evidence);
             }
         }
-        verified.sort_by(|a, b| {
-            b.evidence
-                .score
-                .unwrap_or(f64::NEG_INFINITY)
-                .total_cmp(&a.evidence.score.unwrap_or(f64::NEG_INFINITY))
-        });
+        // Candidates are ranked against each other on one yardstick: the held-out cost each
+        // removes over the smallest residual variance among them, minus its penalty. Each
+        // candidate's own score divides by its own residual variance, which favours the one
+        // with more parameters (a distant tether imitating a uniform field) by far more than
+        // its penalty when the cost removed is large.
+        let common = verified
+            .iter()
+            .filter_map(|v| v.evidence.noise_variance)
+            .fold(f64::INFINITY, f64::min);
+        let rank = |v: &search::Verified| match (
+            v.evidence.score,
+            v.evidence.held_out_cost_before,
+            v.evidence.held_out_cost_after,
+        ) {
+            (Some(_), Some(before), Some(after)) if common.is_finite() => {
+                (before - after) / common - v.evidence.penalty
+            }
+            _ => f64::NEG_INFINITY,
+        };
+        verified.sort_by(|a, b| rank(b).total_cmp(&rank(a)));
         // Record this round's losers (and unverified screened ones).
         let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
         for p in &screened {

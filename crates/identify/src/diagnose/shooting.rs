@@ -238,9 +238,8 @@ fn fit_spans(
     let frames = shot.obs.frame_count();
     let remaining = frames - shot.anchor;
     let period = std::f64::consts::TAU / scales.omega.max(1e-9) * shot.obs.fps;
-    let mut span = ((3.0 * period).ceil() as usize)
-        .clamp(20, remaining.max(1))
-        .min(remaining);
+    // Spans start at three periods (at least 20 frames), never beyond the recording.
+    let mut span = ((3.0 * period).ceil() as usize).max(20).min(remaining.max(1));
     let mut spans = Vec::new();
     if warm {
         span = remaining;

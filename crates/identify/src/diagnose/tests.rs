@@ -579,3 +579,21 @@ fn a_ball_held_on_a_shelf_is_analysed_from_its_release() {
         .gravity()
         .wall(0);
 }
+
+#[test]
+fn a_short_toss_of_eleven_frames_gets_its_field() {
+    // The ball-toss recording's length: 11 frames, fewer than the 20 the first shooting span
+    // asks for (that once panicked on a clamp whose minimum exceeded its maximum).
+    let truth = ball_over_a_floor(
+        "toss",
+        15.15,
+        11,
+        [130.0, 200.0],
+        [150.0, -600.0],
+        4000.0,
+        2000.0,
+        0.5,
+    );
+    let c = diagnose_case("toss", truth.clone(), &truth.structure(), 1);
+    c.names_exactly(&["uniform field (gravity)"]).gravity();
+}

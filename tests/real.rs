@@ -1,0 +1,183 @@
+//! The whole pipeline on a real recording (`../shared/real`, skipped with a message when
+//! absent): a ball that rolls off a shelf, falls and bounces on a floor, from a one-particle
+//! structure with no bonds and no physics. physfit must find gravity and the floor, and say
+//! that the ball was supported before it fell.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use crate::util::{physfit, read_xy, tempdir};
+
+/// The folder of real recording `name`, or `None` (with a message) when it is absent.
+fn real_dir(name: &str) -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/real")
+        .join(name);
+    if dir.join("frames").is_dir() && dir.join("structure.toml").is_file() {
+        Some(dir)
+    } else {
+        println!("skipped: real recording {} not found", dir.display());
+        None
+    }
+}
+
+/// Least-squares `y = c0 + c1 t + c2 t^2`: the coefficients.
+fn parabola(t: &[f64], y: &[f64]) -> [f64; 3] {
+    let mut a = [[0.0; 4]; 3];
+    for (&ti, &yi) in t.iter().zip(y) {
+        let basis = [1.0, ti, ti * ti];
+        for r in 0..3 {
+            for c in 0..3 {
+                a[r][c] += basis[r] * basis[c];
+            }
+            a[r][3] += basis[r] * yi;
+        }
+    }
+    for col in 0..3 {
+        let pivot = (col..3)
+            .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
+            .expect("rows");
+        a.swap(col, pivot);
+        let pivot_row = a[col];
+        for (r, row) in a.iter_mut().enumerate() {
+            if r != col {
+                let f = row[col] / pivot_row[col];
+                for (x, p) in row.iter_mut().zip(pivot_row).skip(col) {
+                    *x -= f * p;
+                }
+            }
+        }
+    }
+    [a[0][3] / a[0][0], a[1][3] / a[1][1], a[2][3] / a[2][2]]
+}
+
+/// The named parameter of a finding.
+fn parameter(finding: &Value, name: &str) -> f64 {
+    finding["parameters"]
+        .as_array()
+        .and_then(|ps| ps.iter().find(|p| p["name"] == name))
+        .and_then(|p| p["value"].as_f64())
+        .unwrap_or_else(|| panic!("no parameter {name} in {finding}"))
+}
+
+#[test]
+fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
+    let Some(real) = real_dir("bouncing-ball") else {
+        return;
+    };
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    physfit()
+        .arg("-q")
+        .arg("run")
+        .arg("--frames")
+        .arg(real.join("frames"))
+        .arg("--structure")
+        .arg(real.join("structure.toml"))
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
+    let findings = report["findings"].as_array().expect("findings");
+    let names: Vec<&str> = findings.iter().filter_map(|f| f["effect"].as_str()).collect();
+    println!("bouncing ball: findings {names:?}");
+    let find = |effect: &str| {
+        findings
+            .iter()
+            .find(|f| f["effect"] == effect)
+            .unwrap_or_else(|| panic!("no {effect} among the findings {names:?}"))
+    };
+
+    // An independent measure of the field: parabolas through the tracked free flights between
+    // bounces (lows of the track), their mean downward acceleration.
+    let track = read_xy(&out.join("tracks.csv"));
+    assert_eq!(track.len(), 87, "a ball position in every frame");
+    let fps = 29.97;
+    let lows: Vec<usize> = (1..track.len() - 1)
+        .filter(|&k| track[k].3 > track[k - 1].3 && track[k].3 >= track[k + 1].3)
+        .collect();
+    let mut arcs = Vec::new();
+    for pair in lows.windows(2) {
+        let (a, b) = (pair[0] + 1, pair[1] - 1);
+        if b + 1 - a >= 6 {
+            let t: Vec<f64> = (a..=b).map(|k| track[k].0 as f64 / fps).collect();
+            let y: Vec<f64> = (a..=b).map(|k| track[k].3).collect();
+            arcs.push(2.0 * parabola(&t, &y)[2]);
+        }
+    }
+    assert!(arcs.len() >= 3, "free-flight arcs {arcs:?} (lows at {lows:?})");
+    let arc_mean = arcs.iter().sum::<f64>() / arcs.len() as f64;
+
+    let gravity = find("gravity");
+    let (gx, gy) = (parameter(gravity, "gravity_x"), parameter(gravity, "gravity_y"));
+    let g = gx.hypot(gy);
+    let angle = gy.atan2(gx).to_degrees();
+    println!("bouncing ball: gravity {g:.0} px/s^2 towards {angle:.1} degrees; free-flight arcs {arcs:?}");
+    assert!(
+        (angle - 90.0).abs() < 5.0,
+        "the field points down: {angle:.1} degrees"
+    );
+    assert!(
+        (g / arc_mean - 1.0).abs() < 0.15,
+        "field {g:.0} px/s^2 against {arc_mean:.0} from the free-flight arcs"
+    );
+
+    // The floor: a horizontal wall through the ball's lowest positions, losing energy.
+    let wall = find("wall");
+    let (nx, ny) = (parameter(wall, "normal_x"), parameter(wall, "normal_y"));
+    let offset = parameter(wall, "offset");
+    let restitution = parameter(wall, "restitution");
+    let lowest = track.iter().map(|p| p.3).fold(f64::NEG_INFINITY, f64::max);
+    let x_low = track
+        .iter()
+        .max_by(|a, b| a.3.total_cmp(&b.3))
+        .map(|p| p.2)
+        .expect("points");
+    let floor_y = (offset - nx * x_low) / ny;
+    println!(
+        "bouncing ball: floor y = {floor_y:.1} px (lowest tracked {lowest:.1}), normal ({nx:.3}, {ny:.3}), restitution {restitution:.3}"
+    );
+    assert!(
+        ny < -0.99,
+        "a horizontal floor whose normal points up: ({nx}, {ny})"
+    );
+    assert!(
+        (floor_y - lowest).abs() < 3.0,
+        "floor {floor_y:.1} px, lowest point {lowest:.1} px"
+    );
+    assert!(
+        restitution > 0.3 && restitution < 0.95,
+        "restitution {restitution}: the bounces lose height"
+    );
+
+    // The shelf: the ball is supported in the first frames, and the report says so.
+    let supports = report["localisation"]["supports"].as_array().expect("supports");
+    let shelf = supports
+        .iter()
+        .find(|s| s["particle"] == "ball")
+        .unwrap_or_else(|| panic!("no support found: {supports:?}"));
+    let frames = [
+        shelf["frames"][0].as_u64().expect("frame"),
+        shelf["frames"][1].as_u64().expect("frame"),
+    ];
+    assert_eq!(frames[0], 0, "supported from the first frame: {frames:?}");
+    assert!(frames[1] <= 8, "released within the first frames: {frames:?}");
+    let md = std::fs::read_to_string(out.join("report.md")).expect("report.md");
+    for words in ["supported in frames 0-", "gravity", "wall"] {
+        assert!(md.contains(words), "report.md does not mention \"{words}\"");
+    }
+
+    // The diagnosed model follows the recording far better than the bare structure.
+    let base = report["base"]["costs"]["multi_step"]["rms"]
+        .as_f64()
+        .expect("base rms");
+    let last = report["final"]["costs"]["multi_step"]["rms"]
+        .as_f64()
+        .expect("final rms");
+    println!("bouncing ball: multi-step RMS {base:.2} -> {last:.2} px");
+    assert!(last < base / 5.0, "multi-step RMS {base:.2} -> {last:.2} px");
+}
