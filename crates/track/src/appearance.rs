@@ -123,6 +123,10 @@ pub struct TrackAppearance {
     /// Its recent appearance: the median of each feature over its latest three located
     /// points (one odd frame, such as light shared with a neighbour, does not set it).
     pub last: Appearance,
+    /// Its usual appearance: the median of each feature over its recent history (up to 24
+    /// located points). A real particle's image can change abruptly for a few frames (blur
+    /// at a bounce's speed, contact) and come back; coming back to the usual is no change.
+    pub usual: Appearance,
     /// Frame-to-frame spread: the track's own once it has enough history, else pooled.
     pub spread: AppearanceSpread,
     /// Frames between the latest located point and the frame being linked (1 for the next).
@@ -199,8 +203,22 @@ impl TrackAppearance {
                 f64::NAN
             },
         };
+        let mut um: Vec<f64> = recent.iter().map(|(_, a)| a.ln_mass).collect();
+        let mut us: Vec<f64> = recent
+            .iter()
+            .map(|(_, a)| a.size)
+            .filter(|s| s.is_finite())
+            .collect();
+        let usual_ln_mass = median(&mut um);
+        let usual = Appearance {
+            ln_mass: usual_ln_mass,
+            ln_mass_upper: usual_ln_mass,
+            size: median(&mut us),
+            ep,
+        };
         Some(TrackAppearance {
             last,
+            usual,
             spread,
             frames_ahead: frame.saturating_sub(last_frame).max(1),
         })

@@ -75,6 +75,9 @@ pub struct Background {
     /// The brightest background value, grey levels: the scale against which a change of
     /// gain is judged significant (see [`Background::remove_gain`]).
     pub brightest: f64,
+    /// Mean of the clipped noise added to the background (along `direction`) where most of
+    /// the background's noise is clipped at black or white, grey levels; 0 otherwise.
+    pub clip_offset: f64,
 }
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
@@ -83,6 +86,62 @@ const MIN_NOISE: f64 = 0.3;
 /// Half-width, in standard deviations, of the band kept when the noise of a clipped
 /// background is measured by iterated clipping.
 const CLIP_SIGMAS: f64 = 5.0;
+
+/// Least sample frames a background pixel's median is taken over once particles are
+/// excluded ([`Background::exclude_particles`]).
+pub const CLEAR_SAMPLES: usize = 3;
+
+/// Points bucketed on a grid of cells `reach` wide, for nearest-distance queries within
+/// `reach`.
+struct PointGrid {
+    cell: f64,
+    columns: usize,
+    rows: usize,
+    /// Points of each cell.
+    cells: Vec<Vec<[f64; 2]>>,
+}
+
+impl PointGrid {
+    fn new(points: &[[f64; 2]], reach: f64, width: usize, height: usize) -> PointGrid {
+        let cell = reach.max(1.0);
+        let columns = (width as f64 / cell).ceil() as usize + 1;
+        let rows = (height as f64 / cell).ceil() as usize + 1;
+        let mut cells = vec![Vec::new(); columns * rows];
+        for p in points {
+            if p[0].is_finite() && p[1].is_finite() {
+                let cx = (p[0] / cell).floor().clamp(0.0, (columns - 1) as f64) as usize;
+                let cy = (p[1] / cell).floor().clamp(0.0, (rows - 1) as f64) as usize;
+                cells[cy * columns + cx].push(*p);
+            }
+        }
+        PointGrid {
+            cell,
+            columns,
+            rows,
+            cells,
+        }
+    }
+
+    /// Distance from `(x, y)` to the nearest point, px, when within `reach`; infinity
+    /// otherwise.
+    fn nearest(&self, x: f64, y: f64, reach: f64) -> f64 {
+        let cx = (x / self.cell).floor().max(0.0) as usize;
+        let cy = (y / self.cell).floor().max(0.0) as usize;
+        let mut best = f64::INFINITY;
+        for gy in cy.saturating_sub(1)..=(cy + 1).min(self.rows - 1) {
+            for gx in cx.saturating_sub(1)..=(cx + 1).min(self.columns - 1) {
+                for p in &self.cells[gy * self.columns + gx] {
+                    best = best.min((p[0] - x).hypot(p[1] - y));
+                }
+            }
+        }
+        if best <= reach {
+            best
+        } else {
+            f64::INFINITY
+        }
+    }
+}
 
 /// Fraction of structured pixels above which the per-pixel model is chosen.
 const STRUCTURED_LIMIT: f64 = 0.02;
@@ -172,6 +231,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         sample_count: k,
         reference_gain: 1.0,
         brightest: 0.0,
+        clip_offset: 0.0,
     };
     bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
     // The lowest signal a pixel can show: its value at the clip level (0 where particles
@@ -218,6 +278,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         // particles crowd the frame, so the clipping converges from above).
         let (offset, sigma) = clipped_mean_and_sigma(&mut sampled);
         bg.noise_sigma = sigma.max(MIN_NOISE);
+        bg.clip_offset = offset;
         for (l, u) in bg.level.iter_mut().zip(&bg.direction) {
             *l += offset as f32 * u;
         }
@@ -233,6 +294,59 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
 }
 
 impl Background {
+    /// Re-estimates a per-pixel background without the particles: each pixel's median is
+    /// taken over the sample frames in which no particle (`particles[j]`: positions found in
+    /// `samples[j]`, px) lies within `reach` px of it, or, where fewer than
+    /// [`CLEAR_SAMPLES`] such frames exist (a particle orbiting one spot), over the
+    /// [`CLEAR_SAMPLES`] frames whose nearest particle is farthest from it. Particles that
+    /// hover cover the same pixels in many frames and leave part of themselves in a plain
+    /// median (17 grey levels of a 120-level spot in the gaussian-blobs fixture), which then
+    /// biases every centroid near there. A constant background is left as it is.
+    pub fn exclude_particles(&mut self, samples: &[Frame], particles: &[Vec<[f64; 2]>], reach: f64) {
+        if self.model != BackgroundModel::PerPixel
+            || samples.len() != particles.len()
+            || samples.len() < CLEAR_SAMPLES
+            || reach.is_nan()
+            || reach <= 0.0
+        {
+            return;
+        }
+        let (w, h, c) = (self.width, self.height, self.channels);
+        let grids: Vec<PointGrid> = particles.iter().map(|p| PointGrid::new(p, reach, w, h)).collect();
+        let (clip_offset, direction) = (self.clip_offset, self.direction.clone());
+        const ROWS: usize = 8;
+        self.image
+            .par_chunks_mut(c * w * ROWS)
+            .enumerate()
+            .for_each(|(chunk, dst)| {
+                let mut near: Vec<(f64, usize)> = Vec::with_capacity(samples.len());
+                let mut buf: Vec<f32> = Vec::with_capacity(samples.len());
+                for (j, px) in dst.chunks_exact_mut(c).enumerate() {
+                    let pixel = chunk * w * ROWS + j;
+                    let (x, y) = ((pixel % w) as f64, (pixel / w) as f64);
+                    near.clear();
+                    near.extend(grids.iter().enumerate().map(|(s, g)| (g.nearest(x, y, reach), s)));
+                    if near.iter().all(|n| n.0 > reach) {
+                        continue;
+                    }
+                    let clear = near.iter().filter(|n| n.0 > reach).count();
+                    if clear < CLEAR_SAMPLES {
+                        near.sort_by(|a, b| b.0.total_cmp(&a.0));
+                        near.truncate(CLEAR_SAMPLES);
+                    } else {
+                        near.retain(|n| n.0 > reach);
+                    }
+                    for (ch, v) in px.iter_mut().enumerate() {
+                        buf.clear();
+                        buf.extend(near.iter().map(|&(_, s)| samples[s].data[pixel * c + ch]));
+                        *v = median_of(&mut buf) + clip_offset as f32 * direction[ch];
+                    }
+                }
+            });
+        self.reference_gain = samples.iter().map(|f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
+        self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+    }
+
     /// The brightness gain of `frame` against the background image: the median over a
     /// sample of pixels of `pixel / background` (each pixel dithered over one grey level, so
     /// that 8-bit frames do not make the median jump), with pixels darker than 16 levels in

@@ -377,8 +377,17 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             // Motion blur changes the size as the speed changes, but gradually enough for the
             // track's own spread to follow; a blob of the particle and its reflection is wider.
             // The two changes are judged together (their squared sum, as a chi-square).
-            let (zm, zs) = look.z(&a, true);
-            let d2 = zm * zm + zs * zs;
+            // A candidate that looks like the particle's usual self passes too (its image
+            // coming back after a few blurred or shadowed frames).
+            let d2_of = |look: &TrackAppearance| {
+                let (zm, zs) = look.z(&a, true);
+                zm * zm + zs * zs
+            };
+            let usual = TrackAppearance {
+                last: look.usual,
+                ..*look
+            };
+            let d2 = d2_of(look).min(d2_of(&usual));
             (d2 <= gate * gate).then_some(d2)
         };
 

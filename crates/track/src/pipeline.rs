@@ -230,6 +230,28 @@ fn track_paths(
         None => (estimate_radius(&background, &estimation, starts), true),
     };
     let expected = expected_size(&background, &estimation, radius, starts);
+    // The per-pixel median without the particles found in each sample frame (out to twice the
+    // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
+    let mut background = background;
+    if background.model == BackgroundModel::PerPixel {
+        let found: Vec<Vec<[f64; 2]>> = sample_frames
+            .par_iter()
+            .map(|frame| {
+                let params = DetectParameters {
+                    radius,
+                    noise_sigma: background.noise_sigma,
+                    expected,
+                };
+                find_blobs(&background.signal(frame), size.0, size.1, &params)
+                    .blobs
+                    .iter()
+                    .map(|b| [b.x as f64, b.y as f64])
+                    .collect()
+            })
+            .collect();
+        background.exclude_particles(&sample_frames, &found, 2.0 * radius + 1.0);
+    }
+    let background = background;
     let params = DetectParameters {
         radius,
         noise_sigma: background.noise_sigma,

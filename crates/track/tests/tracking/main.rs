@@ -5,6 +5,7 @@ mod common;
 mod crossing;
 mod errors;
 mod events;
+mod fixtures;
 mod real;
 mod scenes;
 mod styles;
