@@ -49,6 +49,26 @@ pub struct Appearance {
 }
 
 impl Appearance {
+    /// The median of each feature over located points (each with its frame index; unknown
+    /// sizes left out), as one uncut appearance.
+    pub fn median_of(points: &[(usize, Appearance)]) -> Appearance {
+        let feature = |f: fn(&Appearance) -> f64| {
+            let mut v: Vec<f64> = points
+                .iter()
+                .map(|(_, a)| f(a))
+                .filter(|x| x.is_finite())
+                .collect();
+            median(&mut v)
+        };
+        let ln_mass = feature(|a| a.ln_mass);
+        Appearance {
+            ln_mass,
+            ln_mass_upper: ln_mass,
+            size: feature(|a| a.size),
+            ep: feature(|a| a.ep),
+        }
+    }
+
     /// The appearance of a detection holding `share` particles (its mass divided among
     /// them); `None` when the mass is not positive and finite.
     pub fn of(d: &Detection, share: usize) -> Option<Appearance> {
@@ -144,21 +164,7 @@ impl TrackAppearance {
         window: f64,
     ) -> Option<TrackAppearance> {
         let &(last_frame, _) = history.last()?;
-        let latest = &history[history.len().saturating_sub(3)..];
-        let mut lm: Vec<f64> = latest.iter().map(|(_, a)| a.ln_mass).collect();
-        let mut ls: Vec<f64> = latest
-            .iter()
-            .map(|(_, a)| a.size)
-            .filter(|s| s.is_finite())
-            .collect();
-        let mut le: Vec<f64> = latest.iter().map(|(_, a)| a.ep).collect();
-        let ln_mass = median(&mut lm);
-        let last = Appearance {
-            ln_mass,
-            ln_mass_upper: ln_mass,
-            size: median(&mut ls),
-            ep: median(&mut le),
-        };
+        let last = Appearance::median_of(&history[history.len().saturating_sub(3)..]);
         let recent = &history[history.len().saturating_sub(HISTORY)..];
         let mut dm: Vec<f64> = Vec::new();
         let mut ds: Vec<f64> = Vec::new();
@@ -190,8 +196,8 @@ impl TrackAppearance {
         if !own.ln_mass.is_finite() {
             return None;
         }
-        let mut eps: Vec<f64> = recent.iter().map(|(_, a)| a.ep).collect();
-        let ep = median(&mut eps);
+        let usual = Appearance::median_of(recent);
+        let ep = usual.ep;
         let spread = AppearanceSpread {
             ln_mass: own
                 .ln_mass
@@ -202,19 +208,6 @@ impl TrackAppearance {
             } else {
                 f64::NAN
             },
-        };
-        let mut um: Vec<f64> = recent.iter().map(|(_, a)| a.ln_mass).collect();
-        let mut us: Vec<f64> = recent
-            .iter()
-            .map(|(_, a)| a.size)
-            .filter(|s| s.is_finite())
-            .collect();
-        let usual_ln_mass = median(&mut um);
-        let usual = Appearance {
-            ln_mass: usual_ln_mass,
-            ln_mass_upper: usual_ln_mass,
-            size: median(&mut us),
-            ep,
         };
         Some(TrackAppearance {
             last,

@@ -16,6 +16,7 @@
 //! background has signal 0 plus noise, whose standard deviation is measured from the
 //! negative half of the signal distribution (particles contribute almost nothing there).
 
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::frames::Frame;
@@ -90,58 +91,6 @@ const CLIP_SIGMAS: f64 = 5.0;
 /// Least sample frames a background pixel's median is taken over once particles are
 /// excluded ([`Background::exclude_particles`]).
 pub const CLEAR_SAMPLES: usize = 3;
-
-/// Points bucketed on a grid of cells `reach` wide, for nearest-distance queries within
-/// `reach`.
-struct PointGrid {
-    cell: f64,
-    columns: usize,
-    rows: usize,
-    /// Points of each cell.
-    cells: Vec<Vec<[f64; 2]>>,
-}
-
-impl PointGrid {
-    fn new(points: &[[f64; 2]], reach: f64, width: usize, height: usize) -> PointGrid {
-        let cell = reach.max(1.0);
-        let columns = (width as f64 / cell).ceil() as usize + 1;
-        let rows = (height as f64 / cell).ceil() as usize + 1;
-        let mut cells = vec![Vec::new(); columns * rows];
-        for p in points {
-            if p[0].is_finite() && p[1].is_finite() {
-                let cx = (p[0] / cell).floor().clamp(0.0, (columns - 1) as f64) as usize;
-                let cy = (p[1] / cell).floor().clamp(0.0, (rows - 1) as f64) as usize;
-                cells[cy * columns + cx].push(*p);
-            }
-        }
-        PointGrid {
-            cell,
-            columns,
-            rows,
-            cells,
-        }
-    }
-
-    /// Distance from `(x, y)` to the nearest point, px, when within `reach`; infinity
-    /// otherwise.
-    fn nearest(&self, x: f64, y: f64, reach: f64) -> f64 {
-        let cx = (x / self.cell).floor().max(0.0) as usize;
-        let cy = (y / self.cell).floor().max(0.0) as usize;
-        let mut best = f64::INFINITY;
-        for gy in cy.saturating_sub(1)..=(cy + 1).min(self.rows - 1) {
-            for gx in cx.saturating_sub(1)..=(cx + 1).min(self.columns - 1) {
-                for p in &self.cells[gy * self.columns + gx] {
-                    best = best.min((p[0] - x).hypot(p[1] - y));
-                }
-            }
-        }
-        if best <= reach {
-            best
-        } else {
-            f64::INFINITY
-        }
-    }
-}
 
 /// Fraction of structured pixels above which the per-pixel model is chosen.
 const STRUCTURED_LIMIT: f64 = 0.02;
@@ -312,33 +261,57 @@ impl Background {
             return;
         }
         let (w, h, c) = (self.width, self.height, self.channels);
-        let grids: Vec<PointGrid> = particles.iter().map(|p| PointGrid::new(p, reach, w, h)).collect();
+        // Pixels some particle came within `reach` of, in any sample: only these change.
+        let mut near_any = vec![false; w * h];
+        for p in particles.iter().flatten() {
+            let span = |v: f64, len: usize| {
+                let lo = (v - reach).floor().max(0.0) as usize;
+                let hi = ((v + reach).ceil().max(0.0) as usize).min(len.saturating_sub(1));
+                lo..=hi
+            };
+            for y in span(p[1], h) {
+                for x in span(p[0], w) {
+                    near_any[y * w + x] |= (x as f64 - p[0]).hypot(y as f64 - p[1]) <= reach;
+                }
+            }
+        }
+        let trees: Vec<Option<ImmutableKdTree<f64, 2>>> = particles
+            .iter()
+            .map(|p| (!p.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(p)))
+            .collect();
+        // Distance from a pixel to the nearest particle of each sample, px (infinite: none).
+        let nearest = |tree: &Option<ImmutableKdTree<f64, 2>>, x: f64, y: f64| {
+            tree.as_ref().map_or(f64::INFINITY, |t| {
+                t.nearest_one::<SquaredEuclidean>(&[x, y]).distance.sqrt()
+            })
+        };
         let (clip_offset, direction) = (self.clip_offset, self.direction.clone());
-        const ROWS: usize = 8;
         self.image
-            .par_chunks_mut(c * w * ROWS)
+            .par_chunks_mut(c * w)
+            .zip(near_any.par_chunks(w))
             .enumerate()
-            .for_each(|(chunk, dst)| {
-                let mut near: Vec<(f64, usize)> = Vec::with_capacity(samples.len());
+            .for_each(|(y, (row, near_row))| {
+                let mut order: Vec<(f64, usize)> = Vec::with_capacity(samples.len());
                 let mut buf: Vec<f32> = Vec::with_capacity(samples.len());
-                for (j, px) in dst.chunks_exact_mut(c).enumerate() {
-                    let pixel = chunk * w * ROWS + j;
-                    let (x, y) = ((pixel % w) as f64, (pixel / w) as f64);
-                    near.clear();
-                    near.extend(grids.iter().enumerate().map(|(s, g)| (g.nearest(x, y, reach), s)));
-                    if near.iter().all(|n| n.0 > reach) {
-                        continue;
-                    }
-                    let clear = near.iter().filter(|n| n.0 > reach).count();
-                    if clear < CLEAR_SAMPLES {
-                        near.sort_by(|a, b| b.0.total_cmp(&a.0));
-                        near.truncate(CLEAR_SAMPLES);
+                for (x, px) in row.chunks_exact_mut(c).enumerate().filter(|(x, _)| near_row[*x]) {
+                    let pixel = y * w + x;
+                    order.clear();
+                    order.extend(
+                        trees
+                            .iter()
+                            .enumerate()
+                            .map(|(s, t)| (nearest(t, x as f64, y as f64), s)),
+                    );
+                    // The clear samples, or the farthest few when too few are clear.
+                    if order.iter().filter(|o| o.0 > reach).count() < CLEAR_SAMPLES {
+                        order.sort_by(|a, b| b.0.total_cmp(&a.0));
+                        order.truncate(CLEAR_SAMPLES);
                     } else {
-                        near.retain(|n| n.0 > reach);
+                        order.retain(|o| o.0 > reach);
                     }
                     for (ch, v) in px.iter_mut().enumerate() {
                         buf.clear();
-                        buf.extend(near.iter().map(|&(_, s)| samples[s].data[pixel * c + ch]));
+                        buf.extend(order.iter().map(|&(_, s)| samples[s].data[pixel * c + ch]));
                         *v = median_of(&mut buf) + clip_offset as f32 * direction[ch];
                     }
                 }
@@ -647,6 +620,40 @@ mod tests {
             s[3 * 40 + 30]
         );
         assert!(s[15 * 40 + 17] > 100.0);
+    }
+
+    #[test]
+    fn a_hovering_spot_is_taken_out_of_the_per_pixel_median() {
+        // A gradient (so the per-pixel model is used) and a bright spot that sits at (20, 15)
+        // in five of seven frames: the plain median there is the spot's level.
+        let at = |k: usize| if k < 5 { (20, 15) } else { (8 + 20 * (k - 5), 6) };
+        let gradient = |i: usize| (i % 40) as f32 * 4.0;
+        let samples: Vec<Frame> = (0..7)
+            .map(|k| {
+                let mut f = frame_with_spot(0.0, 255.0, at(k));
+                for (i, v) in f.data.iter_mut().enumerate() {
+                    if *v < 1.0 {
+                        *v = gradient(i);
+                    }
+                }
+                f
+            })
+            .collect();
+        let mut bg = estimate_background(&samples, BackgroundChoice::PerPixel);
+        let centre = 15 * 40 + 20;
+        assert!(
+            (bg.image[centre] - 255.0).abs() < 1e-3,
+            "the plain median keeps the spot"
+        );
+        let found: Vec<Vec<[f64; 2]>> = (0..7).map(|k| vec![[at(k).0 as f64, at(k).1 as f64]]).collect();
+        bg.exclude_particles(&samples, &found, 5.0);
+        assert!(
+            (bg.image[centre] - gradient(centre)).abs() < 1e-3,
+            "the median of the three frames whose spot is farthest: {}",
+            bg.image[centre]
+        );
+        // Far from every particle, nothing changes.
+        assert!((bg.image[28 * 40 + 2] - gradient(28 * 40 + 2)).abs() < 1e-3);
     }
 
     #[test]

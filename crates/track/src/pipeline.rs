@@ -11,9 +11,10 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 
 use crate::{
-    estimate_background, find_blobs, link_detections, list_frames, load_frame, refine_centroids, Ambiguity,
-    AmbiguityKind, Background, BackgroundChoice, BackgroundModel, Blob, BlobSize, DetectParameters,
-    Detection, Frame, FrameDetections, LinkOptions, PointFlag, TrackError, TrackTable,
+    estimate_background, find_blobs, find_blobs_with_scratch, link_detections, list_frames, load_frame,
+    refine_centroids, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
+    BackgroundModel, Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions,
+    LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -230,19 +231,20 @@ fn track_paths(
         None => (estimate_radius(&background, &estimation, starts), true),
     };
     let expected = expected_size(&background, &estimation, radius, starts);
+    let params = DetectParameters {
+        radius,
+        noise_sigma: background.noise_sigma,
+        expected,
+    };
     // The per-pixel median without the particles found in each sample frame (out to twice the
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
     let mut background = background;
     if background.model == BackgroundModel::PerPixel {
         let found: Vec<Vec<[f64; 2]>> = sample_frames
             .par_iter()
-            .map(|frame| {
-                let params = DetectParameters {
-                    radius,
-                    noise_sigma: background.noise_sigma,
-                    expected,
-                };
-                find_blobs(&background.signal(frame), size.0, size.1, &params)
+            .map_init(Worker::default, |w, frame| {
+                background.signal_into(frame, &mut w.signal);
+                find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect)
                     .blobs
                     .iter()
                     .map(|b| [b.x as f64, b.y as f64])
@@ -252,11 +254,6 @@ fn track_paths(
         background.exclude_particles(&sample_frames, &found, 2.0 * radius + 1.0);
     }
     let background = background;
-    let params = DetectParameters {
-        radius,
-        noise_sigma: background.noise_sigma,
-        expected,
-    };
     let window = locate_window(radius);
 
     // Locate every frame, in parallel.
@@ -265,7 +262,7 @@ fn track_paths(
     let located: Result<Vec<FrameDetections>, TrackError> = paths
         .par_iter()
         .enumerate()
-        .map(|(i, (k, path))| {
+        .map_init(Worker::default, |w, (i, (k, path))| {
             let loaded;
             let frame = match sample_of[i] {
                 Some(j) => &sample_frames[j],
@@ -279,19 +276,20 @@ fn track_paths(
             // brightness, and a gain is not uniform enough over a real frame to correct the
             // component labelling with); centroids are measured in the gain-corrected one,
             // since a centroid window integrates any offset left in it.
-            let mut signal = background.signal(frame);
-            let blobs = find_blobs(&signal, size.0, size.1, &params);
-            background.remove_gain(frame, &mut signal);
+            background.signal_into(frame, &mut w.signal);
+            let blobs = find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect);
+            background.remove_gain(frame, &mut w.signal);
             let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
             let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
-            let detections = refine_centroids(
-                &signal,
+            let detections = refine_centroids_with_scratch(
+                &w.signal,
                 size.0,
                 size.1,
                 &seeds,
                 &areas,
                 window,
                 background.noise_sigma,
+                &mut w.locate,
             );
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n, total);
@@ -368,6 +366,15 @@ fn track_paths(
         stats,
         detections: located,
     })
+}
+
+/// One worker thread's buffers, reused from frame to frame: the signal image, the filters'
+/// and blob regions' buffers (a frame-sized region map among them) and the centroids'.
+#[derive(Default)]
+struct Worker {
+    signal: Vec<f32>,
+    detect: Scratch,
+    locate: LocateScratch,
 }
 
 /// Centroid window radius for particles of radius `radius` (at half the peak signal), px:

@@ -359,15 +359,11 @@ fn diagnose_inner(
             .iter()
             .filter_map(|v| v.evidence.noise_variance)
             .fold(f64::INFINITY, f64::min);
-        let rank = |v: &search::Verified| match (
-            v.evidence.score,
-            v.evidence.held_out_cost_before,
-            v.evidence.held_out_cost_after,
-        ) {
-            (Some(_), Some(before), Some(after)) if common.is_finite() => {
-                (before - after) / common - v.evidence.penalty
-            }
-            _ => f64::NEG_INFINITY,
+        let rank = |v: &search::Verified| {
+            v.evidence
+                .score
+                .and(v.evidence.score_on(common))
+                .unwrap_or(f64::NEG_INFINITY)
         };
         verified.sort_by(|a, b| rank(b).total_cmp(&rank(a)));
         // Record this round's losers (and unverified screened ones).

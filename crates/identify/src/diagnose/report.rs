@@ -70,10 +70,24 @@ pub struct Evidence {
     pub noise_variance: Option<f64>,
     /// Penalty: parameters added times `ln(held-out residual count)`.
     pub penalty: f64,
-    /// `(before - after) / noise_variance - penalty`; accepted when positive and best.
+    /// `(before - after) / noise_variance - penalty` ([`Evidence::score_on`] its own
+    /// variance); accepted when positive and best.
     pub score: Option<f64>,
     /// Number of parameters the term adds.
     pub parameter_count: usize,
+}
+
+impl Evidence {
+    /// `(before - after) / variance - penalty`: the held-out cost the term removes in units
+    /// of `variance` (px²), less its penalty; `None` when a cost is missing or not finite.
+    pub fn score_on(&self, variance: f64) -> Option<f64> {
+        match (self.held_out_cost_before, self.held_out_cost_after) {
+            (Some(before), Some(after)) if before.is_finite() && after.is_finite() => {
+                Some((before - after) / variance - self.penalty)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// An accepted effect.

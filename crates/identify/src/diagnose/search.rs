@@ -433,23 +433,20 @@ impl Context<'_> {
                 current.fit.residual_count,
             )
         };
-        let penalty = k as f64 * (n.max(2) as f64).ln();
         let variance = with.map(|w| self.noise_variance(w));
-        let score = match (after, variance) {
-            (Some(a), Some(v)) if a.is_finite() && before.is_finite() => Some((before - a) / v - penalty),
-            _ => None,
-        };
         let first = proposals.first();
-        Evidence {
+        let mut evidence = Evidence {
             screen_score: first.and_then(|p| p.screen),
             score_test: first.and_then(|p| p.score_test),
             held_out_cost_before: Some(before),
             held_out_cost_after: after,
             noise_variance: variance,
-            penalty,
-            score,
+            penalty: k as f64 * (n.max(2) as f64).ln(),
+            score: None,
             parameter_count: k,
-        }
+        };
+        evidence.score = variance.and_then(|v| evidence.score_on(v));
+        evidence
     }
 }
 

@@ -136,39 +136,15 @@ fn bouncing_ball_is_followed_through_every_frame() {
 
 /// Least-squares `y = c0 + c1 t + c2 t^2`: the coefficients and the RMS residual.
 fn parabola(t: &[f64], y: &[f64]) -> ([f64; 3], f64) {
-    let mut a = [[0.0; 4]; 3];
-    for (&ti, &yi) in t.iter().zip(y) {
-        let basis = [1.0, ti, ti * ti];
-        for r in 0..3 {
-            for c in 0..3 {
-                a[r][c] += basis[r] * basis[c];
-            }
-            a[r][3] += basis[r] * yi;
-        }
-    }
-    // Gauss-Jordan elimination with partial pivoting on the 3x3 normal equations.
-    for col in 0..3 {
-        let pivot = (col..3)
-            .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
-            .expect("rows");
-        a.swap(col, pivot);
-        let pivot_row = a[col];
-        for (r, row) in a.iter_mut().enumerate() {
-            if r != col {
-                let f = row[col] / pivot_row[col];
-                for (x, p) in row.iter_mut().zip(pivot_row).skip(col) {
-                    *x -= f * p;
-                }
-            }
-        }
-    }
-    let coef = [a[0][3] / a[0][0], a[1][3] / a[1][1], a[2][3] / a[2][2]];
-    let ss: f64 = t
-        .iter()
-        .zip(y)
-        .map(|(&ti, &yi)| (yi - coef[0] - coef[1] * ti - coef[2] * ti * ti).powi(2))
-        .sum();
-    (coef, (ss / t.len() as f64).sqrt())
+    let a = nalgebra::DMatrix::from_fn(t.len(), 3, |i, j| t[i].powi(j as i32));
+    let y = nalgebra::DVector::from_column_slice(y);
+    let c = a
+        .clone()
+        .svd(true, true)
+        .solve(&y, 1e-12)
+        .expect("a parabola through the arc");
+    let rms = ((&a * &c - y).norm_squared() / t.len() as f64).sqrt();
+    ([c[0], c[1], c[2]], rms)
 }
 
 /// Leaves the track where a person can look at it when asked to (PHYSFIT_KEEP_TRACKS).
