@@ -154,6 +154,9 @@ struct Track {
     seen: usize,
     /// Consecutive frames, up to the last, in which the track shared a blob.
     merged: usize,
+    /// Running mean squared one-frame-ahead residuals of the constant position, constant
+    /// velocity and constant acceleration predictions, px².
+    err_cp: Option<f64>,
     err_cv: Option<f64>,
     err_ca: Option<f64>,
     /// Prediction scale before any velocity is known, px.
@@ -173,6 +176,7 @@ impl Track {
             misses: 0,
             seen,
             merged: 0,
+            err_cp: None,
             err_cv: None,
             err_ca: None,
             init_scale,
@@ -215,8 +219,8 @@ impl Track {
     }
 
     /// Polynomial extrapolation (Lagrange) through the first `k` of `anchors` (from
-    /// [`Track::anchors`]) to the next frame: constant velocity for 2, constant
-    /// acceleration for 3.
+    /// [`Track::anchors`]) to the next frame: constant position for 1, constant velocity
+    /// for 2, constant acceleration for 3.
     fn extrapolate(&self, anchors: &[usize], k: usize) -> Option<[f64; 2]> {
         (anchors.len() >= k).then(|| {
             let knots: Vec<(f64, [f64; 2])> = anchors[..k].iter().map(|&i| (i as f64, self.at(i))).collect();
@@ -224,22 +228,46 @@ impl Track {
         })
     }
 
-    /// Predicted position and prediction scale (px) for the next frame.
-    fn predict(&self, floor: f64) -> ([f64; 2], f64) {
+    /// Predicted position and prediction scale (px) for the next frame. With a bound on
+    /// one frame's displacement (`step`, px), the gate (`GATE_SIGMAS` scales) reaches no
+    /// farther than the particle can have gone since its newest anchor, twice over (its
+    /// velocity may have reversed), plus a particle diameter: a track whose residuals grew
+    /// from a wrong link, or over a long merge, cannot reach across the frame.
+    fn predict(&self, floor: f64, step: Option<f64>, radius: f64) -> ([f64; 2], f64) {
+        let (p, s) = self.predict_unbounded(floor);
+        let Some(step) = step else { return (p, s) };
+        let h = (self.points.len() - self.anchors().first().copied().unwrap_or(self.points.len() - 1)) as f64;
+        let reach = 2.0 * h * step + 2.0 * radius;
+        (p, s.min(reach / GATE_SIGMAS).max(floor))
+    }
+
+    fn predict_unbounded(&self, floor: f64) -> ([f64; 2], f64) {
         let grow = 1.0 + (self.misses + self.merged) as f64;
         let anchors = self.anchors();
         let n = self.points.len();
         let newest = anchors.first().copied().unwrap_or(n - 1);
-        // Both errors were learned one frame ahead. Extrapolated `h` frames, the noise of
+        // The errors were learned one frame ahead. Extrapolated `h` frames, the noise of
         // the quadratic term grows by about `h²` more than that of the line, so constant
-        // acceleration is used across a gap only if it was that much better.
+        // acceleration is used across a gap only if it was that much better. Constant
+        // position wins where the track's own residuals say the motion is a random walk
+        // (a velocity extrapolated from random steps overshoots by a step on average).
         let h = (n - newest) as f64;
-        let use_ca = matches!((self.err_ca, self.err_cv), (Some(a), Some(v)) if a * h * h < v);
-        let (p, err) = if use_ca {
-            (self.extrapolate(&anchors, 3), self.err_ca)
-        } else {
-            (self.extrapolate(&anchors, 2), self.err_cv)
+        // Constant velocity until it has a residual of its own, then the best of the three.
+        let order = match (self.err_cp, self.err_cv, self.err_ca) {
+            (Some(c), Some(v), a) => {
+                let a = a.map_or(f64::INFINITY, |a| a * h * h);
+                if a < v && a < c {
+                    3
+                } else if c < v {
+                    1
+                } else {
+                    2
+                }
+            }
+            _ => 2,
         };
+        let err = [self.err_cp, self.err_cv, self.err_ca][order - 1];
+        let p = self.extrapolate(&anchors, order);
         match (p, err) {
             (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
             (Some(p), None) => (p, self.init_scale.max(floor) * grow),
@@ -259,7 +287,12 @@ impl Track {
             }
         };
         let anchors = self.anchors();
-        let (cv, ca) = (self.extrapolate(&anchors, 2), self.extrapolate(&anchors, 3));
+        let (cp, cv, ca) = (
+            self.extrapolate(&anchors, 1),
+            self.extrapolate(&anchors, 2),
+            self.extrapolate(&anchors, 3),
+        );
+        upd(&mut self.err_cp, cp);
         upd(&mut self.err_cv, cv);
         upd(&mut self.err_ca, ca);
     }
@@ -286,6 +319,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     // `r + 1` each, reaching the other's disc).
     let crowd = 2.0 * r + 2.0;
     let mut tracks: Vec<Track> = Vec::new();
+    let mut steps = StepBound::default();
     let named = options.named_start.is_some();
     let mut events: Vec<(usize, AmbiguityKind, Vec<usize>)> = Vec::new();
 
@@ -355,7 +389,8 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let t = fd.frame;
         let dets = &fd.detections;
         let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
-        let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor)).collect();
+        let step = steps.bound();
+        let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
         let looks: Vec<Option<TrackAppearance>> = live
             .iter()
             .map(|&i| TrackAppearance::from_history(&tracks[i].apps, t, pooled, r + 1.0))
@@ -370,7 +405,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         // other tracked particle, so it is compared whole with the track's own (a blob cut by
         // the image border on its mass alone, one-sidedly: see [`TrackAppearance::z`]).
         let look_cost = |k: usize, j: usize, gate: f64| -> Option<f64> {
-            let lone = pred_nn[k] >= crowd;
+            // Lone: no other prediction within reach, allowing two scales of this
+            // track's own prediction error.
+            let lone = pred_nn[k] >= crowd + 2.0 * preds[k].1;
             let (Some(look), Some(a), true) = (&looks[k], Appearance::of(&dets[j], 1), lone) else {
                 return Some(0.0);
             };
@@ -531,6 +568,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let d = &dets[j];
             if group.len() == 1 {
                 let ti = live[group[0]];
+                if let Some(last) = tracks[ti].points.last() {
+                    if last.flag == PointFlag::Detected && last.clean && clean[j] {
+                        steps.push((d.x - last.x).hypot(d.y - last.y));
+                    }
+                }
                 tracks[ti].learn([d.x, d.y]);
                 tracks[ti].misses = 0;
                 tracks[ti].merged = 0;
@@ -812,6 +854,42 @@ fn reacquire(
         }
     }
     still
+}
+
+/// The largest displacement a particle makes in one frame, measured from the recording:
+/// the steps between consecutive points of a track each located alone in its own blob, over
+/// the latest [`StepBound::KEPT`] of them.
+#[derive(Clone, Debug, Default)]
+struct StepBound {
+    steps: std::collections::VecDeque<f64>,
+}
+
+impl StepBound {
+    /// Steps kept (the most recent).
+    const KEPT: usize = 4096;
+    /// Steps needed before a bound is given.
+    const NEEDED: usize = 30;
+
+    fn push(&mut self, step: f64) {
+        if step.is_finite() {
+            if self.steps.len() == Self::KEPT {
+                self.steps.pop_front();
+            }
+            self.steps.push_back(step);
+        }
+    }
+
+    /// One and a half times the 90th percentile of the kept steps (robust to the odd wrong
+    /// link, which a maximum is not), or `None` while fewer than [`StepBound::NEEDED`] steps
+    /// were seen.
+    fn bound(&self) -> Option<f64> {
+        if self.steps.len() < Self::NEEDED {
+            return None;
+        }
+        let mut v: Vec<f64> = self.steps.iter().copied().collect();
+        let k = (0.9 * (v.len() - 1) as f64).round() as usize;
+        Some(1.5 * *v.select_nth_unstable_by(k, f64::total_cmp).1)
+    }
 }
 
 fn speed(tr: &Track) -> f64 {
