@@ -79,6 +79,10 @@ pub struct Background {
     /// Mean of the clipped noise added to the background (along `direction`) where most of
     /// the background's noise is clipped at black or white, grey levels; 0 otherwise.
     pub clip_offset: f64,
+    /// How far a pixel's per-pixel median must be from the constant level to count as
+    /// structure (four standard errors of a median over the samples, at least 3), grey
+    /// levels.
+    pub structure_threshold: f32,
 }
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
@@ -93,7 +97,7 @@ const CLIP_SIGMAS: f64 = 5.0;
 pub const CLEAR_SAMPLES: usize = 3;
 
 /// Fraction of structured pixels above which the per-pixel model is chosen.
-const STRUCTURED_LIMIT: f64 = 0.02;
+pub(crate) const STRUCTURED_LIMIT: f64 = 0.02;
 
 /// Pixels the background model is chosen on (an even sample of the frame): the fractions of
 /// structured and moving pixels are then known to about 0.2 % of the frame.
@@ -199,6 +203,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         reference_gain: 1.0,
         brightest: 0.0,
         clip_offset: 0.0,
+        structure_threshold: tau,
     };
     bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
     // The lowest signal a pixel can show: its value at the clip level (0 where particles
@@ -281,19 +286,7 @@ impl Background {
         }
         let (w, h, c) = (self.width, self.height, self.channels);
         // Pixels some particle came within `reach` of, in any sample: only these change.
-        let mut near_any = vec![false; w * h];
-        for p in particles.iter().flatten() {
-            let span = |v: f64, len: usize| {
-                let lo = (v - reach).floor().max(0.0) as usize;
-                let hi = ((v + reach).ceil().max(0.0) as usize).min(len.saturating_sub(1));
-                lo..=hi
-            };
-            for y in span(p[1], h) {
-                for x in span(p[0], w) {
-                    near_any[y * w + x] |= (x as f64 - p[0]).hypot(y as f64 - p[1]) <= reach;
-                }
-            }
-        }
+        let near_any = near_any_particle(particles, reach, w, h);
         let trees: Vec<Option<ImmutableKdTree<f64, 2>>> = particles
             .iter()
             .map(|p| (!p.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(p)))
@@ -337,6 +330,58 @@ impl Background {
             });
         self.reference_gain = samples.iter().map(|f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
         self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+    }
+
+    /// The fraction of the frame's pixels whose structure (a per-pixel median farther from
+    /// the constant level than [`Background::structure_threshold`]) stays when the samples
+    /// holding a particle near the pixel are left out: at each structured pixel, the median
+    /// over the samples in which no particle (`particles[j]`: positions found in
+    /// `samples[j]`, px) lies within `reach` px must still be structure (against a
+    /// threshold grown for the fewer samples). Particles that hover over a few samples leave
+    /// themselves in the median, which the automatic choice can take for a static scene;
+    /// there the pixel shows the level whenever the particle is away. Structure under a
+    /// speck that is always found (texture) has no clear sample and is not counted. 0 for
+    /// the constant model.
+    #[must_use]
+    pub fn static_structure_fraction(
+        &self,
+        samples: &[Frame],
+        particles: &[Vec<[f64; 2]>],
+        reach: f64,
+    ) -> f64 {
+        if self.model != BackgroundModel::PerPixel || samples.len() != particles.len() || samples.is_empty() {
+            return 0.0;
+        }
+        let (w, h, c) = (self.width, self.height, self.channels);
+        let near: Vec<Vec<bool>> = particles
+            .iter()
+            .map(|p| near_any_particle(std::slice::from_ref(p), reach, w, h))
+            .collect();
+        let k = samples.len() as f32;
+        let tau = self.structure_threshold;
+        let stride = ((w * h) / DECISION_PIXELS).max(1) | 1;
+        let mut looked = 0usize;
+        let mut stays = 0usize;
+        let mut buf: Vec<f32> = Vec::with_capacity(samples.len());
+        for i in (0..w * h).step_by(stride) {
+            looked += 1;
+            let px = &self.image[i * c..(i + 1) * c];
+            if !px.iter().zip(&self.level).any(|(v, l)| (v - l).abs() > tau) {
+                continue;
+            }
+            let clear: Vec<usize> = (0..samples.len()).filter(|&j| !near[j][i]).collect();
+            if clear.is_empty() {
+                continue;
+            }
+            let t = tau * (k / clear.len() as f32).sqrt();
+            let structured = (0..c).any(|ch| {
+                buf.clear();
+                buf.extend(clear.iter().map(|&j| samples[j].data[i * c + ch]));
+                (median_of(&mut buf) - self.level[ch]).abs() > t
+            });
+            stays += usize::from(structured);
+        }
+        stays as f64 / looked.max(1) as f64
     }
 
     /// The brightness gain of `frame` against the background image: the median over a
@@ -461,6 +506,25 @@ fn clipped_mean_and_sigma(values: &mut [f32]) -> (f64, f64) {
 
 /// An offset in `[-0.5, 0.5)` grey levels for sample `i`, evenly spread over that range along
 /// any run of consecutive samples (the golden-ratio sequence).
+/// Marks the pixels (of a `width` x `height` frame) within `reach` px of some particle of
+/// some sample (`particles[j]`: positions in sample `j`, px).
+fn near_any_particle(particles: &[Vec<[f64; 2]>], reach: f64, width: usize, height: usize) -> Vec<bool> {
+    let mut near = vec![false; width * height];
+    let span = |v: f64, len: usize| {
+        let lo = (v - reach).floor().max(0.0) as usize;
+        let hi = ((v + reach).ceil().max(0.0) as usize).min(len.saturating_sub(1));
+        lo..=hi
+    };
+    for p in particles.iter().flatten() {
+        for y in span(p[1], height) {
+            for x in span(p[0], width) {
+                near[y * width + x] |= (x as f64 - p[0]).hypot(y as f64 - p[1]) <= reach;
+            }
+        }
+    }
+    near
+}
+
 /// A deterministic dither over one grey level, `frac(i φ) − ½` (the golden-ratio sequence
 /// spreads any run of consecutive indices evenly over the level), in 64-bit fixed point.
 fn dither(i: usize) -> f32 {

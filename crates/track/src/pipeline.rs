@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use crate::background::STRUCTURED_LIMIT;
 use crate::{
     estimate_background, find_blobs, find_blobs_with_scratch, link_detections, list_frames, load_frame,
     refine_centroids, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
@@ -211,14 +212,7 @@ fn track_paths(
     for (j, &i) in picks.iter().enumerate() {
         sample_of[i] = Some(j);
     }
-    let background = estimate_background(&sample_frames, options.background);
-
-    // The estimation frames' signals, plain (what blobs are found in) and gain-corrected
-    // (what centroids are measured in), computed once for every round of the estimates.
-    let estimation: Vec<SampleSignals> = sample_frames[..sample_frames.len().min(RADIUS_SAMPLES)]
-        .iter()
-        .map(|frame| SampleSignals::of(&background, frame))
-        .collect();
+    let mut background = estimate_background(&sample_frames, options.background);
     // With named particles, their frame-A blobs are the particles: the sizes are measured on
     // them alone, so that texture or clutter, however plentiful, cannot set the scale.
     let starts: Option<Vec<[f64; 2]>> = options
@@ -226,33 +220,38 @@ fn track_paths(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
-    let (radius, radius_estimated) = match options.radius {
-        Some(r) => (r, false),
-        None => (estimate_radius(&background, &estimation, starts), true),
-    };
-    let expected = expected_size(&background, &estimation, radius, starts);
-    let params = DetectParameters {
-        radius,
-        noise_sigma: background.noise_sigma,
-        expected,
-    };
+    let mut sizes = Sizes::measure(&background, &sample_frames, options.radius, starts);
     // The per-pixel median without the particles found in each sample frame (out to twice the
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
-    let mut background = background;
     if background.model == BackgroundModel::PerPixel {
         let found: Vec<Vec<[f64; 2]>> = sample_frames
             .par_iter()
             .map_init(Worker::default, |w, frame| {
                 background.signal_into(frame, &mut w.signal);
-                find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect)
+                find_blobs_with_scratch(&w.signal, size.0, size.1, &sizes.params, &mut w.detect)
                     .blobs
                     .iter()
                     .map(|b| [b.x as f64, b.y as f64])
                     .collect()
             })
             .collect();
-        background.exclude_particles(&sample_frames, &found, 2.0 * radius + 1.0);
+        let reach = 2.0 * sizes.radius + 1.0;
+        if options.background == BackgroundChoice::Auto
+            && background.static_structure_fraction(&sample_frames, &found, reach) <= STRUCTURED_LIMIT
+        {
+            // All the structure of the median lies where particles were: particles that
+            // hovered over few samples left themselves in it, and the scene itself is flat.
+            background = estimate_background(&sample_frames, BackgroundChoice::Constant);
+            sizes = Sizes::measure(&background, &sample_frames, options.radius, starts);
+        } else {
+            background.exclude_particles(&sample_frames, &found, reach);
+        }
     }
+    let Sizes {
+        radius,
+        radius_estimated,
+        params,
+    } = sizes;
     let background = background;
     let window = locate_window(radius);
 
@@ -422,6 +421,49 @@ fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)
         found_width: frame.width,
         found_height: frame.height,
     })
+}
+
+/// The particle size the detector works with, measured on the sample frames.
+struct Sizes {
+    /// Particle radius, px.
+    radius: f64,
+    /// Whether `radius` was measured (not given).
+    radius_estimated: bool,
+    /// Detection parameters at that radius, with the expected blob sizes.
+    params: DetectParameters,
+}
+
+impl Sizes {
+    /// Radius (unless `given`) and expected blob sizes, from the first [`RADIUS_SAMPLES`]
+    /// sample frames against `background`; measured on the blobs nearest `starts` when
+    /// named particles are given.
+    fn measure(
+        background: &Background,
+        samples: &[Frame],
+        given: Option<f64>,
+        starts: Option<&[[f64; 2]]>,
+    ) -> Sizes {
+        // The estimation frames' signals, plain (what blobs are found in) and gain-corrected
+        // (what centroids are measured in), computed once for every round of the estimates.
+        let estimation: Vec<SampleSignals> = samples[..samples.len().min(RADIUS_SAMPLES)]
+            .iter()
+            .map(|frame| SampleSignals::of(background, frame))
+            .collect();
+        let (radius, radius_estimated) = match given {
+            Some(r) => (r, false),
+            None => (estimate_radius(background, &estimation, starts), true),
+        };
+        let expected = expected_size(background, &estimation, radius, starts);
+        Sizes {
+            radius,
+            radius_estimated,
+            params: DetectParameters {
+                radius,
+                noise_sigma: background.noise_sigma,
+                expected,
+            },
+        }
+    }
 }
 
 /// One estimation frame's signals: plain, where blobs are found, and gain-corrected
