@@ -4,6 +4,7 @@
 mod appearance;
 mod assignment;
 mod background;
+mod crossing;
 mod detect;
 mod error;
 mod frames;

@@ -37,6 +37,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::appearance::{Appearance, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
+use crate::crossing::{self, Seen};
 use crate::locate::Detection;
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 
@@ -328,26 +329,70 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let dets = &first.detections;
         let det_nn = nearest_other(&dets.iter().map(|d| [d.x, d.y]).collect::<Vec<_>>());
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
+        // Columns: each blob once per particle its mass can hold (particles may start
+        // inside one blob).
+        let col_det: Vec<usize> = dets
+            .iter()
+            .enumerate()
+            .flat_map(|(j, d)| std::iter::repeat(j).take(capacity(d, typical_mass)))
+            .collect();
         let mut problem = SparseProblem {
             row_miss: Vec::new(),
-            col_miss: vec![0.0; dets.len()],
+            col_miss: vec![0.0; col_det.len()],
             pairs: Vec::new(),
         };
         for (i, (_, p)) in starts.iter().enumerate() {
             let gate = (0.5 * nn[i]).max(3.0 * r).min(diagonal(options));
             problem.row_miss.push(1.0);
-            for (j, d) in dets.iter().enumerate() {
+            for (c, &j) in col_det.iter().enumerate() {
+                let d = &dets[j];
                 let d2 = (d.x - p[0]).powi(2) + (d.y - p[1]).powi(2);
                 if d2 <= gate * gate {
-                    problem.pairs.push((i, j, d2 / (gate * gate)));
+                    // Later copies of a blob cost a little more, so a lone particle takes the first.
+                    let copy = c - col_det.partition_point(|&k| k < j);
+                    problem
+                        .pairs
+                        .push((i, c, d2 / (gate * gate) + 1e-3 * copy as f64));
                 }
             }
         }
-        let assign = solve_sparse(&problem);
+        let assign: Vec<Option<usize>> = solve_sparse(&problem)
+            .into_iter()
+            .map(|c| c.map(|c| col_det[c]))
+            .collect();
+        // The particles that start in each blob.
+        let mut sharing: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
+        for (i, a) in assign.iter().enumerate() {
+            if let Some(j) = a {
+                sharing[*j].push(i);
+            }
+        }
         for (i, (name, p)) in starts.iter().enumerate() {
             let init = (0.5 * nn[i]).min(diagonal(options)) / GATE_SIGMAS;
             let point = match assign[i] {
-                Some(j) => point_from(&dets[j], PointFlag::Detected, det_nn[j] < crowd),
+                Some(j) if sharing[j].len() == 1 => {
+                    point_from(&dets[j], PointFlag::Detected, det_nn[j] < crowd)
+                }
+                Some(j) => {
+                    // A blob of several particles: each at the blob's centroid plus its start
+                    // position's offset from the group's.
+                    let group = &sharing[j];
+                    let n = group.len() as f64;
+                    let mean = group.iter().fold([0.0, 0.0], |m, &k| {
+                        [m[0] + starts[k].1[0] / n, m[1] + starts[k].1[1] / n]
+                    });
+                    let d = &dets[j];
+                    Point {
+                        x: d.x + p[0] - mean[0],
+                        y: d.y + p[1] - mean[1],
+                        mass: d.mass / n,
+                        size: d.size,
+                        ep: d.ep.max(init),
+                        flag: PointFlag::Split,
+                        emit: true,
+                        clean: false,
+                    }
+                }
                 None => {
                     out.warnings.push(format!(
                         "frame {}: no blob near the start position ({:.1}, {:.1}) of particle {name}; starting from that position",
@@ -366,13 +411,19 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                     }
                 }
             };
+            let split = point.flag == PointFlag::Split;
             let mut track = Track::new(name.clone(), first.frame, point, init.max(floor));
-            if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
+            if split {
+                track.merged = 1;
+            } else if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
                 track
                     .apps
                     .extend(Appearance::of(&dets[j], 1).map(|a| (first.frame, a)));
             }
             tracks.push(track);
+        }
+        for group in sharing.iter().filter(|g| g.len() > 1) {
+            events.push((first.frame, AmbiguityKind::Merged, group.clone()));
         }
     } else {
         start_tracks(
@@ -429,15 +480,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         };
 
         // Columns: each detection once per particle its mass can hold.
-        let mut col_det: Vec<usize> = Vec::new();
-        for (j, d) in dets.iter().enumerate() {
-            let cap = if typical_mass > 0.0 {
-                (d.mass / typical_mass).round().clamp(1.0, 4.0) as usize
-            } else {
-                1
-            };
-            col_det.extend(std::iter::repeat(j).take(cap));
-        }
+        let col_det: Vec<usize> = dets
+            .iter()
+            .enumerate()
+            .flat_map(|(j, d)| std::iter::repeat(j).take(capacity(d, typical_mass)))
+            .collect();
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
         let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));
         let mut first_col = vec![0usize; dets.len() + 1];
@@ -650,6 +697,12 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         }
     }
 
+    // Named tracks: crossings judged again with the motion after them (see `crossing`).
+    if let Some(starts) = &options.named_start {
+        let starts: Vec<[f64; 2]> = starts.iter().map(|s| s.1).collect();
+        settle_crossings(&mut tracks, &mut events, &starts, crowd, typical_mass);
+    }
+
     // Unnamed tracks: drop trailing bridged points (the particle was never seen again).
     for tr in &mut tracks {
         if !named {
@@ -666,6 +719,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     let events: Vec<(usize, AmbiguityKind, Vec<usize>)> = events
         .into_iter()
         .filter(|(f, kind, ids)| {
+            // Events emptied when a crossing was settled are gone.
+            if ids.is_empty() {
+                return false;
+            }
             // Bridged points later dropped are not reported as bridged.
             *kind != AmbiguityKind::Missing
                 || ids.iter().all(|&i| {
@@ -708,6 +765,217 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     }
     out.table = TrackTable { points: rows };
     out
+}
+
+/// Settles the crossings [`crossing::resolve`] judges: inside each, the blobs located there
+/// are handed to the particles whose paths they lie on and the predicted points are placed on
+/// those paths (a split blob's particles about its centroid); after it, the tracks take the
+/// continuations in the order their motion says. `events` (frame, kind, tracks) follow the
+/// points they describe. `starts[i]` is track `i`'s start position.
+fn settle_crossings(
+    tracks: &mut [Track],
+    events: &mut Vec<(usize, AmbiguityKind, Vec<usize>)>,
+    starts: &[[f64; 2]],
+    near: f64,
+    typical_mass: f64,
+) {
+    let views: Vec<Vec<Seen>> = tracks
+        .iter()
+        .map(|tr| {
+            tr.points
+                .iter()
+                .map(|p| Seen {
+                    x: p.x,
+                    y: p.y,
+                    clean: p.clean && p.flag == PointFlag::Detected,
+                    predicted: p.flag != PointFlag::Detected,
+                })
+                .collect()
+        })
+        .collect();
+    let first: Vec<usize> = tracks.iter().map(|t| t.first_frame).collect();
+    let mut found = crossing::resolve(&views, &first, Some(starts), near);
+    found.sort_by_key(|r| r.frame);
+    // Crossings are judged on the tracks as linked. `holder[o]`: the track now holding what
+    // track `o` held from `settled[o]` on (a crossing that starts before an exchange already
+    // made for one of its tracks is left as it is).
+    let mut holder: Vec<usize> = (0..tracks.len()).collect();
+    let mut settled: Vec<usize> = vec![0; tracks.len()];
+    let index = |tr: &Track, t: usize| t.checked_sub(tr.first_frame).filter(|&k| k < tr.points.len());
+    for r in found {
+        if r.tracks.iter().any(|&o| settled[o] > r.start) {
+            continue;
+        }
+        let now: Vec<usize> = r.tracks.iter().map(|&o| holder[o]).collect();
+        let m = now.len();
+        for t in r.start..r.frame {
+            let Some(ks) = now
+                .iter()
+                .map(|&i| index(&tracks[i], t))
+                .collect::<Option<Vec<usize>>>()
+            else {
+                continue;
+            };
+            let path: Vec<[f64; 2]> = r.bridges.iter().map(|b| b.at(t as f64)).collect();
+            // The located blobs to the particles whose paths they lie on (moving as few
+            // points as that allows).
+            let located: Vec<Option<[f64; 2]>> = (0..m)
+                .map(|a| {
+                    let p = &tracks[now[a]].points[ks[a]];
+                    (p.flag == PointFlag::Detected).then_some([p.x, p.y])
+                })
+                .collect();
+            let mut best: (f64, Vec<usize>) = (f64::INFINITY, (0..m).collect());
+            crossing::permutations(m, &mut |sigma| {
+                let cost: f64 = (0..m)
+                    .map(|a| {
+                        let moved = if sigma[a] == a { 0.0 } else { 1e-6 };
+                        moved
+                            + located[a].map_or(0.0, |p| {
+                                let q = path[sigma[a]];
+                                (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)
+                            })
+                    })
+                    .sum();
+                if cost < best.0 {
+                    best = (cost, sigma.to_vec());
+                }
+            });
+            let sigma = best.1;
+            if sigma.iter().enumerate().any(|(a, &b)| a != b) {
+                let old: Vec<Point> = (0..m).map(|a| tracks[now[a]].points[ks[a]].clone()).collect();
+                for (a, p) in old.into_iter().enumerate() {
+                    let b = sigma[a];
+                    tracks[now[b]].points[ks[b]] = p;
+                }
+                relabel_events(events, t..t + 1, &now, &sigma);
+            }
+            // A located blob heavy enough for two, with the path of a particle that was
+            // bridged here running through it: both were in it (a merged blob the linker
+            // gave to one of them). Both are placed about its centroid, flagged as split.
+            for a in 0..m {
+                let p = tracks[now[a]].points[ks[a]].clone();
+                let cap = capacity_of(p.mass, typical_mass);
+                if p.flag != PointFlag::Detected || cap < 2 {
+                    continue;
+                }
+                let mut others: Vec<(f64, usize)> = (0..m)
+                    .filter(|&b| b != a && tracks[now[b]].points[ks[b]].flag == PointFlag::Interpolated)
+                    .map(|b| ((path[b][0] - p.x).hypot(path[b][1] - p.y), b))
+                    .filter(|&(d, _)| d <= 0.5 * near)
+                    .collect();
+                others.sort_by(|x, y| x.0.total_cmp(&y.0));
+                others.truncate(cap - 1);
+                if others.is_empty() {
+                    continue;
+                }
+                let group: Vec<usize> = std::iter::once(a).chain(others.iter().map(|o| o.1)).collect();
+                let g = group.len() as f64;
+                let middle = group
+                    .iter()
+                    .fold([0.0, 0.0], |s, &b| [s[0] + path[b][0] / g, s[1] + path[b][1] / g]);
+                for &b in &group {
+                    let q = &mut tracks[now[b]].points[ks[b]];
+                    *q = Point {
+                        x: p.x + path[b][0] - middle[0],
+                        y: p.y + path[b][1] - middle[1],
+                        mass: p.mass / g,
+                        size: p.size,
+                        ep: p
+                            .ep
+                            .max((path[b][0] - q.x).hypot(path[b][1] - q.y).min(0.5 * near)),
+                        flag: PointFlag::Split,
+                        emit: true,
+                        clean: false,
+                    };
+                }
+                let ids: Vec<usize> = group.iter().map(|&b| now[b]).collect();
+                for (f, kind, e) in events.iter_mut() {
+                    if *f == t && *kind == AmbiguityKind::Missing && e.iter().all(|i| ids.contains(i)) {
+                        e.clear();
+                    }
+                }
+                events.push((t, AmbiguityKind::Merged, ids));
+            }
+            // Predicted points on the paths: bridged ones on their own, split ones about
+            // their shared blob's centroid (the points of one blob carry its size and share
+            // of mass).
+            let key = |p: &Point| (p.mass.to_bits(), p.size.to_bits());
+            let pts: Vec<Point> = (0..m).map(|a| tracks[now[a]].points[ks[a]].clone()).collect();
+            for a in 0..m {
+                let p = &pts[a];
+                let place = match p.flag {
+                    PointFlag::Detected => continue,
+                    PointFlag::Interpolated => path[a],
+                    PointFlag::Split => {
+                        let group: Vec<usize> = (0..m)
+                            .filter(|&b| pts[b].flag == PointFlag::Split && key(&pts[b]) == key(p))
+                            .collect();
+                        let g = group.len() as f64;
+                        let mean = |v: &dyn Fn(usize) -> [f64; 2]| {
+                            group
+                                .iter()
+                                .fold([0.0, 0.0], |s, &b| [s[0] + v(b)[0] / g, s[1] + v(b)[1] / g])
+                        };
+                        let centroid = mean(&|b| [pts[b].x, pts[b].y]);
+                        let middle = mean(&|b| path[b]);
+                        [
+                            centroid[0] + path[a][0] - middle[0],
+                            centroid[1] + path[a][1] - middle[1],
+                        ]
+                    }
+                };
+                let q = &mut tracks[now[a]].points[ks[a]];
+                q.x = place[0];
+                q.y = place[1];
+            }
+        }
+        // After the crossing: the continuations in the order the motion says.
+        if r.from.iter().enumerate().any(|(k, &f)| k != f) {
+            let tails: Vec<Vec<Point>> = now
+                .iter()
+                .map(|&i| {
+                    let cut = (r.frame - tracks[i].first_frame).min(tracks[i].points.len());
+                    tracks[i].points.split_off(cut)
+                })
+                .collect();
+            let mut tails: Vec<Option<Vec<Point>>> = tails.into_iter().map(Some).collect();
+            for (k, &f) in r.from.iter().enumerate() {
+                if let Some(tail) = tails[f].take() {
+                    tracks[now[k]].points.extend(tail);
+                }
+            }
+            // What track `now[f]` held moves to `now[k]`.
+            let mut sigma = vec![0; m];
+            for (k, &f) in r.from.iter().enumerate() {
+                sigma[f] = k;
+            }
+            relabel_events(events, r.frame..usize::MAX, &now, &sigma);
+            let old = holder.clone();
+            for (k, &f) in r.from.iter().enumerate() {
+                holder[r.tracks[f]] = old[r.tracks[k]];
+            }
+        }
+        for &o in &r.tracks {
+            settled[o] = r.frame;
+        }
+    }
+}
+
+/// Renames the tracks of the events in `frames`: `now[a]` becomes `now[sigma[a]]`.
+fn relabel_events(
+    events: &mut [(usize, AmbiguityKind, Vec<usize>)],
+    frames: std::ops::Range<usize>,
+    now: &[usize],
+    sigma: &[usize],
+) {
+    for (_, _, ids) in events.iter_mut().filter(|e| frames.contains(&e.0)) {
+        for id in ids.iter_mut() {
+            if let Some(a) = now.iter().position(|&i| i == *id) {
+                *id = now[sigma[a]];
+            }
+        }
+    }
 }
 
 /// What one particle's blob looks like in this recording: the median and robust spread
@@ -889,6 +1157,21 @@ impl StepBound {
         let mut v: Vec<f64> = self.steps.iter().copied().collect();
         let k = (0.9 * (v.len() - 1) as f64).round() as usize;
         Some(1.5 * *v.select_nth_unstable_by(k, f64::total_cmp).1)
+    }
+}
+
+/// How many particles a detection's mass says it holds (1 to 4), against the typical
+/// detection's mass.
+fn capacity(d: &Detection, typical_mass: f64) -> usize {
+    capacity_of(d.mass, typical_mass)
+}
+
+/// How many particles a blob of `mass` holds (1 to 4), against the typical detection's.
+fn capacity_of(mass: f64, typical_mass: f64) -> usize {
+    if typical_mass > 0.0 && mass.is_finite() {
+        (mass / typical_mass).round().clamp(1.0, 4.0) as usize
+    } else {
+        1
     }
 }
 
