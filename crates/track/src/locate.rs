@@ -93,12 +93,15 @@ struct RowBuffers {
     dx: Vec<f32>,
     s: Vec<f32>,
     split: Vec<f32>,
+    /// One row's window weights and squared distances from the centre.
+    w: Vec<f32>,
+    r2: Vec<f32>,
 }
 
 /// [`refine_centroids`] with reusable buffers.
 ///
-/// All estimates move together (Jacobi iterations), so the soft Voronoi split follows them,
-/// but each iteration measures only the estimates that can still change: those that moved
+/// All estimates move together (Gauss-Seidel sweeps), so the soft Voronoi split follows
+/// them, but each sweep measures only the estimates that can still change: those that moved
 /// more than the tolerance, and their neighbours (seeds whose windows may share pixels).
 /// A lone particle stops as soon as it has converged, whatever the others do; iteration
 /// ends when no estimate moves more than the tolerance.
@@ -392,14 +395,20 @@ fn window_stats(
                 split_here = true;
             }
             for (f, dx) in rows.split.iter_mut().zip(&rows.dx) {
-                *f *= (base - dx * n0).clamp(0.0, 1.0);
+                *f *= unit_ramp(base - dx * n0);
             }
         }
-        if split_here {
-            accumulate_row(&mut acc, &rows.dx, srow, Some(&rows.split), dy, reach32);
-        } else {
-            accumulate_row(&mut acc, &rows.dx, srow, None, dy, reach32);
-        }
+        let split = split_here.then_some(&rows.split[..]);
+        accumulate_row(
+            &mut acc,
+            &rows.dx,
+            srow,
+            split,
+            dy,
+            reach32,
+            &mut rows.w,
+            &mut rows.r2,
+        );
     }
     let [mass, sdx, sdy, sr2, w2r2] = acc.map(|a| a.iter().map(|&v| f64::from(v)).sum::<f64>());
     st.mass = mass;
@@ -410,8 +419,20 @@ fn window_stats(
     st
 }
 
+/// `x` clamped to `[0, 1]` as two selects, which vectorise (`f32::clamp`'s NaN rules made
+/// the compiler test each lane with a branch).
+#[inline(always)]
+fn unit_ramp(x: f32) -> f32 {
+    let x = if x > 1.0 { 1.0 } else { x };
+    let positive = f32::from(u8::from(x > 0.0));
+    x * positive
+}
+
 /// Adds one window row (offsets `dx`, signal `s`, split factors `split` or none, row offset
-/// `dy`, all lane-padded) to the lane-wise sums `acc` of [`window_stats`].
+/// `dy`, all lane-padded) to the lane-wise sums `acc` of [`window_stats`]. The weights are
+/// formed over the whole row first (`w`, `r2`: scratch), then summed lane-wise, so both
+/// loops vectorise without per-lane branches.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn accumulate_row(
     acc: &mut [[f32; LANES]; 5],
@@ -420,36 +441,35 @@ fn accumulate_row(
     split: Option<&[f32]>,
     dy: f32,
     reach: f32,
+    w: &mut Vec<f32>,
+    r2: &mut Vec<f32>,
 ) {
     let dy2 = dy * dy;
-    let mut lane = |l: usize, dx: f32, s: f32, f: f32| {
-        let r2 = dx * dx + dy2;
-        let w = (reach - r2.sqrt()).clamp(0.0, 1.0) * f;
-        let ws = w * s;
-        acc[0][l] += ws;
-        acc[1][l] += ws * dx;
-        acc[2][l] += ws * dy;
-        acc[3][l] += ws * r2;
-        acc[4][l] += w * w * r2;
-    };
-    match split {
-        Some(split) => {
-            for ((dx, s), f) in dx
-                .chunks_exact(LANES)
-                .zip(s.chunks_exact(LANES))
-                .zip(split.chunks_exact(LANES))
-            {
-                for l in 0..LANES {
-                    lane(l, dx[l], s[l], f[l]);
-                }
-            }
+    w.resize(dx.len(), 0.0);
+    r2.resize(dx.len(), 0.0);
+    for ((w, r2), &dx) in w.iter_mut().zip(r2.iter_mut()).zip(dx) {
+        let d2 = dx * dx + dy2;
+        *r2 = d2;
+        *w = unit_ramp(reach - d2.sqrt());
+    }
+    if let Some(split) = split {
+        for (w, f) in w.iter_mut().zip(split) {
+            *w *= f;
         }
-        None => {
-            for (dx, s) in dx.chunks_exact(LANES).zip(s.chunks_exact(LANES)) {
-                for l in 0..LANES {
-                    lane(l, dx[l], s[l], 1.0);
-                }
-            }
+    }
+    for (((w, s), dx), r2) in w
+        .chunks_exact(LANES)
+        .zip(s.chunks_exact(LANES))
+        .zip(dx.chunks_exact(LANES))
+        .zip(r2.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let ws = w[l] * s[l];
+            acc[0][l] += ws;
+            acc[1][l] += ws * dx[l];
+            acc[2][l] += ws * dy;
+            acc[3][l] += ws * r2[l];
+            acc[4][l] += w[l] * w[l] * r2[l];
         }
     }
 }
