@@ -189,6 +189,13 @@ pub fn find_blobs_with_scratch(
                 if v <= peak_min || srow[x] <= mask_x[x] * fy {
                     continue;
                 }
+                // Most pixels above the threshold sit on a particle's flank: their row
+                // neighbours rule them out before the full test.
+                if (x > 0 && srow[x - 1] - lrow[x - 1] >= v)
+                    || (x + 1 < width && srow[x + 1] - lrow[x + 1] > v)
+                {
+                    continue;
+                }
                 let at_edge = x < margin || y < margin || x + margin >= width || y + margin >= height;
                 if at_edge && f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
                     continue;
@@ -621,8 +628,8 @@ pub(crate) fn box_means(
     scratch: &mut FilterScratch,
 ) {
     let [out_a, out_b] = outs;
+    // Every output pixel is written below: the buffers are only sized, not cleared.
     for out in [&mut *out_a, &mut *out_b] {
-        out.clear();
         out.resize(width * height, 0.0);
     }
     let [col_a, col_b] = &mut scratch.cols;

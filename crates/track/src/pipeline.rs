@@ -12,10 +12,10 @@ use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
 use crate::{
-    estimate_background, find_blobs, find_blobs_with_scratch, link_detections, list_frames, load_frame,
-    refine_centroids, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
-    BackgroundModel, Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions,
-    LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    estimate_background, find_blobs_with_scratch, link_detections, list_frames, load_frame,
+    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
+    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions, LocateScratch,
+    PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -496,29 +496,31 @@ impl SampleSignals {
 fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Option<&[[f64; 2]]>) -> f64 {
     let mut radius = START_RADIUS;
     for _ in 0..RADIUS_ROUNDS {
-        let mut sizes: Vec<f64> = Vec::new();
-        let measured = |frame: &SampleSignals| locate_unfiltered(background, frame, radius);
-        match starts {
+        let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
+            found
+                .iter()
+                .filter(|d| !d.clipped && d.size.is_finite())
+                .map(|d| d.size)
+                .collect()
+        };
+        let mut sizes: Vec<f64> = match starts {
             Some(starts) if !frames.is_empty() => {
-                let found = measured(&frames[0]);
-                sizes.extend(
+                let found = locate_unfiltered(background, &frames[0], radius, &mut Worker::default());
+                sizes_of(
                     nearest_each(&found, starts, |d| [d.x, d.y])
                         .into_iter()
-                        .filter(|d| !d.clipped && d.size.is_finite())
-                        .map(|d| d.size),
-                );
+                        .copied()
+                        .collect(),
+                )
             }
-            _ => {
-                for frame in frames {
-                    sizes.extend(
-                        measured(frame)
-                            .iter()
-                            .filter(|d| !d.clipped && d.size.is_finite())
-                            .map(|d| d.size),
-                    );
-                }
-            }
-        }
+            _ => frames
+                .par_iter()
+                .map_init(Worker::default, |w, frame| {
+                    sizes_of(locate_unfiltered(background, frame, radius, w))
+                })
+                .collect::<Vec<Vec<f64>>>()
+                .concat(),
+        };
         if sizes.is_empty() {
             break;
         }
@@ -534,12 +536,17 @@ fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Op
 
 /// Every blob of one estimation frame at `radius`, with no size rejection, located in the
 /// gain-corrected signal.
-fn locate_unfiltered(background: &Background, frame: &SampleSignals, radius: f64) -> Vec<Detection> {
+fn locate_unfiltered(
+    background: &Background,
+    frame: &SampleSignals,
+    radius: f64,
+    w: &mut Worker,
+) -> Vec<Detection> {
     let (width, height) = (background.width, background.height);
-    let blobs = unfiltered_blobs(background, frame, radius);
+    let blobs = unfiltered_blobs(background, frame, radius, w);
     let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
     let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
-    refine_centroids(
+    refine_centroids_with_scratch(
         &frame.levelled,
         width,
         height,
@@ -547,17 +554,30 @@ fn locate_unfiltered(background: &Background, frame: &SampleSignals, radius: f64
         &areas,
         locate_window(radius),
         background.noise_sigma,
+        &mut w.locate,
     )
 }
 
 /// Every blob of one estimation frame's plain signal at `radius`, with no size rejection.
-fn unfiltered_blobs(background: &Background, frame: &SampleSignals, radius: f64) -> Vec<Blob> {
+fn unfiltered_blobs(
+    background: &Background,
+    frame: &SampleSignals,
+    radius: f64,
+    w: &mut Worker,
+) -> Vec<Blob> {
     let params = DetectParameters {
         radius,
         noise_sigma: background.noise_sigma,
         expected: None,
     };
-    find_blobs(&frame.plain, background.width, background.height, &params).blobs
+    find_blobs_with_scratch(
+        &frame.plain,
+        background.width,
+        background.height,
+        &params,
+        &mut w.detect,
+    )
+    .blobs
 }
 
 /// For each start position, the item nearest to it (none when `items` is empty); an item
@@ -590,16 +610,19 @@ fn expected_size(
 ) -> Option<BlobSize> {
     let blobs: Vec<Blob> = match starts {
         Some(starts) if !frames.is_empty() => {
-            let blobs = unfiltered_blobs(background, &frames[0], radius);
+            let blobs = unfiltered_blobs(background, &frames[0], radius, &mut Worker::default());
             nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
                 .into_iter()
                 .copied()
                 .collect()
         }
         _ => frames
-            .iter()
-            .flat_map(|frame| unfiltered_blobs(background, frame, radius))
-            .collect(),
+            .par_iter()
+            .map_init(Worker::default, |w, frame| {
+                unfiltered_blobs(background, frame, radius, w)
+            })
+            .collect::<Vec<Vec<Blob>>>()
+            .concat(),
     };
     let inside: Vec<&Blob> = blobs.iter().filter(|b| !b.at_border).collect();
     if inside.is_empty() {
