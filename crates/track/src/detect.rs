@@ -578,13 +578,14 @@ fn box_counts(len: usize, h: usize) -> Vec<f64> {
 }
 
 /// One output row of a box mean of half-width `h` at row `y`, from the prefix sums `pre` of
-/// the row's column sums; `inv_x` holds 1 / (pixels in the box's row span) per column.
-fn box_row(out: &mut [f32], pre: &[f64], inv_x: &[f64], h: usize, y: usize, height: usize) {
+/// the row's column sums (fixed point, `unit` per grey level, wrapping); `inv_x` holds
+/// 1 / (pixels in the box's row span) per column.
+fn box_row(out: &mut [f32], pre: &[i32], inv_x: &[f64], h: usize, y: usize, height: usize, unit: f64) {
     let width = out.len();
-    let inv_y = 1.0 / ((y + h).min(height - 1) - y.saturating_sub(h) + 1) as f64;
+    let inv_y = 1.0 / (((y + h).min(height - 1) - y.saturating_sub(h) + 1) as f64 * unit);
     let edge = |x: usize| {
         let (lo, hi) = (x.saturating_sub(h), (x + h).min(width - 1));
-        ((pre[hi + 1] - pre[lo]) * inv_y * inv_x[x]) as f32
+        (f64::from(pre[hi + 1].wrapping_sub(pre[lo])) * inv_y * inv_x[x]) as f32
     };
     if 2 * h + 1 > width {
         for (x, o) in out.iter_mut().enumerate() {
@@ -593,9 +594,9 @@ fn box_row(out: &mut [f32], pre: &[f64], inv_x: &[f64], h: usize, y: usize, heig
         return;
     }
     // Interior columns hold a full box: one constant factor (vectorised).
-    let k = inv_y / (2 * h + 1) as f64;
+    let k = (inv_y / (2 * h + 1) as f64) as f32;
     for ((o, hi), lo) in out[h..width - h].iter_mut().zip(&pre[2 * h + 1..]).zip(pre) {
-        *o = ((hi - lo) * k) as f32;
+        *o = hi.wrapping_sub(*lo) as f32 * k;
     }
     for x in (0..h).chain(width - h..width) {
         out[x] = edge(x);
@@ -605,10 +606,121 @@ fn box_row(out: &mut [f32], pre: &[f64], inv_x: &[f64], h: usize, y: usize, heig
 /// Running sums of [`box_means`], kept between frames.
 #[derive(Default, Debug)]
 pub(crate) struct FilterScratch {
-    /// Column sums over each filter's rows (`f32`, one row per filter).
-    cols: [Vec<f32>; 2],
-    /// Prefix sums along the row of each filter's column sums (`f64`, `width + 1`).
-    prefix: [Vec<f64>; 2],
+    /// The image in fixed point (see [`box_means`]).
+    fixed: Vec<i32>,
+    /// Column sums over each filter's rows (one row per filter, fixed point).
+    cols: [Vec<i32>; 2],
+    /// Prefix sums along the row of each filter's column sums (`width + 1`, fixed point,
+    /// wrapping: a difference of two is exact whenever the box's sum fits in an `i32`).
+    prefix: [Vec<i32>; 2],
+}
+
+/// A bound on a particle signal's magnitude, grey levels: a difference of two 8-bit-scale
+/// values projected on a unit colour direction is at most `255 √3`, plus room for the
+/// background offsets of clipped noise.
+const SIGNAL_BOUND: f32 = 512.0;
+
+/// Fixed-point units per grey level for boxes of `side` pixels square: a power of two (the
+/// scaling is exact) no larger than 4096 (rounding each pixel by at most 1/8192 of a level,
+/// far below any noise), small enough that no box sum of [`SIGNAL_BOUND`] values overflows
+/// an `i32`.
+fn fixed_unit(side: usize) -> f32 {
+    let room = f64::from(1u32 << 31) / ((side.max(1) as f64).powi(2) * f64::from(SIGNAL_BOUND));
+    room.log2().floor().clamp(0.0, 12.0).exp2() as f32
+}
+
+/// `image` in fixed point (`unit` per grey level, rounded to nearest, clamped to
+/// [`SIGNAL_BOUND`]), into `out`.
+fn to_fixed(image: &[f32], unit: f32, out: &mut Vec<i32>) {
+    let bound = SIGNAL_BOUND * unit;
+    // Every element is written below: the buffer is only sized.
+    out.resize(image.len(), 0);
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE2 is part of the x86_64 baseline, and `out` is as long as `image`.
+        unsafe { to_fixed_sse2(image, unit, bound, out) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    for (o, &v) in out.iter_mut().zip(image) {
+        *o = (v * unit).max(-bound).min(bound).round() as i32;
+    }
+}
+
+/// [`to_fixed`] four pixels at a time (the conversion rounds to nearest, ties to even).
+///
+/// # Safety
+/// The CPU must have SSE2 (every x86_64 does), and `out.len() == image.len()`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+unsafe fn to_fixed_sse2(image: &[f32], unit: f32, bound: f32, out: &mut [i32]) {
+    use std::arch::x86_64::{
+        __m128i, _mm_cvtps_epi32, _mm_loadu_ps, _mm_max_ps, _mm_min_ps, _mm_mul_ps, _mm_set1_ps,
+        _mm_storeu_si128,
+    };
+    let n = image.len().min(out.len());
+    let chunks = n / 4;
+    let (u, hi, lo) = (_mm_set1_ps(unit), _mm_set1_ps(bound), _mm_set1_ps(-bound));
+    for c in 0..chunks {
+        // SAFETY: elements 4c..4c+4 lie within both slices (4c + 4 <= n).
+        let v = unsafe { _mm_loadu_ps(image.as_ptr().add(4 * c)) };
+        let x = _mm_min_ps(_mm_max_ps(_mm_mul_ps(v, u), lo), hi);
+        unsafe { _mm_storeu_si128(out.as_mut_ptr().add(4 * c).cast::<__m128i>(), _mm_cvtps_epi32(x)) };
+    }
+    for i in 4 * chunks..n {
+        out[i] = (image[i] * unit).max(-bound).min(bound).round() as i32;
+    }
+}
+
+/// Prefix sums of `col` into `pre[1..=col.len()]`, with `pre[0] = 0`, wrapping.
+fn prefix_sums(col: &[i32], pre: &mut [i32]) {
+    assert!(pre.len() > col.len(), "prefix buffer too short");
+    pre[0] = 0;
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: SSE2 is part of the x86_64 baseline, and `prefix_sums_sse2` reads `col`
+        // and writes `pre[1..=col.len()]` only, within the lengths just checked.
+        unsafe { prefix_sums_sse2(col, pre) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut s = 0i32;
+        for (p, c) in pre[1..].iter_mut().zip(col) {
+            s = s.wrapping_add(*c);
+            *p = s;
+        }
+    }
+}
+
+/// [`prefix_sums`] four lanes at a time: within a vector by two shifted additions, across
+/// vectors by the carried last sum (a serial chain of one addition per four pixels).
+///
+/// # Safety
+/// The CPU must have SSE2 (every x86_64 does), and `pre.len() > col.len()`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+unsafe fn prefix_sums_sse2(col: &[i32], pre: &mut [i32]) {
+    use std::arch::x86_64::{
+        __m128i, _mm_add_epi32, _mm_cvtsi128_si32, _mm_loadu_si128, _mm_setzero_si128, _mm_shuffle_epi32,
+        _mm_slli_si128, _mm_storeu_si128,
+    };
+    let n = col.len();
+    let chunks = n / 4;
+    let mut carry = _mm_setzero_si128();
+    for c in 0..chunks {
+        // SAFETY: lanes 4c..4c+4 of `col` and 4c+1..4c+5 of `pre` lie within their slices
+        // (4c + 4 <= n < pre.len()).
+        let mut v = unsafe { _mm_loadu_si128(col.as_ptr().add(4 * c).cast::<__m128i>()) };
+        v = _mm_add_epi32(v, _mm_slli_si128::<4>(v));
+        v = _mm_add_epi32(v, _mm_slli_si128::<8>(v));
+        v = _mm_add_epi32(v, carry);
+        unsafe { _mm_storeu_si128(pre.as_mut_ptr().add(1 + 4 * c).cast::<__m128i>(), v) };
+        carry = _mm_shuffle_epi32::<0xFF>(v);
+    }
+    let mut s = _mm_cvtsi128_si32(carry);
+    for x in 4 * chunks..n {
+        s = s.wrapping_add(col[x]);
+        pre[x + 1] = s;
+    }
 }
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
@@ -616,9 +728,10 @@ pub(crate) struct FilterScratch {
 ///
 /// Separable and streaming: each output row adds the entering image row to a running column
 /// sum and subtracts the leaving one (vectorised across the row), then takes differences of
-/// a prefix sum along the row. Both filters share one pass, so their prefix sums (a serial
-/// chain each) interleave. Column sums are `f32` (their rounding is below 1e-3 grey levels
-/// of the mean), prefix sums `f64`.
+/// a prefix sum along the row. The sums are exact integers on the image rounded to fixed
+/// point ([`fixed_unit`]), so the running column sums never drift and the prefix sums may
+/// wrap (their differences, the box sums, fit); the prefix sums are formed four lanes at a
+/// time ([`prefix_sums`]).
 pub(crate) fn box_means(
     image: &[f32],
     width: usize,
@@ -632,6 +745,9 @@ pub(crate) fn box_means(
     for out in [&mut *out_a, &mut *out_b] {
         out.resize(width * height, 0.0);
     }
+    let unit = fixed_unit(2 * halves[0].max(halves[1]) + 1);
+    to_fixed(image, unit, &mut scratch.fixed);
+    let image = &scratch.fixed[..];
     let [col_a, col_b] = &mut scratch.cols;
     let [pre_a, pre_b] = &mut scratch.prefix;
     for (col, pre, &h) in [
@@ -639,12 +755,12 @@ pub(crate) fn box_means(
         (&mut *col_b, &mut *pre_b, &halves[1]),
     ] {
         col.clear();
-        col.resize(width, 0.0);
+        col.resize(width, 0);
         pre.clear();
-        pre.resize(width + 1, 0.0);
+        pre.resize(width + 1, 0);
         for row in image.chunks_exact(width).take(h.min(height)) {
             for (c, v) in col.iter_mut().zip(row) {
-                *c += v;
+                *c = c.wrapping_add(*v);
             }
         }
     }
@@ -656,31 +772,34 @@ pub(crate) fn box_means(
                 if y > h {
                     let sub = &image[(y - h - 1) * width..(y - h) * width];
                     for ((c, a), s) in col.iter_mut().zip(add).zip(sub) {
-                        *c += a - s;
+                        *c = c.wrapping_add(a.wrapping_sub(*s));
                     }
                 } else {
                     for (c, a) in col.iter_mut().zip(add) {
-                        *c += a;
+                        *c = c.wrapping_add(*a);
                     }
                 }
             } else if y > h {
                 let sub = &image[(y - h - 1) * width..(y - h) * width];
                 for (c, s) in col.iter_mut().zip(sub) {
-                    *c -= s;
+                    *c = c.wrapping_sub(*s);
                 }
             }
         }
-        // Both prefix chains in one loop, so the two serial additions overlap.
-        let (mut sa, mut sb) = (0.0f64, 0.0f64);
-        for x in 0..width {
-            sa += f64::from(col_a[x]);
-            sb += f64::from(col_b[x]);
-            pre_a[x + 1] = sa;
-            pre_b[x + 1] = sb;
-        }
+        prefix_sums(col_a, pre_a);
+        prefix_sums(col_b, pre_b);
         let row = y * width..(y + 1) * width;
-        box_row(&mut out_a[row.clone()], pre_a, &inv_x[0], halves[0], y, height);
-        box_row(&mut out_b[row], pre_b, &inv_x[1], halves[1], y, height);
+        let unit = f64::from(unit);
+        box_row(
+            &mut out_a[row.clone()],
+            pre_a,
+            &inv_x[0],
+            halves[0],
+            y,
+            height,
+            unit,
+        );
+        box_row(&mut out_b[row], pre_b, &inv_x[1], halves[1], y, height, unit);
     }
 }
 
@@ -699,6 +818,58 @@ mod tests {
             }
         }
         img
+    }
+
+    #[test]
+    fn prefix_sums_match_a_running_sum_and_wrap() {
+        for n in [0usize, 1, 3, 4, 5, 17, 512] {
+            let col: Vec<i32> = (0..n)
+                .map(|i| ((i as i64 * 7_919 % 2_001) - 1_000) as i32 * 1_000_003)
+                .collect();
+            let mut pre = vec![7; n + 1];
+            prefix_sums(&col, &mut pre);
+            let mut s = 0i32;
+            assert_eq!(pre[0], 0);
+            for (i, c) in col.iter().enumerate() {
+                s = s.wrapping_add(*c);
+                assert_eq!(pre[i + 1], s, "n {n} at {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn box_means_of_a_signed_fractional_signal() {
+        let (w, h) = (37, 23);
+        let img: Vec<f32> = (0..w * h)
+            .map(|i| (((i * 7_919) % 1_000) as f32 - 500.0) * 0.417)
+            .collect();
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        box_means(
+            &img,
+            w,
+            h,
+            [3, 7],
+            [&mut a, &mut b],
+            &mut FilterScratch::default(),
+        );
+        for (out, half) in [(&a, 3usize), (&b, 7)] {
+            for y in 0..h {
+                for x in 0..w {
+                    let (mut s, mut n) = (0.0f64, 0.0);
+                    for yy in y.saturating_sub(half)..=(y + half).min(h - 1) {
+                        for xx in x.saturating_sub(half)..=(x + half).min(w - 1) {
+                            s += f64::from(img[yy * w + xx]);
+                            n += 1.0;
+                        }
+                    }
+                    let want = s / n;
+                    assert!(
+                        (f64::from(out[y * w + x]) - want).abs() < 1e-3,
+                        "half {half} at {x},{y}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
@@ -725,7 +896,8 @@ mod tests {
                                 n += 1.0;
                             }
                         }
-                        assert!((out[y * w + x] - s / n).abs() < 1e-4, "half {half} at {x},{y}");
+                        // Fixed point rounds each pixel to 1/8192 of a level.
+                        assert!((out[y * w + x] - s / n).abs() < 2e-4, "half {half} at {x},{y}");
                     }
                 }
             }
