@@ -8,7 +8,10 @@
 //! it: each track's motion before the crossing and each candidate continuation's motion
 //! after it are extrapolated (straight lines fitted to a few located points) to the middle of
 //! the gap, and the continuations are handed out by the permutation that makes them meet
-//! best. A particle that starts inside the crossing has no motion before it; its named start
+//! best. Where no order meets well that way, or another meets nearly as well, the motion may
+//! have turned inside the crossing (a bounce off a wall): then a motion and a continuation
+//! meet where their lines come closest within the gap, at a cost for any change of speed
+//! (a bounce keeps the speed, two different particles seldom share it). A particle that starts inside the crossing has no motion before it; its named start
 //! position is what the continuation is extrapolated back to. Where an order meets well,
 //! each particle's path through the crossing is the cubic joining its motion before and
 //! after, which the caller uses to hand out the blobs located inside the crossing and to
@@ -256,32 +259,49 @@ pub(crate) fn resolve(
         ) else {
             continue;
         };
-        let cost = |from: &[usize]| -> f64 {
-            from.iter()
-                .enumerate()
-                .map(|(k, &f)| before[k].mismatch(&after[f]))
-                .sum()
+        // Orders judged by how the motions meet: first as straight lines; where no order
+        // meets well that way, the motion turned inside the crossing (a bounce), and the
+        // lines may instead touch anywhere in the gap, provided the speed is kept.
+        let good = members.len() as f64 * (0.25 * near).powi(2);
+        // (cost of the linker's order, best cost, best order, second-best cost)
+        let decide = |meet: &dyn Fn(&Line, &Line) -> f64| -> (f64, f64, Vec<usize>, f64) {
+            let cost = |from: &[usize]| -> f64 {
+                from.iter()
+                    .enumerate()
+                    .map(|(k, &f)| meet(&before[k], &after[f]))
+                    .sum()
+            };
+            let identity: Vec<usize> = (0..members.len()).collect();
+            let kept = cost(&identity);
+            let mut best = (f64::INFINITY, identity);
+            let mut second = f64::INFINITY;
+            permutations(members.len(), &mut |p| {
+                let c = cost(p);
+                if c < best.0 {
+                    second = best.0;
+                    best = (c, p.to_vec());
+                } else if c < second {
+                    second = c;
+                }
+            });
+            (kept, best.0, best.1, second)
         };
+        // Straight lines decide when one order meets well and every other at least four
+        // times worse; otherwise the motion may have turned.
+        let (mut kept, mut best, mut order, second) = decide(&|a, b| a.mismatch(b));
+        if best > good || second < 4.0 * best {
+            (kept, best, order, _) = decide(&|a, b| a.mismatch(b).min(a.touching(b)) + a.speed_change(b));
+        }
+        // The best order must meet well (within a quarter of the crossing distance per track
+        // on average) and, to overrule the linker, clearly better (by half, and by more than
+        // a pixel). Where no order meets well nothing is known about who is who.
         let identity: Vec<usize> = (0..members.len()).collect();
-        let kept = cost(&identity);
-        let mut best = (kept, identity.clone());
-        permutations(members.len(), &mut |p| {
-            let c = cost(p);
-            if c < best.0 {
-                best = (c, p.to_vec());
-            }
-        });
-        // Another order must meet clearly better (by half, and by more than a pixel), and
-        // well: within half the crossing distance per track on average. Where no order
-        // meets well, the motion changed inside the crossing (a bounce off a wall) and
-        // straight lines say nothing about who is who.
-        let good = members.len() as f64 * (0.5 * near).powi(2);
-        let from = if best.1 != identity && best.0 < 0.5 * kept && kept - best.0 > 1.0 {
-            best.1
+        let from = if order != identity && best < 0.5 * kept && kept - best > 1.0 {
+            order
         } else {
             identity
         };
-        if cost(&from) <= good {
+        if best <= good {
             let bridges = from
                 .iter()
                 .enumerate()
@@ -344,6 +364,37 @@ impl Line {
         }
     }
 
+    /// Squared distance of closest approach of this (earlier) motion and `later` between
+    /// this one's last point and `later`'s first (where a bounce inside the gap would have
+    /// turned the one into the other); infinite without both velocities.
+    fn touching(&self, later: &Line) -> f64 {
+        let (Some(va), Some(vb)) = (self.v, later.v) else {
+            return f64::INFINITY;
+        };
+        let (ta, tb) = (self.last, later.first.max(self.last));
+        let a = self.at(ta);
+        let b = later.at(ta);
+        let d0 = [a[0] - b[0], a[1] - b[1]];
+        let w = [va[0] - vb[0], va[1] - vb[1]];
+        let ww = w[0] * w[0] + w[1] * w[1];
+        let t = if ww > 0.0 {
+            (-(d0[0] * w[0] + d0[1] * w[1]) / ww).clamp(0.0, tb - ta)
+        } else {
+            0.0
+        };
+        (d0[0] + w[0] * t).powi(2) + (d0[1] + w[1] * t).powi(2)
+    }
+
+    /// Squared change of speed between this motion and `later`, times the gap's length
+    /// squared: the distance it would open over the gap, px² (0 without both velocities).
+    fn speed_change(&self, later: &Line) -> f64 {
+        let (Some(va), Some(vb)) = (self.v, later.v) else {
+            return 0.0;
+        };
+        let gap = (later.first - self.last).max(1.0);
+        (va[0].hypot(va[1]) - vb[0].hypot(vb[1])).powi(2) * gap * gap
+    }
+
     /// Squared distance at which this (earlier) motion and `later` meet: both extrapolated
     /// to the middle of the gap between them, or to this one's own time when it has no
     /// velocity.
@@ -392,6 +443,38 @@ mod tests {
             clean: true,
             predicted: false,
         }
+    }
+
+    /// A particle bounces off a wall (its x velocity reverses) while another passes it, and
+    /// the linker handed each the other's continuation. Straight lines do not meet across
+    /// the bounce; the motions touching in the gap at an unchanged speed do.
+    #[test]
+    fn a_swap_across_a_bounce_is_undone() {
+        let a = |t: usize| {
+            let t = t as f64;
+            let x = if t <= 3.0 {
+                10.0 + 2.0 * t
+            } else {
+                16.0 - 2.0 * (t - 3.0)
+            };
+            [x, 50.0 + t]
+        };
+        let b = |t: usize| [19.0 - t as f64, 57.0 - t as f64];
+        let track = |own: &dyn Fn(usize) -> [f64; 2], other: &dyn Fn(usize) -> [f64; 2]| -> Vec<Seen> {
+            (0..12)
+                .map(|t| {
+                    let p = if t >= 6 { other(t) } else { own(t) };
+                    Seen {
+                        predicted: (3..=5).contains(&t),
+                        ..seen(p[0], p[1])
+                    }
+                })
+                .collect()
+        };
+        let tracks = vec![track(&a, &b), track(&b, &a)];
+        let r = resolve(&tracks, &[0, 0], None, 10.0);
+        assert_eq!(r.len(), 1, "{r:?}");
+        assert_eq!((r[0].frame, &r[0].from), (6, &vec![1, 0]));
     }
 
     #[test]

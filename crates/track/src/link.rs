@@ -700,7 +700,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     // Named tracks: crossings judged again with the motion after them (see `crossing`).
     if let Some(starts) = &options.named_start {
         let starts: Vec<[f64; 2]> = starts.iter().map(|s| s.1).collect();
-        settle_crossings(&mut tracks, &mut events, &starts, crowd, typical_mass);
+        settle_crossings(&mut tracks, &mut events, &starts, crowd, &one);
     }
 
     // Unnamed tracks: drop trailing bridged points (the particle was never seen again).
@@ -777,7 +777,7 @@ fn settle_crossings(
     events: &mut Vec<(usize, AmbiguityKind, Vec<usize>)>,
     starts: &[[f64; 2]],
     near: f64,
-    typical_mass: f64,
+    one: &SingleParticle,
 ) {
     let views: Vec<Vec<Seen>> = tracks
         .iter()
@@ -850,15 +850,16 @@ fn settle_crossings(
                 }
                 relabel_events(events, t..t + 1, &now, &sigma);
             }
-            // A located blob heavy enough for two, with the path of a particle that was
-            // bridged here running through it: both were in it (a merged blob the linker
-            // gave to one of them). Both are placed about its centroid, flagged as split.
+            // A located blob measurably heavier or wider than one particle, with the path of
+            // a particle that was bridged here running through it: both were in it (a
+            // merged blob the linker gave to one of them). Both are placed about its
+            // centroid, flagged as split.
             for a in 0..m {
                 let p = tracks[now[a]].points[ks[a]].clone();
-                let cap = capacity_of(p.mass, typical_mass);
-                if p.flag != PointFlag::Detected || cap < 2 {
+                if p.flag != PointFlag::Detected || !one.holds_more_than(p.mass, p.size, 1) {
                     continue;
                 }
+                let cap = capacity_of(p.mass, one.mass).max(2);
                 let mut others: Vec<(f64, usize)> = (0..m)
                     .filter(|&b| b != a && tracks[now[b]].points[ks[b]].flag == PointFlag::Interpolated)
                     .map(|b| ((path[b][0] - p.x).hypot(path[b][1] - p.y), b))
@@ -1011,11 +1012,16 @@ impl SingleParticle {
     /// heavier or wider than `taken` particles (by more than three spreads, and by at least
     /// a tenth of a particle's mass or of its size).
     fn holds_more(&self, d: &Detection, taken: usize) -> bool {
+        self.holds_more_than(d.mass, d.size, taken)
+    }
+
+    /// [`SingleParticle::holds_more`] for a blob of `mass` and `size`.
+    fn holds_more_than(&self, mass: f64, size: f64, taken: usize) -> bool {
         if !(self.mass.is_finite() && self.size.is_finite()) {
             return false;
         }
-        let heavier = d.mass > self.mass * taken as f64 + (3.0 * self.mass_spread).max(0.1 * self.mass);
-        let wider = taken == 1 && d.size > self.size + (3.0 * self.size_spread).max(0.1 * self.size);
+        let heavier = mass > self.mass * taken as f64 + (3.0 * self.mass_spread).max(0.1 * self.mass);
+        let wider = taken == 1 && size > self.size + (3.0 * self.size_spread).max(0.1 * self.size);
         heavier || wider
     }
 }
