@@ -1,11 +1,12 @@
-//! Dense crossing: 100 free particles on 512x512 px crossing and touching for 200 frames,
-//! followed from a named start: no identity switch, and every point not located from its
-//! own blob flagged and reported as an ambiguity.
+//! Crossings: particles that start in one blob, and a dense crossing of 100 free particles
+//! on 512x512 px crossing and touching for 200 frames, followed from a named start: no
+//! identity switch, and every point not located from its own blob flagged and reported as an
+//! ambiguity.
 
 use std::collections::HashSet;
 
 use physfit_model::Vec2;
-use physfit_track::{AmbiguityKind, PointFlag, TrackOptions};
+use physfit_track::{AmbiguityKind, PointFlag, TrackOptions, TrackOutcome, TrackScore};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -109,9 +110,10 @@ fn particles_that_start_in_one_blob_get_their_names_once_apart() {
     }
 }
 
-#[test]
-#[ignore = "known failure (issue 3): 4 identity switches in 200 frames (22 at first, 6 before crossings were settled after linking), 2 points under the wrong name: inside a crossing where two particles bounce off the same wall while they meet, no order of their motions meets well, so the blobs there are left as linked; run with --ignored"]
-fn hundred_crossing_particles_keep_their_names() {
+/// The dense crossing: 100 free particles on 512x512 px crossing and touching for 200
+/// frames (radius 4, noise 5), tracked from their named start. Returns the truth, the
+/// outcome, its score and how many overlapping pairs of discs the frames hold.
+fn dense_crossing() -> (Truth, TrackOutcome, TrackScore, usize) {
     let truth = ballistic(100, 512.0, 6.0, 3.0, 200, 42);
     // How crowded it is: frames where some pair of discs (radius 4) overlaps.
     let overlaps: usize = truth
@@ -197,15 +199,12 @@ fn hundred_crossing_particles_keep_their_names() {
             }
         }
     }
-    assert!(
-        overlaps > 100,
-        "the test must make particles touch: {overlaps} overlapping pairs"
-    );
-    assert_eq!(s.id_switches, 0);
-    assert_eq!(s.name_mismatches, Some(0));
-    assert_eq!(s.matched_count, s.truth_count, "every particle in every frame");
+    (truth, out, s, overlaps)
+}
 
-    // Every point not located from its own blob lies in a reported run of that particle.
+/// Every point not located from its own blob lies in a reported run of that particle, and
+/// every reported (frame, particle) has its flagged point.
+fn assert_flagged_points_reported(out: &TrackOutcome) {
     let mut reported: HashSet<(usize, String, PointFlag)> = HashSet::new();
     for a in &out.stats.ambiguities {
         let flag = match a.kind {
@@ -236,6 +235,36 @@ fn hundred_crossing_particles_keep_their_names() {
         flagged > 0,
         "dense crossing must make the tracker split or bridge some points"
     );
+}
+
+/// What the dense crossing achieves now, kept from regressing: every particle in every
+/// frame, at most 4 identity switches and 2 misnamed points of 20 000, and every point
+/// placed from a prediction reported.
+#[test]
+fn dense_crossing_keeps_almost_every_name() {
+    let (_, out, s, overlaps) = dense_crossing();
+    assert!(
+        overlaps > 100,
+        "the test must make particles touch: {overlaps} overlapping pairs"
+    );
+    assert_eq!(s.matched_count, s.truth_count, "every particle in every frame");
+    assert!(s.id_switches <= 4, "{} identity switches", s.id_switches);
+    assert!(
+        s.name_mismatches.is_some_and(|n| n <= 2),
+        "{:?} points misnamed",
+        s.name_mismatches
+    );
+    assert_flagged_points_reported(&out);
+}
+
+#[test]
+#[ignore = "known failure (issue 3): 4 identity switches in 200 frames (22 at first, 6 before crossings were settled after linking) and 2 points under the wrong name, all inside crossings: split points placed on paths that round a bounce off, one blob of two touching particles given to one track; run with --ignored"]
+fn hundred_crossing_particles_keep_their_names() {
+    let (truth, out, s, _) = dense_crossing();
+    assert_eq!(s.id_switches, 0);
+    assert_eq!(s.name_mismatches, Some(0));
+    assert_eq!(s.matched_count, s.truth_count, "every particle in every frame");
+    assert_flagged_points_reported(&out);
     // No silent guess: a point called detected is on its own particle.
     let truth_at = |frame: usize, name: &str| truth.frames[frame][name[1..].parse::<usize>().expect("name")];
     for p in out.table.points.iter().filter(|p| p.flag == PointFlag::Detected) {
