@@ -164,13 +164,12 @@ pub fn refine_centroids_with_scratch(
             }
             let step = [c[0] - pos[i][0], c[1] - pos[i][1]];
             let length = step[0].hypot(step[1]);
-            // Distance left to the fixed point: the step itself, or more where successive
-            // steps shrink slowly (a geometric series of ratio `rho` sums to rho / (1 - rho)
-            // of the last step).
+            // Distance left from the new estimate to the fixed point: for steps that shrink
+            // by a ratio `rho`, the rest of the geometric series, rho / (1 - rho) of the step
+            // just taken (the standard a-posteriori bound of a contraction); unknown until
+            // two steps are known.
             let rho = length / last_step[i];
-            let left = if rho < 0.5 {
-                length
-            } else if rho < 1.0 {
+            let left = if rho < 1.0 {
                 length * rho / (1.0 - rho)
             } else {
                 f64::INFINITY
