@@ -8,6 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
@@ -245,6 +246,22 @@ fn track_paths(
             sizes = Sizes::measure(&background, &sample_frames, options.radius, starts);
         } else {
             background.exclude_particles(&sample_frames, &found, reach);
+            if starts.is_none() && options.radius.is_none() {
+                // A static scene's texture flickers into blobs as the exposure shifts, and
+                // outnumbers the particles: the sizes are measured again on the blobs of
+                // frame A that move steadily over the next two frames, as on named ones.
+                let moving = moving_blobs(
+                    &background,
+                    &paths,
+                    picks[0],
+                    &sample_frames[0],
+                    size,
+                    &sizes.params,
+                )?;
+                if !moving.is_empty() {
+                    sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving));
+                }
+            }
         }
     }
     let Sizes {
@@ -421,6 +438,62 @@ fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)
         found_width: frame.width,
         found_height: frame.height,
     })
+}
+
+/// The blobs of frame A (`paths[first]`, already loaded as `frame_a`) that move steadily:
+/// each has a blob in the next frame more than half a pixel away (a speck of static texture
+/// stays put), and the frame after holds a blob within a pixel, or a tenth of the step, of
+/// where constant velocity puts it (a speck flickering in and out of the band-pass does not
+/// chain over three frames). Positions in frame A, px; empty when the window is shorter than
+/// three frames or nothing moves.
+fn moving_blobs(
+    background: &Background,
+    paths: &[(usize, PathBuf)],
+    first: usize,
+    frame_a: &Frame,
+    size: (usize, usize),
+    params: &DetectParameters,
+) -> Result<Vec<[f64; 2]>, TrackError> {
+    if first + 2 >= paths.len() {
+        return Ok(Vec::new());
+    }
+    let unfiltered = DetectParameters {
+        expected: None,
+        ..params.clone()
+    };
+    let mut w = Worker::default();
+    let mut blobs_of = |frame: &Frame| -> Vec<[f64; 2]> {
+        background.signal_into(frame, &mut w.signal);
+        find_blobs_with_scratch(&w.signal, size.0, size.1, &unfiltered, &mut w.detect)
+            .blobs
+            .iter()
+            .map(|b| [b.x as f64, b.y as f64])
+            .collect()
+    };
+    let a = blobs_of(frame_a);
+    let mut later = Vec::new();
+    for (_, path) in &paths[first + 1..=first + 2] {
+        let frame = load_frame(path)?;
+        check_size(path, &frame, &paths[first].1, size)?;
+        later.push(blobs_of(&frame));
+    }
+    let tree = |pts: &[[f64; 2]]| (!pts.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(pts));
+    let (Some(tb), Some(tc)) = (tree(&later[0]), tree(&later[1])) else {
+        return Ok(Vec::new());
+    };
+    Ok(a.into_iter()
+        .filter(|p| {
+            let nb = tb.nearest_one::<SquaredEuclidean>(p);
+            let b = later[0][nb.item as usize];
+            let step = nb.distance.sqrt();
+            if step <= 0.5 {
+                return false;
+            }
+            let predicted = [2.0 * b[0] - p[0], 2.0 * b[1] - p[1]];
+            let nc = tc.nearest_one::<SquaredEuclidean>(&predicted);
+            nc.distance.sqrt() <= (0.1 * step).max(1.0)
+        })
+        .collect())
 }
 
 /// The particle size the detector works with, measured on the sample frames.
