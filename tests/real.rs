@@ -9,6 +9,10 @@ use serde_json::Value;
 
 use crate::util::{physfit, read_xy, tempdir};
 
+#[path = "../crates/track/tests/tracking/parabola.rs"]
+mod parabola;
+use parabola::parabola;
+
 /// The folder of real recording `name`, or `None` (with a message) when it is absent.
 fn real_dir(name: &str) -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -20,19 +24,6 @@ fn real_dir(name: &str) -> Option<PathBuf> {
         println!("skipped: real recording {} not found", dir.display());
         None
     }
-}
-
-/// Least-squares `y = c0 + c1 t + c2 t^2`: the coefficients and the RMS residual.
-fn parabola(t: &[f64], y: &[f64]) -> ([f64; 3], f64) {
-    let a = nalgebra::DMatrix::from_fn(t.len(), 3, |i, j| t[i].powi(j as i32));
-    let y = nalgebra::DVector::from_column_slice(y);
-    let c = a
-        .clone()
-        .svd(true, true)
-        .solve(&y, 1e-12)
-        .expect("a parabola through the arc");
-    let rms = ((&a * &c - y).norm_squared() / t.len() as f64).sqrt();
-    ([c[0], c[1], c[2]], rms)
 }
 
 /// The named parameter of a finding.

@@ -539,37 +539,32 @@ fn dither(i: usize) -> f32 {
     frac as f32 * (1.0 / (1u64 << 24) as f32) - 0.5
 }
 
+/// The per-pixel median over `samples` of every value of a frame (channel-interleaved).
 fn median_image(samples: &[Frame]) -> Vec<f32> {
-    let n = samples[0].data.len();
-    let k = samples.len();
-    let mut out = vec![0.0f32; n];
-    out.par_chunks_mut(4096).enumerate().for_each(|(chunk, dst)| {
-        let mut buf = vec![0.0f32; k];
-        for (j, d) in dst.iter_mut().enumerate() {
-            let i = chunk * 4096 + j;
-            for (b, f) in buf.iter_mut().zip(samples) {
-                *b = f.data[i];
-            }
-            *d = median_of(&mut buf);
-        }
-    });
-    out
+    median_values(samples, samples[0].data.len(), |v| v)
 }
 
 /// The per-pixel median over `samples` at the pixels `picked` (indices into a frame's
 /// pixels), channel-interleaved like a frame's data.
 fn median_at(samples: &[Frame], picked: &[usize]) -> Vec<f32> {
     let c = samples[0].channels;
-    let mut out = vec![0.0f32; picked.len() * c];
-    let mut buf = vec![0.0f32; samples.len()];
-    for (dst, &i) in out.chunks_exact_mut(c).zip(picked) {
-        for (ch, d) in dst.iter_mut().enumerate() {
+    median_values(samples, picked.len() * c, |v| picked[v / c] * c + v % c)
+}
+
+/// `len` medians over `samples`: value `v` is the median of every sample's `data[index(v)]`.
+fn median_values(samples: &[Frame], len: usize, index: impl Fn(usize) -> usize + Sync) -> Vec<f32> {
+    const CHUNK: usize = 4096;
+    let mut out = vec![0.0f32; len];
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, dst)| {
+        let mut buf = vec![0.0f32; samples.len()];
+        for (j, d) in dst.iter_mut().enumerate() {
+            let i = index(chunk * CHUNK + j);
             for (b, f) in buf.iter_mut().zip(samples) {
-                *b = f.data[i * c + ch];
+                *b = f.data[i];
             }
             *d = median_of(&mut buf);
         }
-    }
+    });
     out
 }
 

@@ -223,33 +223,26 @@ pub(crate) fn resolve(
         // Motion before and after, per member.
         let mut before = Vec::new();
         let mut after = Vec::new();
+        // The nearest clean points of track `i` over `frames`, nearest first.
+        let clean = |i: usize, frames: &mut dyn Iterator<Item = usize>| -> Vec<(f64, [f64; 2])> {
+            frames
+                .filter_map(|t| {
+                    at(i, t)
+                        .filter(|p| p.clean && !p.predicted)
+                        .map(|p| (t as f64, [p.x, p.y]))
+                })
+                .take(FIT_POINTS)
+                .collect()
+        };
         for &i in &members {
-            let pre: Vec<(f64, [f64; 2])> = (s.saturating_sub(FIT_REACH)..s)
-                .rev()
-                .filter_map(|t| {
-                    at(i, t)
-                        .filter(|p| p.clean && !p.predicted)
-                        .map(|p| (t as f64, [p.x, p.y]))
-                })
-                .take(FIT_POINTS)
-                .collect();
-            let pre = if pre.is_empty() {
+            let mut pre = clean(i, &mut (s.saturating_sub(FIT_REACH)..s).rev());
+            if pre.is_empty() {
                 // A particle that starts inside the crossing: its start position.
-                match starts {
-                    Some(st) if s <= first[i] + 1 => vec![(first[i] as f64, st[i])],
-                    _ => Vec::new(),
+                if let Some(st) = starts.filter(|_| s <= first[i] + 1) {
+                    pre.push((first[i] as f64, st[i]));
                 }
-            } else {
-                pre
-            };
-            let post: Vec<(f64, [f64; 2])> = (swap_at..(swap_at + FIT_REACH).min(end))
-                .filter_map(|t| {
-                    at(i, t)
-                        .filter(|p| p.clean && !p.predicted)
-                        .map(|p| (t as f64, [p.x, p.y]))
-                })
-                .take(FIT_POINTS)
-                .collect();
+            }
+            let post = clean(i, &mut (swap_at..(swap_at + FIT_REACH).min(end)));
             before.push(Line::fit(&pre));
             after.push(Line::fit(&post));
         }

@@ -101,10 +101,12 @@ struct RowBuffers {
 /// [`refine_centroids`] with reusable buffers.
 ///
 /// All estimates move together (Gauss-Seidel sweeps), so the soft Voronoi split follows
-/// them, but each sweep measures only the estimates that can still change: those that moved
-/// more than the tolerance, and their neighbours (seeds whose windows may share pixels).
-/// A lone particle stops as soon as it has converged, whatever the others do; iteration
-/// ends when no estimate moves more than the tolerance.
+/// them, but each sweep measures only the estimates that can still change: those not yet
+/// converged, and their neighbours (seeds whose windows may share pixels). An estimate has
+/// converged when its distance left to the fixed point (estimated from its last two steps)
+/// is below [`TOLERANCE_OF_ERROR`] of its own standard error, or its step below
+/// [`TOLERANCE`]. A lone particle stops as soon as it has converged, whatever the others
+/// do; iteration ends when every estimate has.
 #[allow(clippy::too_many_arguments)]
 pub fn refine_centroids_with_scratch(
     signal: &[f32],

@@ -203,7 +203,7 @@ fn track_paths(
 
     // Background and noise from an even sample of the window.
     // The sampled frames are kept and reused by the locate pass: each file is decoded once.
-    let (picks, sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES)?;
+    let (picks, mut sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES)?;
     let size = (sample_frames[0].width, sample_frames[0].height);
     let reference = &paths[picks[0]].1;
     for (&i, frame) in picks.iter().zip(&sample_frames) {
@@ -250,16 +250,27 @@ fn track_paths(
                 // A static scene's texture flickers into blobs as the exposure shifts, and
                 // outnumbers the particles: the sizes are measured again on the blobs of
                 // frame A that move steadily over the next two frames, as on named ones.
-                let moving = moving_blobs(
-                    &background,
-                    &paths,
-                    picks[0],
-                    &sample_frames[0],
-                    size,
-                    &sizes.params,
-                )?;
-                if !moving.is_empty() {
-                    sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving));
+                // Frames A to A + 2; those not among the samples are kept with them, so the
+                // locate pass does not decode them again.
+                if picks[0] + 2 < paths.len() {
+                    let mut three = [0usize; 3];
+                    for (slot, k) in three.iter_mut().zip(picks[0]..) {
+                        *slot = match sample_of[k] {
+                            Some(j) => j,
+                            None => {
+                                let frame = load_frame(&paths[k].1)?;
+                                check_size(&paths[k].1, &frame, reference, size)?;
+                                sample_frames.push(frame);
+                                sample_of[k] = Some(sample_frames.len() - 1);
+                                sample_frames.len() - 1
+                            }
+                        };
+                    }
+                    let moving =
+                        moving_blobs(&background, three.map(|j| &sample_frames[j]), size, &sizes.params);
+                    if !moving.is_empty() {
+                        sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving));
+                    }
                 }
             }
         }
@@ -440,48 +451,36 @@ fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)
     })
 }
 
-/// The blobs of frame A (`paths[first]`, already loaded as `frame_a`) that move steadily:
-/// each has a blob in the next frame more than half a pixel away (a speck of static texture
-/// stays put), and the frame after holds a blob within a pixel, or a tenth of the step, of
-/// where constant velocity puts it (a speck flickering in and out of the band-pass does not
-/// chain over three frames). Positions in frame A, px; empty when the window is shorter than
-/// three frames or nothing moves.
+/// The blobs of the first of three consecutive `frames` that move steadily: each has a blob
+/// in the next frame more than half a pixel away (a speck of static texture stays put), and
+/// the frame after holds a blob within a pixel, or a tenth of the step, of where constant
+/// velocity puts it (a speck flickering in and out of the band-pass does not chain over
+/// three frames). Positions in the first frame, px; empty when nothing moves.
 fn moving_blobs(
     background: &Background,
-    paths: &[(usize, PathBuf)],
-    first: usize,
-    frame_a: &Frame,
+    frames: [&Frame; 3],
     size: (usize, usize),
     params: &DetectParameters,
-) -> Result<Vec<[f64; 2]>, TrackError> {
-    if first + 2 >= paths.len() {
-        return Ok(Vec::new());
-    }
+) -> Vec<[f64; 2]> {
     let unfiltered = DetectParameters {
         expected: None,
         ..params.clone()
     };
     let mut w = Worker::default();
-    let mut blobs_of = |frame: &Frame| -> Vec<[f64; 2]> {
+    let [a, b, c] = frames.map(|frame| -> Vec<[f64; 2]> {
         background.signal_into(frame, &mut w.signal);
         find_blobs_with_scratch(&w.signal, size.0, size.1, &unfiltered, &mut w.detect)
             .blobs
             .iter()
             .map(|b| [b.x as f64, b.y as f64])
             .collect()
-    };
-    let a = blobs_of(frame_a);
-    let mut later = Vec::new();
-    for (_, path) in &paths[first + 1..=first + 2] {
-        let frame = load_frame(path)?;
-        check_size(path, &frame, &paths[first].1, size)?;
-        later.push(blobs_of(&frame));
-    }
+    });
+    let later = [b, c];
     let tree = |pts: &[[f64; 2]]| (!pts.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(pts));
     let (Some(tb), Some(tc)) = (tree(&later[0]), tree(&later[1])) else {
-        return Ok(Vec::new());
+        return Vec::new();
     };
-    Ok(a.into_iter()
+    a.into_iter()
         .filter(|p| {
             let nb = tb.nearest_one::<SquaredEuclidean>(p);
             let b = later[0][nb.item as usize];
@@ -493,7 +492,7 @@ fn moving_blobs(
             let nc = tc.nearest_one::<SquaredEuclidean>(&predicted);
             nc.distance.sqrt() <= (0.1 * step).max(1.0)
         })
-        .collect())
+        .collect()
 }
 
 /// The particle size the detector works with, measured on the sample frames.

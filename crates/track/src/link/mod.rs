@@ -240,14 +240,6 @@ impl Track {
     /// velocity may have reversed), plus a particle diameter: a track whose residuals grew
     /// from a wrong link, or over a long merge, cannot reach across the frame.
     fn predict(&self, floor: f64, step: Option<f64>, radius: f64) -> ([f64; 2], f64) {
-        let (p, s) = self.predict_unbounded(floor);
-        let Some(step) = step else { return (p, s) };
-        let h = (self.points.len() - self.anchors().first().copied().unwrap_or(self.points.len() - 1)) as f64;
-        let reach = 2.0 * h * step + 2.0 * radius;
-        (p, s.min(reach / GATE_SIGMAS).max(floor))
-    }
-
-    fn predict_unbounded(&self, floor: f64) -> ([f64; 2], f64) {
         let grow = 1.0 + (self.misses + self.merged) as f64;
         let anchors = self.anchors();
         let n = self.points.len();
@@ -273,11 +265,19 @@ impl Track {
             _ => 2,
         };
         let err = [self.err_cp, self.err_cv, self.err_ca][order - 1];
-        let p = self.extrapolate(&anchors, order);
-        match (p, err) {
+        let (p, scale) = match (self.extrapolate(&anchors, order), err) {
             (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
             (Some(p), None) => (p, self.init_scale.max(floor) * grow),
             _ => (self.at(newest), self.init_scale.max(floor) * grow),
+        };
+        match step {
+            Some(step) => (
+                p,
+                scale
+                    .min((2.0 * h * step + 2.0 * radius) / GATE_SIGMAS)
+                    .max(floor),
+            ),
+            None => (p, scale),
         }
     }
 
@@ -313,12 +313,6 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
     };
     let r = options.radius.max(0.5);
     let floor = (0.25 * r).max(0.5);
-    let typical_mass = median(
-        frames
-            .iter()
-            .flat_map(|f| f.detections.iter().map(|d| d.mass))
-            .collect(),
-    );
     let one = SingleParticle::measure(frames);
     let pooled = AppearanceSpread::pooled(frames);
     // Detections closer than this share light through their centroid windows (radius
@@ -334,36 +328,26 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let dets = &first.detections;
         let det_nn = nearest_other(&dets.iter().map(|d| [d.x, d.y]).collect::<Vec<_>>());
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
-        // Columns: each blob once per particle its mass can hold (particles may start
-        // inside one blob).
-        let col_det: Vec<usize> = dets
-            .iter()
-            .enumerate()
-            .flat_map(|(j, d)| std::iter::repeat(j).take(capacity(d, typical_mass)))
-            .collect();
+        // Particles may start inside one blob.
+        let cols = BlobColumns::of(dets, &one);
         let mut problem = SparseProblem {
             row_miss: Vec::new(),
-            col_miss: vec![0.0; col_det.len()],
+            col_miss: vec![0.0; cols.count()],
             pairs: Vec::new(),
         };
         for (i, (_, p)) in starts.iter().enumerate() {
             let gate = (0.5 * nn[i]).max(3.0 * r).min(diagonal(options));
             problem.row_miss.push(1.0);
-            for (c, &j) in col_det.iter().enumerate() {
-                let d = &dets[j];
+            for (j, d) in dets.iter().enumerate() {
                 let d2 = (d.x - p[0]).powi(2) + (d.y - p[1]).powi(2);
                 if d2 <= gate * gate {
-                    // Later copies of a blob cost a little more, so a lone particle takes the first.
-                    let copy = c - col_det.partition_point(|&k| k < j);
-                    problem
-                        .pairs
-                        .push((i, c, d2 / (gate * gate) + 1e-3 * copy as f64));
+                    cols.push_pairs(&mut problem, i, j, d2 / (gate * gate));
                 }
             }
         }
         let assign: Vec<Option<usize>> = solve_sparse(&problem)
             .into_iter()
-            .map(|c| c.map(|c| col_det[c]))
+            .map(|c| c.map(|c| cols.blob[c]))
             .collect();
         // The particles that start in each blob.
         let mut sharing: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
@@ -484,26 +468,14 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             (d2 <= gate * gate).then_some(d2)
         };
 
-        // Columns: each detection once per particle its mass can hold.
-        let col_det: Vec<usize> = dets
-            .iter()
-            .enumerate()
-            .flat_map(|(j, d)| std::iter::repeat(j).take(capacity(d, typical_mass)))
-            .collect();
+        let cols = BlobColumns::of(dets, &one);
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
         let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));
-        let mut first_col = vec![0usize; dets.len() + 1];
-        for &j in &col_det {
-            first_col[j + 1] += 1;
-        }
-        for j in 0..dets.len() {
-            first_col[j + 1] += first_col[j];
-        }
         let mut problem = SparseProblem {
             pairs: Vec::new(),
             // Missing costs a full position gate plus a full appearance gate's worth.
             row_miss: vec![2.0 * GATE_SIGMAS * GATE_SIGMAS; live.len()],
-            col_miss: vec![0.0; col_det.len()],
+            col_miss: vec![0.0; cols.count()],
         };
         for (k, &(p, s)) in preds.iter().enumerate() {
             let Some(tree) = &tree else { break };
@@ -513,11 +485,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 let Some(look) = look_cost(k, j, APPEARANCE_GATE_SIGMAS) else {
                     continue;
                 };
-                let cost = nb.distance / (s * s) + look;
-                for (copy, c) in (first_col[j]..first_col[j + 1]).enumerate() {
-                    // Later copies cost a little more so a lone track takes the first.
-                    problem.pairs.push((k, c, cost + 1e-3 * copy as f64));
-                }
+                cols.push_pairs(&mut problem, k, j, nb.distance / (s * s) + look);
             }
         }
         let assign = solve_sparse(&problem);
@@ -525,7 +493,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let mut unassigned: Vec<usize> = Vec::new();
         for (k, a) in assign.iter().enumerate() {
             match a {
-                Some(c) => det_tracks[col_det[*c]].push(k),
+                Some(c) => det_tracks[cols.blob[*c]].push(k),
                 None => unassigned.push(k),
             }
         }
@@ -808,6 +776,15 @@ impl SingleParticle {
         self.holds_more_than(d.mass, d.size, taken)
     }
 
+    /// How many particles a blob of `mass` holds (1 to 4): its mass in single particles'.
+    fn capacity(&self, mass: f64) -> usize {
+        if self.mass > 0.0 && mass.is_finite() {
+            (mass / self.mass).round().clamp(1.0, 4.0) as usize
+        } else {
+            1
+        }
+    }
+
     /// [`SingleParticle::holds_more`] for a blob of `mass` and `size`.
     fn holds_more_than(&self, mass: f64, size: f64, taken: usize) -> bool {
         if !(self.mass.is_finite() && self.size.is_finite()) {
@@ -923,18 +900,37 @@ fn reacquire(
     still
 }
 
-/// How many particles a detection's mass says it holds (1 to 4), against the typical
-/// detection's mass.
-fn capacity(d: &Detection, typical_mass: f64) -> usize {
-    capacity_of(d.mass, typical_mass)
+/// The columns of an assignment over one frame's blobs: each blob once per particle its mass
+/// can hold ([`SingleParticle::capacity`]).
+struct BlobColumns {
+    /// The blob of each column.
+    blob: Vec<usize>,
+    /// `first[j]..first[j + 1]`: blob `j`'s columns.
+    first: Vec<usize>,
 }
 
-/// How many particles a blob of `mass` holds (1 to 4), against the typical detection's.
-fn capacity_of(mass: f64, typical_mass: f64) -> usize {
-    if typical_mass > 0.0 && mass.is_finite() {
-        (mass / typical_mass).round().clamp(1.0, 4.0) as usize
-    } else {
-        1
+impl BlobColumns {
+    fn of(dets: &[Detection], one: &SingleParticle) -> BlobColumns {
+        let mut blob = Vec::with_capacity(dets.len());
+        let mut first = Vec::with_capacity(dets.len() + 1);
+        for (j, d) in dets.iter().enumerate() {
+            first.push(blob.len());
+            blob.extend(std::iter::repeat(j).take(one.capacity(d.mass)));
+        }
+        first.push(blob.len());
+        BlobColumns { blob, first }
+    }
+
+    fn count(&self) -> usize {
+        self.blob.len()
+    }
+
+    /// Allows row `row` every column of blob `j` at `cost`, later copies a little dearer so
+    /// that a lone row takes the first.
+    fn push_pairs(&self, problem: &mut SparseProblem, row: usize, j: usize, cost: f64) {
+        for (copy, c) in (self.first[j]..self.first[j + 1]).enumerate() {
+            problem.pairs.push((row, c, cost + 1e-3 * copy as f64));
+        }
     }
 }
 

@@ -1,7 +1,7 @@
 //! Crossings settled after linking: the judgement of [`crate::crossing`] applied to the
 //! linked tracks, their points and the ambiguity events that describe them.
 
-use super::{capacity_of, AmbiguityKind, Point, SingleParticle, Track};
+use super::{AmbiguityKind, Point, SingleParticle, Track};
 use crate::crossing::{self, Seen};
 use crate::track_table::PointFlag;
 
@@ -97,7 +97,7 @@ pub(super) fn settle_crossings(
                 if p.flag != PointFlag::Detected || !one.holds_more_than(p.mass, p.size, 1) {
                     continue;
                 }
-                let cap = capacity_of(p.mass, one.mass).max(2);
+                let cap = one.capacity(p.mass).max(2);
                 let mut others: Vec<(f64, usize)> = (0..m)
                     .filter(|&b| b != a && tracks[now[b]].points[ks[b]].flag == PointFlag::Interpolated)
                     .map(|b| ((path[b][0] - p.x).hypot(path[b][1] - p.y), b))

@@ -6,6 +6,7 @@ mod crossing;
 mod errors;
 mod events;
 mod fixtures;
+mod parabola;
 mod real;
 mod scenes;
 mod styles;

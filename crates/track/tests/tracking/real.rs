@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use physfit_track::{PointFlag, TrackOptions, TrackTable};
 
 use crate::common::track;
+use crate::parabola::parabola;
 
 fn real_dir(name: &str) -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -132,19 +133,6 @@ fn bouncing_ball_is_followed_through_every_frame() {
         "the arcs disagree on the field: {fields:?}"
     );
     write_for_inspection(&out.table);
-}
-
-/// Least-squares `y = c0 + c1 t + c2 t^2`: the coefficients and the RMS residual.
-fn parabola(t: &[f64], y: &[f64]) -> ([f64; 3], f64) {
-    let a = nalgebra::DMatrix::from_fn(t.len(), 3, |i, j| t[i].powi(j as i32));
-    let y = nalgebra::DVector::from_column_slice(y);
-    let c = a
-        .clone()
-        .svd(true, true)
-        .solve(&y, 1e-12)
-        .expect("a parabola through the arc");
-    let rms = ((&a * &c - y).norm_squared() / t.len() as f64).sqrt();
-    ([c[0], c[1], c[2]], rms)
 }
 
 /// Leaves the track where a person can look at it when asked to (PHYSFIT_KEEP_TRACKS).
