@@ -459,14 +459,18 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
     let cap = if quick { 30 } else { 300 };
     let mut out = format!(
         "\n### Scaling on lattices (exact trajectories, 100 frames, 20 substeps)\n\n\
-         The linear stage is dense up to 1500 unknowns, sparse conjugate gradients beyond; the \
-         refinement (finite-difference Jacobian: one simulation per parameter and start-state coordinate, \
-         so its cost grows as unknowns x bonds x frames) is run on the smallest lattice only. \
+         The linear stage is dense up to 200 unknowns, sparse Cholesky after a nested-dissection ordering beyond. The \
+         refinement works on the whole object up to {patch_limit} unknowns (parameters and start state; its \
+         finite-difference Jacobian costs unknowns x bonds x frames), in patches of {core} particles with a halo \
+         and a driven ring beyond ({passes} passes). \
          *relative, rest cosines absolute. `ga-local`: the same lattice recorded the paper's way \
          (one Euler step per frame, 50 frames, exact), population 150; generations until the best \
          own-prediction cost is 100 times below the first generation's (at most {cap}).\n\n\
          | particles | bonds | unknowns | linear stage | linear stage per bond | linear largest error* | refinement | refined largest error* | ga-local generations to 1/100 cost |\n\
          |---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        patch_limit = physfit_identify::PATCH_LIMIT,
+        core = physfit_identify::CORE_SIZE,
+        passes = physfit_identify::PASSES,
     );
     for &side in sides {
         let truth = lattice(side, 100)?;
@@ -493,19 +497,22 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
         let t0 = Instant::now();
         let est = linear_estimate(&problem, &obs, None)?;
         let linear_time = t0.elapsed().as_secs_f64();
-        // The refinement's finite-difference Jacobian costs one simulation of the whole lattice
-        // per unknown (parameters and start state): minutes at 100 particles, so only the
-        // smallest lattice is refined here.
-        let (refine_time, refined_err) = if side * side <= 10 {
-            let t1 = Instant::now();
-            let r = physfit_identify::refine(&problem, &obs, &est.params, &Default::default(), &())?;
-            (
-                format!("{:.2} s", t1.elapsed().as_secs_f64()),
-                pct(rel(&r.params)),
-            )
+        // As `lsq` refines: the whole object up to PATCH_LIMIT unknowns, in patches beyond.
+        let t1 = Instant::now();
+        let whole = problem.dimension() + 4 * side * side <= physfit_identify::PATCH_LIMIT;
+        let r = if whole {
+            physfit_identify::refine(&problem, &obs, &est.params, &Default::default(), &())?
         } else {
-            ("-".into(), "-".into())
+            physfit_identify::refine_in_patches(&problem, &obs, &est.params, &Default::default(), &())?
         };
+        let refine_seconds = t1.elapsed().as_secs_f64();
+        let refine_time = format!(
+            "{:.2} s ({}, {:.0} ms per bond)",
+            refine_seconds,
+            if whole { "whole" } else { "patches" },
+            refine_seconds * 1e3 / (truth.springs.len() + truth.torsions.len()) as f64
+        );
+        let refined_err = pct(rel(&r.params));
         let generations = if side <= 10 {
             let paper = paper_way(&truth, 50)?;
             let obs = exact_observations(&paper)?;

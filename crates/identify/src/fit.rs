@@ -20,8 +20,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::solvers::{anneal, genetic, genetic_local, AnnealOptions, GaOptions};
 use crate::{
-    fit_start_state, linear_estimate, refine, uncertainty, CostFunction, FitCosts, FitReport, IdentifyError,
-    LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem, RefineOptions, Refinement,
+    fit_start_state, linear_estimate, refine, refine_in_patches, uncertainty, CostFunction, FitCosts,
+    FitReport, IdentifyError, LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem,
+    RefineOptions, Refinement, PATCH_LIMIT,
 };
 
 /// How the parameters are searched for.
@@ -316,7 +317,12 @@ fn solve_lsq(
     observer: &dyn Observer,
 ) -> Result<Solved, IdentifyError> {
     let est = linear_estimate(problem, obs, options.test_window)?;
-    let r = refine(problem, obs, &est.params, &options.refine, observer)?;
+    let free = obs.fixed.iter().filter(|f| !**f).count();
+    let r = if problem.dimension() + 4 * free > PATCH_LIMIT {
+        refine_in_patches(problem, obs, &est.params, &options.refine, observer)?
+    } else {
+        refine(problem, obs, &est.params, &options.refine, observer)?
+    };
     Ok(Solved {
         params: r.params.clone(),
         history: r.history.clone(),

@@ -54,6 +54,7 @@
 
 mod cost;
 pub mod diagnose;
+mod driven;
 pub use diagnose::{
     diagnose, diagnose_observations, scene_costs, DiagnoseOptions, Diagnosis, Effect, Finding,
 };
@@ -65,10 +66,12 @@ mod lsq;
 mod multi_step;
 mod observations;
 mod one_step;
+mod patches;
 mod problem;
 mod refine;
 mod report;
 pub mod solvers;
+mod sparse_cholesky;
 #[cfg(test)]
 mod testutil;
 mod uncertainty;
@@ -87,6 +90,7 @@ pub use lsq::{
 pub use multi_step::{MultiStepCost, MultiStepFit};
 pub use observations::{Observations, VELOCITY_FIT_POINTS};
 pub use one_step::{neighbour_pairs, LocalSplit, OneStepCost};
+pub use patches::{refine_in_patches, PatchRefinement, CORE_SIZE, PASSES, PATCH_LIMIT};
 pub use problem::Problem;
 pub use refine::{fit_start_state, refine, RefineOptions, Refinement};
 pub use report::{BondKeys, FitCosts, FitReport, ParameterReport, TruthComparison};

@@ -26,10 +26,11 @@
 //! same noise.
 //!
 //! The normal equations are solved with Jacobi (column) scaling: dense Cholesky (eigenvalue
-//! pseudo-inverse if singular) for up to [`DENSE_LIMIT`] unknowns, preconditioned conjugate
-//! gradients on the sparse normal matrix beyond (assembled per particle: every equation of a
-//! particle has the same columns, so their outer products are summed in one small dense block
-//! per particle and scattered once), then once more with a weak prior that each
+//! pseudo-inverse if singular) for up to [`DENSE_LIMIT`] unknowns, sparse Cholesky after a
+//! nested-dissection ordering beyond ([`crate::sparse_cholesky`]; the normal matrix is
+//! assembled per particle: every equation of a particle has the same columns, so their outer
+//! products are summed in one small dense block per particle and scattered once; conjugate
+//! gradients if the factorisation fails), then once more with a weak prior that each
 //! rest value lies within its bond's observed geometry (weighted by the weak form's own
 //! residual noise, so it only decides directions the data leave open; see
 //! `with_geometry_prior`). Then `L = (S L) / S`, `M = (T M) / T`.
@@ -41,13 +42,14 @@ use nalgebra::{DMatrix, DVector};
 use physfit_model::{SpringGeometry, State, TorsionGeometry, Vec2};
 use serde::Serialize;
 
+use crate::sparse_cholesky::{nested_dissection, CholeskyFactor};
 use crate::{stiffness_scales, BondRef, IdentifyError, Observations, ParameterKind, Problem};
 
 /// Exponent `q` of the weak-form test function `(1 - s^2)^q`.
 pub const TEST_EXPONENT: i32 = 6;
 
 /// Largest number of linear unknowns solved densely.
-pub const DENSE_LIMIT: usize = 1500;
+pub const DENSE_LIMIT: usize = 200;
 
 /// Smallest test-function window, frames.
 pub const MIN_TEST_WINDOW: usize = 8;
@@ -394,15 +396,17 @@ fn with_geometry_prior(
 /// `paired[k]` is true where columns `k` and `k + 1` belong to one bond (`S` and `S L`, or `T`
 /// and `T M`): nearly collinear columns, preconditioned together.
 fn solve_normal_equations(rows: &[(Vec<(usize, f64)>, f64)], n: usize, paired: &[bool]) -> Vec<f64> {
-    solve_normal_equations_with(rows, n, paired, DENSE_LIMIT)
+    solve_normal_equations_with(rows, n, paired, DENSE_LIMIT, true)
 }
 
-/// As [`solve_normal_equations`], dense up to `dense_limit` unknowns.
+/// As [`solve_normal_equations`], dense up to `dense_limit` unknowns; beyond, by sparse
+/// Cholesky if `direct` (conjugate gradients where it fails), else by conjugate gradients.
 fn solve_normal_equations_with(
     rows: &[(Vec<(usize, f64)>, f64)],
     n: usize,
     paired: &[bool],
     dense_limit: usize,
+    direct: bool,
 ) -> Vec<f64> {
     let mut diag = vec![0.0; n];
     for (e, _) in rows {
@@ -467,9 +471,33 @@ fn solve_normal_equations_with(
                 _ => sparse[r].push((c, v)),
             }
         }
-        conjugate_gradients(&sparse, &rhs, paired)
+        // A column that never acts (zero scale) is a zero row and column: a unit diagonal
+        // there gives it the value 0, as the pseudo-inverse does.
+        for (c, row) in sparse.iter_mut().enumerate() {
+            if d[c] == 0.0 {
+                row.retain(|e| e.0 != c);
+                row.push((c, 1.0));
+            }
+        }
+        direct
+            .then(|| sparse_solve(&sparse, &rhs))
+            .flatten()
+            .unwrap_or_else(|| conjugate_gradients(&sparse, &rhs, paired))
     };
     y.iter().zip(&d).map(|(y, d)| y * d).collect()
+}
+
+/// Solves the unit-diagonal normal matrix `a` (full rows) by sparse Cholesky after a
+/// nested-dissection ordering ([`crate::sparse_cholesky`]). A matrix that is not numerically
+/// positive definite (directions the data leave open) is retried with a ridge of `1e-13`, then
+/// `1e-10`, of the unit diagonal: the minimum-norm choice along those directions, as the dense
+/// path's pseudo-inverse makes. `None` if even that fails.
+fn sparse_solve(a: &[Vec<(usize, f64)>], b: &[f64]) -> Option<Vec<f64>> {
+    let order = nested_dissection(a);
+    [0.0, 1e-13, 1e-10]
+        .into_iter()
+        .find_map(|ridge| CholeskyFactor::new(a, order.clone(), ridge))
+        .map(|f| f.solve(b))
 }
 
 /// Minimum-norm solution of a symmetric positive semi-definite system, dropping directions
@@ -665,7 +693,7 @@ mod tests {
     }
 
     #[test]
-    fn sparse_conjugate_gradients_match_the_dense_solution() {
+    fn sparse_cholesky_and_conjugate_gradients_match_the_dense_solution() {
         let truth = paper5(Timing::default());
         let obs = Observations::from_recording(&record(&truth), &truth, 0);
         let problem = Problem::new(&truth.structure(), &obs).unwrap();
@@ -689,10 +717,15 @@ mod tests {
             rows.push((e, ((r * 7) % 5) as f64 - 2.0));
         }
         let paired: Vec<bool> = (0..n).map(|c| c % 2 == 0).collect();
-        let dense = solve_normal_equations_with(&rows, n, &paired, usize::MAX);
-        let sparse = solve_normal_equations_with(&rows, n, &paired, 0);
-        for (a, b) in dense.iter().zip(&sparse) {
-            assert!((a - b).abs() < 1e-8 * a.abs().max(1.0), "{a} vs {b}");
+        let dense = solve_normal_equations_with(&rows, n, &paired, usize::MAX, true);
+        for direct in [true, false] {
+            let sparse = solve_normal_equations_with(&rows, n, &paired, 0, direct);
+            for (a, b) in dense.iter().zip(&sparse) {
+                assert!(
+                    (a - b).abs() < 1e-8 * a.abs().max(1.0),
+                    "direct {direct}: {a} vs {b}"
+                );
+            }
         }
     }
 }

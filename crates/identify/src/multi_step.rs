@@ -18,8 +18,12 @@
 //! ([`MultiStepCost::residuals`] takes it as an argument). With a *horizon* `h`, the simulation
 //! is instead restarted from the observed state every `h` frames (windows of `h` frames).
 
-use physfit_model::{step_frame, IntegrationParameters, State, StepScratch, Vec2};
+use std::sync::Arc;
+
+use physfit_model::{step_frame, step_prescribed, IntegrationParameters, State, StepScratch, Vec2};
 use serde::Serialize;
+
+use crate::driven::SplinePath;
 
 use crate::{CostFunction, IdentifyError, Observations, Problem};
 
@@ -61,6 +65,8 @@ pub struct MultiStepCost {
     anchor: usize,
     horizon: Option<usize>,
     free: Vec<usize>,
+    /// Pinned particles driven along their tracks instead of held still (a cut boundary).
+    driven: Option<Arc<Vec<(usize, SplinePath)>>>,
 }
 
 impl MultiStepCost {
@@ -84,7 +90,27 @@ impl MultiStepCost {
             anchor,
             horizon: None,
             free,
+            driven: None,
         })
+    }
+
+    /// The same cost with every pinned particle *driven* along a cubic spline through its
+    /// tracked positions instead of held still: the boundary of a part cut out of a larger
+    /// object ([`crate::refine_in_patches`]). Needs every pinned particle tracked in every frame.
+    pub(crate) fn with_driven_pinned_particles(mut self) -> Result<MultiStepCost, IdentifyError> {
+        let obs = &self.observations;
+        let mut paths = Vec::new();
+        for p in (0..obs.particle_count()).filter(|&p| obs.fixed[p]) {
+            let points: Option<Vec<Vec2>> = obs.positions.iter().map(|f| f[p]).collect();
+            let points = points.ok_or_else(|| IdentifyError::TooFewFrames {
+                method: format!("driving particle {} along its track", obs.particle_ids[p]),
+                need: obs.frame_count(),
+                have: obs.positions.iter().filter(|f| f[p].is_some()).count(),
+            })?;
+            paths.push((p, SplinePath::new(points)));
+        }
+        self.driven = Some(Arc::new(paths));
+        Ok(self)
     }
 
     /// The same cost with the simulation restarted from the observed state every `frames`
@@ -191,9 +217,36 @@ impl MultiStepCost {
         let mut scratch = StepScratch::new(n);
         let mut state = initial.clone();
         let frames = self.observations.frame_count();
+        // With a driven boundary, one frame is its substeps with the boundary prescribed at the
+        // end of each (`direction` -1 runs backward in time with reversed velocities).
+        let substeps = self.stepping.substeps.max(1);
+        let advance = |state: &mut State, scratch: &mut StepScratch, from: usize, direction: f64| {
+            let Some(paths) = &self.driven else {
+                step_frame(&model, &self.stepping, state, scratch);
+                return;
+            };
+            for s in 1..=substeps {
+                let t = from as f64 + direction * s as f64 / substeps as f64;
+                let mut prescribe = |st: &mut State| {
+                    for (p, path) in paths.iter() {
+                        let (x, v) = path.at(t);
+                        st.positions[*p] = x;
+                        st.velocities[*p] = v * (direction * self.observations.fps);
+                    }
+                };
+                step_prescribed(
+                    &model,
+                    self.stepping.integrator,
+                    self.stepping.dt(),
+                    state,
+                    scratch,
+                    &mut prescribe,
+                );
+            }
+        };
         for k in self.anchor..frames {
             if k > self.anchor {
-                step_frame(&model, &self.stepping, &mut state, &mut scratch);
+                advance(&mut state, &mut scratch, k - 1, 1.0);
             }
             if !visit(k, &state.positions) {
                 return false;
@@ -204,7 +257,7 @@ impl MultiStepCost {
             state.velocities.iter_mut().for_each(|v| *v = -*v);
             scratch.invalidate();
             for k in (0..self.anchor).rev() {
-                step_frame(&model, &self.stepping, &mut state, &mut scratch);
+                advance(&mut state, &mut scratch, k + 1, -1.0);
                 if !visit(k, &state.positions) {
                     return false;
                 }

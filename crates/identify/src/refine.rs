@@ -81,6 +81,10 @@ pub struct Refinement {
     pub spans: Vec<usize>,
     /// Wall time, s.
     pub seconds: f64,
+    /// For a refinement done patch by patch ([`crate::refine_in_patches`]): each patch's own
+    /// refinement, whose Jacobians give the uncertainty (`jacobian` is then empty). Empty for
+    /// a whole-object refinement.
+    pub patches: Vec<crate::PatchRefinement>,
 }
 
 /// Packs parameters and a state into one vector (free particles only).
@@ -185,8 +189,22 @@ pub fn refine(
     options: &RefineOptions,
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
+    refine_with(problem, observations, start, options, observer, &|obs| {
+        MultiStepCost::new(problem.clone(), obs)
+    })
+}
+
+/// As [`refine`], with the multi-step cost of a span of observations made by `cost_for`.
+pub(crate) fn refine_with(
+    problem: &Problem,
+    observations: &Observations,
+    start: &[f64],
+    options: &RefineOptions,
+    observer: &dyn Observer,
+    cost_for: &dyn Fn(&Observations) -> Result<MultiStepCost, IdentifyError>,
+) -> Result<Refinement, IdentifyError> {
     let t0 = Instant::now();
-    let full = MultiStepCost::new(problem.clone(), observations)?;
+    let full = cost_for(observations)?;
     let anchor = full.anchor();
     let anchor_frame = full.anchor_frame();
     let free = full.free_particles().to_vec();
@@ -239,7 +257,7 @@ pub fn refine(
         } else {
             let first = anchor_frame;
             let obs = observations.restrict(first, first + span - 1)?;
-            MultiStepCost::new(problem.clone(), &obs)?
+            cost_for(&obs)?
         };
         let template = state.clone();
         let f = |z: &[f64], out: &mut Vec<f64>| {
@@ -308,6 +326,7 @@ pub fn refine(
         cost_count,
         spans,
         seconds: t0.elapsed().as_secs_f64(),
+        patches: Vec::new(),
     })
 }
 
@@ -387,6 +406,7 @@ pub fn fit_start_state(
         cost_count: outcome.evaluations + z.len(),
         spans: vec![observations.frame_count() - full.anchor()],
         seconds: t0.elapsed().as_secs_f64(),
+        patches: Vec::new(),
     })
 }
 

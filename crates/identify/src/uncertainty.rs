@@ -52,7 +52,14 @@ pub struct Uncertainty {
 }
 
 /// The uncertainty of `refinement`'s parameters, with `track_noise` (px) for the Cramer-Rao bound.
+///
+/// A refinement done in patches ([`crate::refine_in_patches`]) is judged patch by patch: each
+/// parameter's standard error and bound come from the patch that decided it, the residual
+/// standard deviation pools every patch's, and the singular values are all the patches'.
 pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64) -> Uncertainty {
+    if !refinement.patches.is_empty() {
+        return patched_uncertainty(problem, refinement, track_noise);
+    }
     let j = &refinement.jacobian;
     let (m, n) = (j.nrows(), j.ncols());
     let dim = problem.dimension();
@@ -142,6 +149,54 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
         poorly_determined,
         warnings,
     }
+}
+
+/// [`uncertainty`] of a refinement done in patches.
+fn patched_uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64) -> Uncertainty {
+    let dim = problem.dimension();
+    let mut out = Uncertainty {
+        residual_sigma: f64::NAN,
+        track_noise,
+        std_errors: vec![f64::INFINITY; dim],
+        cramer_rao: vec![f64::INFINITY; dim],
+        singular_values: Vec::new(),
+        unidentifiable: Vec::new(),
+        poorly_determined: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let (mut ssr, mut dof) = (0.0, 0usize);
+    for part in &refinement.patches {
+        let u = uncertainty(&part.problem, &part.refinement, track_noise);
+        let r = &part.refinement;
+        ssr += r.residuals.iter().map(|e| e * e).sum::<f64>();
+        dof += r.residuals.len().saturating_sub(r.jacobian.ncols());
+        out.singular_values.extend(&u.singular_values);
+        for &(i, g) in &part.owned {
+            out.std_errors[g] = u.std_errors[i];
+            out.cramer_rao[g] = u.cramer_rao[i];
+            if u.unidentifiable.contains(&i) {
+                out.unidentifiable.push(g);
+            }
+            if u.poorly_determined.contains(&i) {
+                out.poorly_determined.push(g);
+            }
+            // The patch's warnings name its parameters by the structure's particle ids.
+            let label = part.problem.parameter_label(i);
+            out.warnings.extend(
+                u.warnings
+                    .iter()
+                    .filter(|w| w.starts_with(&format!("{label} ")))
+                    .cloned(),
+            );
+        }
+    }
+    if dof > 0 {
+        out.residual_sigma = (ssr / dof as f64).sqrt();
+    }
+    out.singular_values.sort_by(|a, b| b.total_cmp(a));
+    out.unidentifiable.sort_unstable();
+    out.poorly_determined.sort_unstable();
+    out
 }
 
 /// A rest angle in degrees from a rest cosine, with the standard error of the angle from that

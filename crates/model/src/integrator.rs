@@ -74,7 +74,29 @@ impl StepScratch {
 /// No allocation unless `scratch` was sized for a different particle count.
 pub fn step(model: &Model, kind: IntegratorKind, dt: f64, state: &mut State, scratch: &mut StepScratch) {
     scratch.acc_valid = false;
-    step_substep(model, kind, dt, state, scratch);
+    step_substep(model, kind, dt, state, scratch, None);
+}
+
+/// As [`step`], with the motion of some particles *prescribed* instead of integrated (the
+/// boundary of a part of an object cut out of a larger one, driven along its observed track).
+///
+/// The prescribed particles must be `fixed` in `model`, so that the scheme leaves them alone;
+/// the caller sets their positions and velocities at the start of the substep. `prescribe`
+/// must set them to their values at the end of the substep (`dt` later): it is called once the
+/// free particles' positions have advanced, before the forces at the end of the substep are
+/// evaluated (so Verlet sees the boundary where it will be), and again after the substep's
+/// velocity update. The free particles then move exactly as they would next to a boundary
+/// following that motion.
+pub fn step_prescribed(
+    model: &Model,
+    kind: IntegratorKind,
+    dt: f64,
+    state: &mut State,
+    scratch: &mut StepScratch,
+    prescribe: &mut dyn FnMut(&mut State),
+) {
+    scratch.acc_valid = false;
+    step_substep(model, kind, dt, state, scratch, Some(prescribe));
 }
 
 /// One substep; reuses `scratch.acc` when `scratch.acc_valid` says it is the acceleration at
@@ -85,6 +107,7 @@ pub(crate) fn step_substep(
     dt: f64,
     state: &mut State,
     scratch: &mut StepScratch,
+    mut prescribe: Option<&mut dyn FnMut(&mut State)>,
 ) {
     let n = state.len();
     if scratch.acc.len() != n {
@@ -109,6 +132,9 @@ pub(crate) fn step_substep(
                 } else {
                     *v = Vec2::zeros();
                 }
+            }
+            if let Some(f) = prescribe.as_mut() {
+                f(state);
             }
             scratch.acc_valid = false;
         }
@@ -136,6 +162,9 @@ pub(crate) fn step_substep(
                     *v = Vec2::zeros();
                 }
             }
+            if let Some(f) = prescribe.as_mut() {
+                f(state);
+            }
             model.accelerations(state, &mut scratch.acc_new);
             for ((v, v0), (a0, a1)) in state
                 .velocities
@@ -160,6 +189,9 @@ pub(crate) fn step_substep(
     // (Euler): either is the substep's acceleration to first order, all the event law needs.
     if model.apply_walls_in_substep(state, &scratch.acc, dt) > 0 {
         scratch.acc_valid = false;
+    }
+    if let Some(f) = prescribe {
+        f(state);
     }
 }
 
@@ -186,6 +218,6 @@ pub(crate) fn step_frame_continued(
 ) {
     let dt = params.dt();
     for _ in 0..params.substeps.max(1) {
-        step_substep(model, params.integrator, dt, state, scratch);
+        step_substep(model, params.integrator, dt, state, scratch, None);
     }
 }

@@ -2,7 +2,8 @@
 //! from the scratch buffer's history.
 
 use physfit_model::{
-    simulate, step, step_frame, IntegrationParameters, IntegratorKind, Model, State, StepScratch, Vec2, Wall,
+    simulate, step, step_frame, step_prescribed, IntegrationParameters, IntegratorKind, Model, State,
+    StepScratch, Vec2, Wall,
 };
 
 use crate::common::{max_distance, momentum, paper8};
@@ -261,5 +262,46 @@ fn verlet_converges_at_second_order_and_euler_at_first_to_the_same_trajectory() 
         }
         // Both reach the same trajectory.
         assert!(v_err[3] < 1e-3 && e_err[3] < 0.5, "{label}: {v_err:?} {e_err:?}");
+    }
+}
+
+#[test]
+fn a_boundary_prescribed_along_its_own_motion_leaves_the_rest_unchanged() {
+    // Cut particles 5, 6 and 7 of the braced ring loose from the integrator and drive them
+    // along the motion they had in the whole simulation: every other particle must move as in
+    // the whole simulation, to rounding, with both schemes (dashpots included: the prescribed
+    // velocities enter their forces).
+    let (mut model, initial) = paper8();
+    model.springs[3].damping = Some(1.5);
+    let driven = [5usize, 6, 7];
+    for kind in [IntegratorKind::Verlet, IntegratorKind::Euler] {
+        let dt = 0.01 / 20.0;
+        let mut whole = initial.clone();
+        let mut scratch = StepScratch::new(whole.len());
+        let mut states = vec![whole.clone()];
+        for _ in 0..400 {
+            step(&model, kind, dt, &mut whole, &mut scratch);
+            states.push(whole.clone());
+        }
+        let mut cut = model.clone();
+        for &p in &driven {
+            cut.particles.particles[p].fixed = true;
+        }
+        let mut state = initial.clone();
+        for (s, next) in states.iter().skip(1).enumerate() {
+            let mut prescribe = |st: &mut State| {
+                for &p in &driven {
+                    st.positions[p] = next.positions[p];
+                    st.velocities[p] = next.velocities[p];
+                }
+            };
+            step_prescribed(&cut, kind, dt, &mut state, &mut scratch, &mut prescribe);
+            let worst = (0..state.len())
+                .map(|p| (state.positions[p] - next.positions[p]).norm())
+                .fold(0.0, f64::max);
+            assert!(worst < 1e-9, "{kind:?}, substep {}: {worst:e} px", s + 1);
+        }
+        let moved = max_distance(&states[0].positions, &states[400].positions);
+        assert!(moved > 1.0, "{kind:?}: the object barely moved ({moved} px)");
     }
 }
