@@ -501,17 +501,12 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
         let linear_time = t0.elapsed().as_secs_f64();
         // As `lsq` refines: the whole object up to PATCH_LIMIT unknowns, in patches beyond.
         let t1 = Instant::now();
-        let whole = problem.dimension() + 4 * side * side <= physfit_identify::PATCH_LIMIT;
-        let r = if whole {
-            physfit_identify::refine(&problem, &obs, &est.params, &Default::default(), &())?
-        } else {
-            physfit_identify::refine_in_patches(&problem, &obs, &est.params, &Default::default(), &())?
-        };
+        let r = physfit_identify::refine_by_size(&problem, &obs, &est.params, &Default::default(), &())?;
         let refine_seconds = t1.elapsed().as_secs_f64();
         let refine_time = format!(
             "{:.2} s ({}, {:.0} ms per bond)",
             refine_seconds,
-            if whole { "whole" } else { "patches" },
+            if r.patches.is_empty() { "whole" } else { "patches" },
             refine_seconds * 1e3 / (truth.springs.len() + truth.torsions.len()) as f64
         );
         let refined_err = pct(rel(&r.params));

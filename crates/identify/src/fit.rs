@@ -20,9 +20,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::solvers::{anneal, genetic, genetic_local, AnnealOptions, GaOptions};
 use crate::{
-    fit_start_state, linear_estimate, refine, refine_in_patches, uncertainty, CostFunction, FitCosts,
-    FitReport, IdentifyError, LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem,
-    RefineOptions, Refinement, PATCH_LIMIT,
+    fit_start_state, linear_estimate, refine_by_size, uncertainty, CostFunction, FitCosts, FitReport,
+    IdentifyError, LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem, RefineOptions,
+    Refinement,
 };
 
 /// How the parameters are searched for.
@@ -317,12 +317,7 @@ fn solve_lsq(
     observer: &dyn Observer,
 ) -> Result<Solved, IdentifyError> {
     let est = linear_estimate(problem, obs, options.test_window)?;
-    let free = obs.fixed.iter().filter(|f| !**f).count();
-    let r = if problem.dimension() + 4 * free > PATCH_LIMIT {
-        refine_in_patches(problem, obs, &est.params, &options.refine, observer)?
-    } else {
-        refine(problem, obs, &est.params, &options.refine, observer)?
-    };
+    let r = refine_by_size(problem, obs, &est.params, &options.refine, observer)?;
     Ok(Solved {
         params: r.params.clone(),
         history: r.history.clone(),
@@ -410,7 +405,7 @@ fn solve_auto(
         Err(e) => warnings.push(format!("least squares failed ({e}); used the local genetic algorithm")),
     }
     let global = solve_paper(problem, obs, Method::GaLocal, ga, options, observer)?;
-    let refined = refine(problem, obs, &global.params, &options.refine, observer);
+    let refined = refine_by_size(problem, obs, &global.params, &options.refine, observer);
     let candidate = match refined {
         Ok(r) => Solved {
             params: r.params.clone(),

@@ -82,6 +82,16 @@ impl Layout {
         self.parameters.len()
     }
 
+    /// Where each parameter sits in the vector, by its bond and kind: built once for lookups
+    /// over many bonds (searching the parameter list for each would be quadratic in the bonds).
+    pub fn parameter_index(&self) -> std::collections::HashMap<(BondRef, ParameterKind), usize> {
+        self.parameters
+            .iter()
+            .enumerate()
+            .map(|(i, p)| ((p.bond, p.kind), i))
+            .collect()
+    }
+
     /// Clamps `params` into every parameter's bounds.
     pub fn clamp(&self, params: &mut [f64]) {
         for (p, info) in params.iter_mut().zip(&self.parameters) {

@@ -594,12 +594,8 @@ fn conjugate_gradients(a: &[Vec<(usize, f64)>], b: &[f64], paired: &[bool]) -> V
 fn to_parameters(problem: &Problem, cols: &[Column], theta: &[f64], warnings: &mut Vec<String>) -> Vec<f64> {
     let layout = &problem.layout;
     let mut x = problem.initial_guess();
-    let find = |bond: BondRef, kind: ParameterKind| {
-        layout
-            .parameters
-            .iter()
-            .position(|p| p.bond == bond && p.kind == kind)
-    };
+    let index = layout.parameter_index();
+    let find = |bond: BondRef, kind: ParameterKind| index.get(&(bond, kind)).copied();
     let mut k = 0;
     while k < cols.len() {
         match cols[k] {

@@ -237,6 +237,24 @@ fn patch_problem(
     (scene, sub)
 }
 
+/// Refines `start` as `lsq` does: the whole object ([`crate::refine`]) up to [`PATCH_LIMIT`]
+/// unknowns (parameters plus four per free particle), patch by patch
+/// ([`refine_in_patches`]) beyond.
+pub fn refine_by_size(
+    problem: &Problem,
+    observations: &Observations,
+    start: &[f64],
+    options: &RefineOptions,
+    observer: &dyn Observer,
+) -> Result<Refinement, IdentifyError> {
+    let free = observations.fixed.iter().filter(|f| !**f).count();
+    if problem.dimension() + 4 * free > PATCH_LIMIT {
+        refine_in_patches(problem, observations, start, options, observer)
+    } else {
+        crate::refine(problem, observations, start, options, observer)
+    }
+}
+
 /// Refines `start` (and the observed start state) patch by patch (see the module doc). The
 /// result's Jacobian is empty; its [`Refinement::patches`] hold each patch's, which
 /// [`crate::uncertainty`] reads.
@@ -267,13 +285,7 @@ pub fn refine_in_patches(
         .iter()
         .map(|ps| ps.iter().find(|&&p| free[p]).map_or(usize::MAX, |&p| core_of[p]))
         .collect();
-    let whole_index = |bond: BondRef, kind| {
-        problem
-            .layout
-            .parameters
-            .iter()
-            .position(|q| q.bond == bond && q.kind == kind)
-    };
+    let whole_index = problem.layout.parameter_index();
     // One pass: every patch refined from `start`, its ring driven along `ring_paths` (the
     // tracks where `None`); also returns each core's simulated path.
     type Solved = Option<(PatchRefinement, Vec<Vec<Vec2>>)>;
@@ -301,7 +313,7 @@ pub fn refine_in_patches(
                         ),
                     };
                     // The patch's unknowns are the whole's, under the same bonds.
-                    let Some(g) = whole_index(bond, q.kind) else {
+                    let Some(&g) = whole_index.get(&(bond, q.kind)) else {
                         return Err(IdentifyError::NoUnknowns);
                     };
                     map.push(g);

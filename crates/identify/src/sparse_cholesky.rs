@@ -99,9 +99,8 @@ impl Dissection<'_> {
         for &v in &set {
             if self.stamp[v] == member {
                 let visited = self.fresh_stamp();
-                let part = self.bfs(v, member, visited);
-                // Restore membership for the part's own processing below.
-                parts.push(part);
+                // Each part is marked afresh when it is dissected.
+                parts.push(self.bfs(v, member, visited));
             }
         }
         for part in parts {

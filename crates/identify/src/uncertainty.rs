@@ -104,11 +104,76 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
         .collect();
     let std_errors: Vec<f64> = unit_sd.iter().map(|s| s * residual_sigma).collect();
     let cramer_rao: Vec<f64> = unit_sd.iter().map(|s| s * track_noise).collect();
+    let flat: Vec<bool> = (0..dim)
+        .map(|c| norms[c] == 0.0 || null_weight[c] > 0.5)
+        .collect();
+    let (unidentifiable, poorly_determined, warnings) =
+        judge(problem, &refinement.params, &std_errors, &flat);
+    Uncertainty {
+        residual_sigma,
+        track_noise,
+        std_errors,
+        cramer_rao,
+        singular_values,
+        unidentifiable,
+        poorly_determined,
+        warnings,
+    }
+}
+
+/// [`uncertainty`] of a refinement done in patches.
+fn patched_uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64) -> Uncertainty {
+    let dim = problem.dimension();
+    let mut std_errors = vec![f64::INFINITY; dim];
+    let mut cramer_rao = vec![f64::INFINITY; dim];
+    let mut flat = vec![false; dim];
+    let mut singular_values: Vec<f64> = Vec::new();
+    let (mut ssr, mut dof) = (0.0, 0usize);
+    for part in &refinement.patches {
+        let u = uncertainty(&part.problem, &part.refinement, track_noise);
+        let r = &part.refinement;
+        ssr += r.residuals.iter().map(|e| e * e).sum::<f64>();
+        dof += r.residuals.len().saturating_sub(r.jacobian.ncols());
+        singular_values.extend(&u.singular_values);
+        for &(i, g) in &part.owned {
+            std_errors[g] = u.std_errors[i];
+            cramer_rao[g] = u.cramer_rao[i];
+            flat[g] = u.unidentifiable.contains(&i);
+        }
+    }
+    singular_values.sort_by(|a, b| b.total_cmp(a));
+    let (unidentifiable, poorly_determined, warnings) =
+        judge(problem, &refinement.params, &std_errors, &flat);
+    Uncertainty {
+        residual_sigma: if dof > 0 {
+            (ssr / dof as f64).sqrt()
+        } else {
+            f64::NAN
+        },
+        track_noise,
+        std_errors,
+        cramer_rao,
+        singular_values,
+        unidentifiable,
+        poorly_determined,
+        warnings,
+    }
+}
+
+/// The parameters the data cannot determine (`flat[c]`: no weight outside the null directions
+/// of `J^T J`) and those determined only to worse than [`POORLY_DETERMINED`] relative standard
+/// error, with one sentence each naming the bond as in the scene file.
+fn judge(
+    problem: &Problem,
+    params: &[f64],
+    std_errors: &[f64],
+    flat: &[bool],
+) -> (Vec<usize>, Vec<usize>, Vec<String>) {
     let mut unidentifiable = Vec::new();
     let mut poorly_determined = Vec::new();
     let mut warnings = Vec::new();
-    for c in 0..dim {
-        let value = refinement.params[c];
+    for c in 0..problem.dimension() {
+        let value = params[c];
         let label = problem.parameter_label(c);
         let kind = problem.layout.parameters[c].kind;
         let why = match kind {
@@ -125,7 +190,7 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
                 "the torsion's energy is flat (too weak, or the angle too steady) to locate its rest angle"
             }
         };
-        if norms[c] == 0.0 || null_weight[c] > 0.5 {
+        if flat[c] {
             unidentifiable.push(c);
             warnings.push(format!("{label} is not identifiable from this motion: {why}"));
         } else {
@@ -139,64 +204,7 @@ pub fn uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64)
             }
         }
     }
-    Uncertainty {
-        residual_sigma,
-        track_noise,
-        std_errors,
-        cramer_rao,
-        singular_values,
-        unidentifiable,
-        poorly_determined,
-        warnings,
-    }
-}
-
-/// [`uncertainty`] of a refinement done in patches.
-fn patched_uncertainty(problem: &Problem, refinement: &Refinement, track_noise: f64) -> Uncertainty {
-    let dim = problem.dimension();
-    let mut out = Uncertainty {
-        residual_sigma: f64::NAN,
-        track_noise,
-        std_errors: vec![f64::INFINITY; dim],
-        cramer_rao: vec![f64::INFINITY; dim],
-        singular_values: Vec::new(),
-        unidentifiable: Vec::new(),
-        poorly_determined: Vec::new(),
-        warnings: Vec::new(),
-    };
-    let (mut ssr, mut dof) = (0.0, 0usize);
-    for part in &refinement.patches {
-        let u = uncertainty(&part.problem, &part.refinement, track_noise);
-        let r = &part.refinement;
-        ssr += r.residuals.iter().map(|e| e * e).sum::<f64>();
-        dof += r.residuals.len().saturating_sub(r.jacobian.ncols());
-        out.singular_values.extend(&u.singular_values);
-        for &(i, g) in &part.owned {
-            out.std_errors[g] = u.std_errors[i];
-            out.cramer_rao[g] = u.cramer_rao[i];
-            if u.unidentifiable.contains(&i) {
-                out.unidentifiable.push(g);
-            }
-            if u.poorly_determined.contains(&i) {
-                out.poorly_determined.push(g);
-            }
-            // The patch's warnings name its parameters by the structure's particle ids.
-            let label = part.problem.parameter_label(i);
-            out.warnings.extend(
-                u.warnings
-                    .iter()
-                    .filter(|w| w.starts_with(&format!("{label} ")))
-                    .cloned(),
-            );
-        }
-    }
-    if dof > 0 {
-        out.residual_sigma = (ssr / dof as f64).sqrt();
-    }
-    out.singular_values.sort_by(|a, b| b.total_cmp(a));
-    out.unidentifiable.sort_unstable();
-    out.poorly_determined.sort_unstable();
-    out
+    (unidentifiable, poorly_determined, warnings)
 }
 
 /// A rest angle in degrees from a rest cosine, with the standard error of the angle from that

@@ -377,12 +377,8 @@ impl WeakForm {
         };
         let layout = &problem.layout;
         let mut x = fallback.to_vec();
-        let find = |bond: BondRef, kind: ParameterKind| {
-            layout
-                .parameters
-                .iter()
-                .position(|p| p.bond == bond && p.kind == kind)
-        };
+        let index = layout.parameter_index();
+        let find = |bond: BondRef, kind: ParameterKind| index.get(&(bond, kind)).copied();
         let mut k = 0;
         while k < self.bond_kinds.len() {
             match self.bond_kinds[k] {
