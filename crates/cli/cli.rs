@@ -210,6 +210,8 @@ pub enum BenchTarget {
     Track,
     /// Identification: the paper's experiments and lsq scaling.
     Fit,
+    /// Identification's scaling table alone (lsq and ga-local on lattices of 9 to 1024 particles).
+    Scaling,
     /// Everything.
     All,
 }

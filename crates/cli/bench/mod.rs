@@ -24,6 +24,10 @@ pub fn run(args: &BenchArgs, _verbosity: Verbosity) -> anyhow::Result<()> {
         report.push_str(&fit::run(args.quick)?);
         report.push('\n');
     }
+    if args.what == BenchTarget::Scaling {
+        report.push_str(&fit::scaling(args.quick)?);
+        report.push('\n');
+    }
     print!("{report}");
     if let Some(path) = &args.out {
         physfit_model::write_atomic(path, report.as_bytes())

@@ -121,3 +121,41 @@ mod tests {
         assert_eq!(spline.at(3.0).0, path(3.0));
     }
 }
+
+/// Pinned particles driven along [`SplinePath`]s, sampled once at every substep of the
+/// recording, so that the many simulations of a cost read a table instead of evaluating the
+/// splines twice per substep.
+#[derive(Clone, Debug)]
+pub(crate) struct DrivenBoundary {
+    /// The driven particles (indices in the model).
+    particles: Vec<usize>,
+    /// Position (px) and velocity (px per frame) of each driven particle at each substep:
+    /// `samples[i * particles.len() + j]` at time `i / substeps` frames.
+    samples: Vec<(Vec2, Vec2)>,
+}
+
+impl DrivenBoundary {
+    /// Samples `paths` (`(particle, path)`) at `substeps` points per frame over `frames` frames.
+    pub(crate) fn new(paths: &[(usize, SplinePath)], frames: usize, substeps: usize) -> DrivenBoundary {
+        let substeps = substeps.max(1);
+        let steps = frames.saturating_sub(1) * substeps + 1;
+        let mut samples = Vec::with_capacity(steps * paths.len());
+        for i in 0..steps {
+            let t = i as f64 / substeps as f64;
+            samples.extend(paths.iter().map(|(_, path)| path.at(t)));
+        }
+        DrivenBoundary {
+            particles: paths.iter().map(|(p, _)| *p).collect(),
+            samples,
+        }
+    }
+
+    /// `(particle, position px, velocity px per frame)` of every driven particle at substep
+    /// `i` (counted from the first frame; clamped to the recording).
+    pub(crate) fn at(&self, i: usize) -> impl Iterator<Item = (usize, Vec2, Vec2)> + '_ {
+        let n = self.particles.len();
+        let last = (self.samples.len() / n.max(1)).saturating_sub(1);
+        let row = &self.samples[i.min(last) * n..(i.min(last) + 1) * n];
+        self.particles.iter().zip(row).map(|(&p, &(x, v))| (p, x, v))
+    }
+}

@@ -20,10 +20,10 @@
 
 use std::sync::Arc;
 
-use physfit_model::{step_frame, step_prescribed, IntegrationParameters, State, StepScratch, Vec2};
+use physfit_model::{step_frame, step_frame_prescribed, IntegrationParameters, State, StepScratch, Vec2};
 use serde::Serialize;
 
-use crate::driven::SplinePath;
+use crate::driven::{DrivenBoundary, SplinePath};
 
 use crate::{CostFunction, IdentifyError, Observations, Problem};
 
@@ -66,7 +66,7 @@ pub struct MultiStepCost {
     horizon: Option<usize>,
     free: Vec<usize>,
     /// Pinned particles driven along their tracks instead of held still (a cut boundary).
-    driven: Option<Arc<Vec<(usize, SplinePath)>>>,
+    driven: Option<Arc<DrivenBoundary>>,
 }
 
 impl MultiStepCost {
@@ -109,7 +109,8 @@ impl MultiStepCost {
             })?;
             paths.push((p, SplinePath::new(points)));
         }
-        self.driven = Some(Arc::new(paths));
+        let substeps = self.stepping.substeps.max(1) as usize;
+        self.driven = Some(Arc::new(DrivenBoundary::new(&paths, obs.frame_count(), substeps)));
         Ok(self)
     }
 
@@ -219,30 +220,24 @@ impl MultiStepCost {
         let frames = self.observations.frame_count();
         // With a driven boundary, one frame is its substeps with the boundary prescribed at the
         // end of each (`direction` -1 runs backward in time with reversed velocities).
-        let substeps = self.stepping.substeps.max(1);
+        let substeps = self.stepping.substeps.max(1) as usize;
         let advance = |state: &mut State, scratch: &mut StepScratch, from: usize, direction: f64| {
             let Some(paths) = &self.driven else {
                 step_frame(&model, &self.stepping, state, scratch);
                 return;
             };
-            for s in 1..=substeps {
-                let t = from as f64 + direction * s as f64 / substeps as f64;
-                let mut prescribe = |st: &mut State| {
-                    for (p, path) in paths.iter() {
-                        let (x, v) = path.at(t);
-                        st.positions[*p] = x;
-                        st.velocities[*p] = v * (direction * self.observations.fps);
-                    }
+            let scale = direction * self.observations.fps;
+            step_frame_prescribed(&model, &self.stepping, state, scratch, &mut |s, st| {
+                let i = if direction > 0.0 {
+                    from * substeps + s as usize
+                } else {
+                    from * substeps - s as usize
                 };
-                step_prescribed(
-                    &model,
-                    self.stepping.integrator,
-                    self.stepping.dt(),
-                    state,
-                    scratch,
-                    &mut prescribe,
-                );
-            }
+                for (p, x, v) in paths.at(i) {
+                    st.positions[p] = x;
+                    st.velocities[p] = v * scale;
+                }
+            });
         };
         for k in self.anchor..frames {
             if k > self.anchor {

@@ -2,8 +2,9 @@
 //!
 //! The whole-object refinement ([`crate::refine`]) differentiates a simulation of the whole
 //! object with respect to every unknown: its cost grows as unknowns x bonds x frames, and its
-//! uncertainty needs the eigen-decomposition of a dense matrix of all unknowns (a 100-particle
-//! lattice took 449 s). Beyond [`PATCH_LIMIT`] unknowns the object is instead cut into patches:
+//! uncertainty needs the eigen-decomposition of a dense matrix of all unknowns, so it grows as
+//! the square of the object's size or faster. Beyond [`PATCH_LIMIT`] unknowns the object is
+//! instead cut into patches:
 //!
 //! * the free particles are split into *cores* of about [`CORE_SIZE`] neighbours (grown
 //!   breadth-first over the bonds);
@@ -17,7 +18,11 @@
 //!   start state of core and halo and the patch's bond values are refined by
 //!   [`crate::refine`]'s machinery on their positions;
 //! * each bond takes its values from the patch whose core holds its first free particle (a
-//!   torsion's centre first), and their standard errors from that patch's Jacobian.
+//!   torsion's centre first), and their standard errors from that patch's Jacobian;
+//! * the Jacobians are carried between iterations by secant updates, and a later pass starts
+//!   from the state and the Jacobian the patch reached in the pass before, so a patch costs
+//!   about one finite-difference Jacobian in the first pass and one in the last (which the
+//!   uncertainty needs), and a few dozen simulations in between.
 //!
 //! Every patch has the same size whatever the object's, so the work grows in proportion to
 //! the number of bonds, and the patches run in parallel. The price is statistical: the ring
@@ -25,11 +30,11 @@
 //! little less well than a whole-object fit would know it (on exact data both are exact).
 
 use nalgebra::DMatrix;
-use physfit_model::{ParticleId, Scene, Vec2};
+use physfit_model::{ParticleId, Scene, State, Vec2};
 use rayon::prelude::*;
 use std::time::Instant;
 
-use crate::refine::refine_with;
+use crate::refine::{refine_with, WarmStart};
 use crate::{
     BondRef, IdentifyError, MultiStepCost, Observations, Observer, Problem, RefineOptions, Refinement,
 };
@@ -266,6 +271,12 @@ pub fn refine_in_patches(
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
     let t0 = Instant::now();
+    // Every pass but the last only feeds the next, which starts from its Jacobian: secant
+    // updates serve them (the last pass ends on a finite-difference Jacobian).
+    let options = RefineOptions {
+        secant_updates: true,
+        ..options.clone()
+    };
     let structure = &problem.structure;
     let free: Vec<bool> = observations.fixed.iter().map(|f| !f).collect();
     let patches = partition(structure, &free);
@@ -289,7 +300,11 @@ pub fn refine_in_patches(
     // One pass: every patch refined from `start`, its ring driven along `ring_paths` (the
     // tracks where `None`); also returns each core's simulated path.
     type Solved = Option<(PatchRefinement, Vec<Vec<Vec2>>)>;
-    let pass = |start: &[f64], ring_paths: Option<&[Vec<Vec2>]>| -> Vec<Result<Solved, IdentifyError>> {
+    let pass = |start: &[f64],
+                ring_paths: Option<&[Vec<Vec2>]>,
+                warm: Option<(&State, &[Option<DMatrix<f64>>])>,
+                last: bool|
+     -> Vec<Result<Solved, IdentifyError>> {
         patches
             .par_iter()
             .enumerate()
@@ -324,7 +339,34 @@ pub fn refine_in_patches(
                 let sub_start: Vec<f64> = map.iter().map(|&g| start[g]).collect();
                 let cost_for =
                     |o: &Observations| MultiStepCost::new(sub.clone(), o)?.with_driven_pinned_particles();
-                let refinement = refine_with(&sub, &sub_obs, &sub_start, options, &(), &cost_for)?;
+                // Later passes start from the state the patches found before.
+                let sub_warm = match warm {
+                    Some((whole_state, jacobians)) => match &jacobians[c] {
+                        Some(jacobian) => {
+                            let mut state = cost_for(&sub_obs)?.observed_anchor_state();
+                            for (i, &p) in patch.particles[..patch.simulated].iter().enumerate() {
+                                state.positions[i] = whole_state.positions[p];
+                                state.velocities[i] = whole_state.velocities[p];
+                            }
+                            Some(WarmStart {
+                                state,
+                                jacobian: jacobian.clone(),
+                            })
+                        }
+                        None => None,
+                    },
+                    None => None,
+                };
+                let refinement = refine_with(
+                    &sub,
+                    &sub_obs,
+                    &sub_start,
+                    sub_warm.as_ref(),
+                    last,
+                    &options,
+                    &(),
+                    &cost_for,
+                )?;
                 let path = cost_for(&sub_obs)?
                     .trajectory(&refinement.params, &refinement.initial_state)
                     .unwrap_or_default();
@@ -343,8 +385,11 @@ pub fn refine_in_patches(
     let mut parts = Vec::with_capacity(patches.len());
     let (mut first_cost, mut last_cost, mut iterations, mut evaluations) = (0.0, 0.0, 0, 0);
     let mut ring_paths: Option<Vec<Vec<Vec2>>> = None;
+    // Each patch's Jacobian at the end of the last pass, which the next one starts from.
+    let mut jacobians: Vec<Option<DMatrix<f64>>> = vec![None; patches.len()];
     for round in 0..PASSES {
-        let solved = pass(&params, ring_paths.as_deref());
+        let warm = (round > 0).then_some((&state, &jacobians[..]));
+        let solved = pass(&params, ring_paths.as_deref(), warm, round + 1 == PASSES);
         let mut paths: Vec<Vec<Vec2>> = observations
             .positions
             .iter()
@@ -352,10 +397,12 @@ pub fn refine_in_patches(
             .collect();
         parts.clear();
         last_cost = 0.0;
-        for (patch, result) in patches.iter().zip(solved) {
+        for (c, (patch, result)) in patches.iter().zip(solved).enumerate() {
             let Some((part, path)) = result? else {
+                jacobians[c] = None;
                 continue;
             };
+            jacobians[c] = Some(part.refinement.jacobian.clone());
             for &(i, g) in &part.owned {
                 params[g] = part.refinement.params[i];
             }

@@ -30,8 +30,8 @@ use physfit_model::{State, Vec2};
 use serde::Serialize;
 
 use crate::{
-    levenberg_marquardt, stiffness_scales, IdentifyError, LmOptions, MultiStepCost, MultiStepFit,
-    Observations, Observer, ParameterKind, Problem,
+    levenberg_marquardt, levenberg_marquardt_from_jacobian, stiffness_scales, IdentifyError, LmOptions,
+    MultiStepCost, MultiStepFit, Observations, Observer, ParameterKind, Problem,
 };
 
 /// Settings of [`refine`].
@@ -43,6 +43,9 @@ pub struct RefineOptions {
     pub first_span_periods: f64,
     /// Factor by which each stage's span grows until it covers the window (> 1).
     pub span_growth: f64,
+    /// Carry the Jacobian between iterations by secant updates ([`LmOptions::secant_updates`]);
+    /// the final Jacobian is still taken by finite differences.
+    pub secant_updates: bool,
 }
 
 impl Default for RefineOptions {
@@ -51,6 +54,7 @@ impl Default for RefineOptions {
             max_iterations: 40,
             first_span_periods: 3.0,
             span_growth: 2.0,
+            secant_updates: true,
         }
     }
 }
@@ -160,6 +164,20 @@ impl ProductCoordinates {
         p
     }
 
+    /// The Jacobian `j` of residuals in product coordinates (parameters, then state columns)
+    /// as the Jacobian in natural coordinates at `params`: by the chain rule through
+    /// `theta_r = p_r p_s`, column `r` is scaled by `p_s` and column `s` gains `p_r` times
+    /// column `r`.
+    fn jacobian_in_natural(&self, mut j: DMatrix<f64>, params: &[f64]) -> DMatrix<f64> {
+        for &(r, s) in &self.pairs {
+            let (rest, stiffness) = (params[r], params[s]);
+            let dr = j.column(r).clone_owned();
+            j.column_mut(s).axpy(rest, &dr, 1.0);
+            j.column_mut(r).scale_mut(stiffness);
+        }
+        j
+    }
+
     /// Bounds and typical magnitudes of the product coordinates.
     fn bounds(&self, problem: &Problem) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let ps = &problem.layout.parameters;
@@ -189,16 +207,39 @@ pub fn refine(
     options: &RefineOptions,
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
-    refine_with(problem, observations, start, options, observer, &|obs| {
-        MultiStepCost::new(problem.clone(), obs)
-    })
+    refine_with(
+        problem,
+        observations,
+        start,
+        None,
+        true,
+        options,
+        observer,
+        &|obs| MultiStepCost::new(problem.clone(), obs),
+    )
+}
+
+/// Where a refinement of a nearly identical problem ended (the patches' later passes start
+/// from the one before).
+#[derive(Clone, Debug)]
+pub(crate) struct WarmStart {
+    /// The start state it found at the anchor.
+    pub state: State,
+    /// Its Jacobian there (natural coordinates), carried forward by secant updates.
+    pub jacobian: DMatrix<f64>,
 }
 
 /// As [`refine`], with the multi-step cost of a span of observations made by `cost_for`.
+/// From a `warm` start the span is not grown: only the last stage, in natural coordinates, is
+/// run, from the warm start's Jacobian ([`crate::levenberg_marquardt_from_jacobian`]). Unless
+/// `exact_jacobian`, the returned Jacobian may be a secant estimate.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn refine_with(
     problem: &Problem,
     observations: &Observations,
     start: &[f64],
+    warm: Option<&WarmStart>,
+    exact_jacobian: bool,
     options: &RefineOptions,
     observer: &dyn Observer,
     cost_for: &dyn Fn(&Observations) -> Result<MultiStepCost, IdentifyError>,
@@ -209,7 +250,7 @@ pub(crate) fn refine_with(
     let anchor_frame = full.anchor_frame();
     let free = full.free_particles().to_vec();
     let dim = problem.dimension();
-    let mut state = full.observed_anchor_state();
+    let mut state = warm.map_or_else(|| full.observed_anchor_state(), |w| w.state.clone());
     let mut params = start.to_vec();
     problem.layout.clamp(&mut params);
 
@@ -221,13 +262,20 @@ pub(crate) fn refine_with(
         .min(remaining);
     let mut spans = Vec::new();
     loop {
-        spans.push(span);
-        if span >= remaining {
+        // A stage nearly as long as the window is no easier than the window itself.
+        if span >= remaining || 4 * span >= 3 * remaining {
+            spans.push(remaining);
             break;
         }
+        spans.push(span);
         let grown = (span as f64 * options.span_growth.max(1.1)).ceil() as usize;
         span = grown.max(span + 1).min(remaining);
     }
+    if warm.is_some() {
+        spans = vec![remaining];
+    }
+    // The stages in product coordinates (none from a warm start).
+    let stages = if warm.is_some() { &[][..] } else { &spans[..] };
 
     let coords = ProductCoordinates::new(problem);
     let (mut lower, mut upper, mut typical) = coords.bounds(problem);
@@ -242,16 +290,25 @@ pub(crate) fn refine_with(
     natural_lower.extend_from_slice(&lower[dim..]);
     natural_upper.extend_from_slice(&upper[dim..]);
     natural_typical.extend_from_slice(&typical[dim..]);
+    // The product-coordinate stages need not confirm their convergence: the polish does,
+    // when an exact Jacobian is asked for.
     let lm = LmOptions {
         max_iterations: options.max_iterations,
+        secant_updates: options.secant_updates,
+        confirm_convergence: false,
         ..LmOptions::default()
     };
 
     let mut history = Vec::new();
     let mut iteration_count = 0;
     let mut cost_count = 0;
-    for (stage, &span) in spans.iter().enumerate() {
-        let is_last = stage + 1 == spans.len();
+    // The Jacobian the polish starts from: the warm start's, or the last product-coordinate
+    // stage's in natural coordinates. (Never taken as the final one: a null direction, such
+    // as the stiffness of a spring that never stretches, is exactly null only in a Jacobian
+    // differenced in natural coordinates.)
+    let mut handed: Option<DMatrix<f64>> = warm.map(|w| w.jacobian.clone());
+    for (stage, &span) in stages.iter().enumerate() {
+        let is_last = stage + 1 == stages.len();
         let cost = if is_last {
             full.clone()
         } else {
@@ -282,6 +339,9 @@ pub(crate) fn refine_with(
         let (theta, s) = unpack(&outcome.x, dim, &template, &free);
         params = coords.natural(problem, &theta);
         state = s;
+        if is_last && options.secant_updates {
+            handed = Some(coords.jacobian_in_natural(outcome.jacobian, &params));
+        }
     }
     // A last polish in the natural coordinates gives the Jacobian the uncertainty needs.
     let template = state.clone();
@@ -292,24 +352,37 @@ pub(crate) fn refine_with(
     let z0 = pack(&params, &state, &free);
     let polish = LmOptions {
         max_iterations: 10,
+        confirm_convergence: exact_jacobian,
         ..lm.clone()
     };
-    let outcome = levenberg_marquardt(
-        &f,
-        &z0,
-        &natural_lower,
-        &natural_upper,
-        &natural_typical,
-        &polish,
-        observer,
-    )
-    .ok_or_else(|| IdentifyError::NoFiniteCost {
+    let bounds = (&natural_lower[..], &natural_upper[..], &natural_typical[..]);
+    let outcome = match handed {
+        Some(jacobian) => levenberg_marquardt_from_jacobian(
+            &f, &z0, bounds.0, bounds.1, bounds.2, &polish, observer, jacobian,
+        ),
+        None => levenberg_marquardt(&f, &z0, bounds.0, bounds.1, bounds.2, &polish, observer),
+    };
+    let mut outcome = outcome.ok_or_else(|| IdentifyError::NoFiniteCost {
         method: "lsq refinement".into(),
         detail: "the refined model's simulation is not finite".into(),
     })?;
     history.extend(outcome.history.iter().skip(1));
     iteration_count += outcome.iterations;
     cost_count += outcome.evaluations;
+    if !outcome.jacobian_exact && exact_jacobian {
+        if let Some(j) = crate::jacobian(
+            &f,
+            &outcome.x,
+            &outcome.residuals,
+            bounds.0,
+            bounds.1,
+            bounds.2,
+            polish.fd_step,
+        ) {
+            outcome.jacobian = j;
+            cost_count += outcome.x.len();
+        }
+    }
     let (p, s) = unpack(&outcome.x, dim, &template, &free);
     params = p;
     state = s;
@@ -359,8 +432,11 @@ pub fn fit_start_state(
         full.residuals(&p, &s, out)
     };
     let z0 = pack(&[], &template, &free);
+    // Its Jacobian is not the one returned (that one covers the parameters too, below).
     let lm = LmOptions {
         max_iterations: options.max_iterations,
+        secant_updates: options.secant_updates,
+        confirm_convergence: true,
         ..LmOptions::default()
     };
     let outcome =

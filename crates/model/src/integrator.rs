@@ -99,6 +99,32 @@ pub fn step_prescribed(
     step_substep(model, kind, dt, state, scratch, Some(prescribe));
 }
 
+/// As [`step_frame`], with the motion of some particles prescribed as in [`step_prescribed`]:
+/// `prescribe(s, state)` sets them to their values at the end of substep `s` (1 to
+/// `params.substeps`) of the frame. Between the frame's substeps the acceleration at the end
+/// of one is reused as that at the start of the next (one force evaluation per Verlet
+/// substep, where a sequence of [`step_prescribed`] calls makes two).
+pub fn step_frame_prescribed(
+    model: &Model,
+    params: &IntegrationParameters,
+    state: &mut State,
+    scratch: &mut StepScratch,
+    prescribe: &mut dyn FnMut(u32, &mut State),
+) {
+    scratch.acc_valid = false;
+    let dt = params.dt();
+    for s in 1..=params.substeps.max(1) {
+        step_substep(
+            model,
+            params.integrator,
+            dt,
+            state,
+            scratch,
+            Some(&mut |st: &mut State| prescribe(s, st)),
+        );
+    }
+}
+
 /// One substep; reuses `scratch.acc` when `scratch.acc_valid` says it is the acceleration at
 /// `state` (valid only inside [`step_frame`] and [`crate::simulate`]).
 pub(crate) fn step_substep(

@@ -54,7 +54,10 @@ mod torsion;
 /// A 2-D vector in image coordinates (px, or px/s, or px/s²).
 pub type Vec2 = nalgebra::Vector2<f64>;
 
-pub use integrator::{step, step_frame, step_prescribed, IntegrationParameters, IntegratorKind, StepScratch};
+pub use integrator::{
+    step, step_frame, step_frame_prescribed, step_prescribed, IntegrationParameters, IntegratorKind,
+    StepScratch,
+};
 pub use io::write_atomic;
 pub use model::{dashpot_force_on_i, Model};
 pub use particle::{Particle, ParticleId, ParticleSet};
