@@ -28,6 +28,9 @@ use crate::locate::Detection;
 pub const OWN_SPREAD_MIN_CHANGES: usize = 8;
 /// Located points of a track's recent history its appearance is measured from.
 const HISTORY: usize = 24;
+/// Unambiguous links after which the pooled spread stops looking at more frames (the
+/// relative error of a robust spread from this many is about 3 %).
+const POOLED_LINKS: usize = 2000;
 /// An unambiguous link is at most this fraction of the distance to the next nearest
 /// detection (in either frame).
 const UNAMBIGUOUS_RATIO: f64 = 0.25;
@@ -53,12 +56,23 @@ impl Appearance {
     /// sizes left out), as one uncut appearance.
     pub fn median_of(points: &[(usize, Appearance)]) -> Appearance {
         let feature = |f: fn(&Appearance) -> f64| {
-            let mut v: Vec<f64> = points
-                .iter()
-                .map(|(_, a)| f(a))
-                .filter(|x| x.is_finite())
-                .collect();
-            median(&mut v)
+            if points.len() <= HISTORY {
+                // A track's recent history, every frame for every track: no allocation.
+                let mut v = Sample::default();
+                points
+                    .iter()
+                    .map(|(_, a)| f(a))
+                    .filter(|x| x.is_finite())
+                    .for_each(|x| v.push(x));
+                median(v.values())
+            } else {
+                let mut v: Vec<f64> = points
+                    .iter()
+                    .map(|(_, a)| f(a))
+                    .filter(|x| x.is_finite())
+                    .collect();
+                median(&mut v)
+            }
         };
         let ln_mass = feature(|a| a.ln_mass);
         Appearance {
@@ -97,11 +111,21 @@ pub struct AppearanceSpread {
 
 impl AppearanceSpread {
     /// Pooled over a recording from unambiguous links (see the module doc); `None` when
-    /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist.
+    /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist. Frames are visited spread over
+    /// the recording until [`POOLED_LINKS`] links are found.
     pub fn pooled(frames: &[FrameDetections]) -> Option<AppearanceSpread> {
         let mut dm: Vec<f64> = Vec::new();
         let mut ds: Vec<f64> = Vec::new();
-        for w in frames.windows(2) {
+        // Pairs of successive frames visited spread over the recording (every `stride`-th
+        // first, then the ones between), until enough links are found.
+        let pairs = frames.len().saturating_sub(1);
+        let stride = (pairs / 32).max(1);
+        let order = (0..stride).flat_map(|offset| (offset..pairs).step_by(stride));
+        for k in order {
+            if dm.len() >= POOLED_LINKS {
+                break;
+            }
+            let w = &frames[k..k + 2];
             let (a, b) = (&w[0].detections, &w[1].detections);
             if a.is_empty() || b.is_empty() || w[1].frame != w[0].frame + 1 {
                 continue;
@@ -166,8 +190,7 @@ impl TrackAppearance {
         let &(last_frame, _) = history.last()?;
         let last = Appearance::median_of(&history[history.len().saturating_sub(3)..]);
         let recent = &history[history.len().saturating_sub(HISTORY)..];
-        let mut dm: Vec<f64> = Vec::new();
-        let mut ds: Vec<f64> = Vec::new();
+        let (mut dm, mut ds) = (Sample::default(), Sample::default());
         for w in recent.windows(2) {
             // A change over several frames counts as that many frames' worth of change.
             let k = (w[1].0 - w[0].0).max(1) as f64;
@@ -183,12 +206,12 @@ impl TrackAppearance {
         });
         let own = AppearanceSpread {
             ln_mass: if dm.len() >= OWN_SPREAD_MIN_CHANGES {
-                robust_spread(&mut dm)
+                robust_spread(dm.values())
             } else {
                 pooled_or_nan.ln_mass
             },
             size: if ds.len() >= OWN_SPREAD_MIN_CHANGES {
-                robust_spread(&mut ds)
+                robust_spread(ds.values())
             } else {
                 pooled_or_nan.size
             },
@@ -247,11 +270,46 @@ impl TrackAppearance {
 }
 
 /// 1.4826 times the median absolute value about the median (the standard deviation of a
-/// normal distribution), of a non-empty sample.
+/// normal distribution), of a non-empty sample (reordered; its values are replaced by their
+/// absolute deviations).
 fn robust_spread(v: &mut [f64]) -> f64 {
     let m = median(v);
-    let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    1.4826 * median(&mut dev)
+    v.iter_mut().for_each(|x| *x = (*x - m).abs());
+    1.4826 * median(v)
+}
+
+/// Up to [`HISTORY`] values held on the stack: the features of a track's recent history,
+/// whose medians linking takes for every track in every frame.
+struct Sample {
+    values: [f64; HISTORY],
+    len: usize,
+}
+
+impl Default for Sample {
+    fn default() -> Self {
+        Sample {
+            values: [0.0; HISTORY],
+            len: 0,
+        }
+    }
+}
+
+impl Sample {
+    /// Adds `x` (ignored beyond [`HISTORY`] values).
+    fn push(&mut self, x: f64) {
+        if self.len < HISTORY {
+            self.values[self.len] = x;
+            self.len += 1;
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn values(&mut self) -> &mut [f64] {
+        &mut self.values[..self.len]
+    }
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -265,6 +323,19 @@ fn median(v: &mut [f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn robust_spread_ignores_an_outlier_and_the_stack_sample_matches_a_vector() {
+        // |x - 3| = 2, 1, 0, 1, 97: median 1.
+        let mut v = [1.0, 2.0, 3.0, 4.0, 100.0];
+        assert!((robust_spread(&mut v) - 1.4826).abs() < 1e-12);
+        let history: Vec<f64> = (0..40).map(|k| ((k * 7919) % 31) as f64 * 0.1).collect();
+        let mut sample = Sample::default();
+        history.iter().for_each(|&x| sample.push(x));
+        assert_eq!(sample.len(), HISTORY, "holds at most HISTORY values");
+        let mut first: Vec<f64> = history[..HISTORY].to_vec();
+        assert_eq!(median(sample.values()), median(&mut first));
+    }
 
     fn det(x: f64, y: f64, mass: f64, size: f64) -> Detection {
         Detection {
