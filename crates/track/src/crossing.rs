@@ -107,6 +107,10 @@ impl Bridge {
 const FIT_POINTS: usize = 3;
 /// How far from the crossing those points may lie, frames.
 const FIT_REACH: usize = 8;
+/// Points fitted on one side of a crossing lie on one straight motion when none is farther
+/// than this fraction of the crossing distance from their line; otherwise the farthest from
+/// the crossing is dropped (the motion turned there: a bounce).
+const STRAIGHT: f64 = 0.05;
 /// Most tracks in one crossing judged (all orders of their continuations are tried).
 const MAX_TRACKS: usize = 5;
 
@@ -223,16 +227,23 @@ pub(crate) fn resolve(
         // Motion before and after, per member.
         let mut before = Vec::new();
         let mut after = Vec::new();
-        // The nearest clean points of track `i` over `frames`, nearest first.
+        // The nearest clean points of track `i` over `frames`, nearest first, as many as
+        // lie on one straight motion (a bounce off a wall among them would turn the line).
         let clean = |i: usize, frames: &mut dyn Iterator<Item = usize>| -> Vec<(f64, [f64; 2])> {
-            frames
+            let mut points: Vec<(f64, [f64; 2])> = frames
                 .filter_map(|t| {
                     at(i, t)
                         .filter(|p| p.clean && !p.predicted)
                         .map(|p| (t as f64, [p.x, p.y]))
                 })
                 .take(FIT_POINTS)
-                .collect()
+                .collect();
+            while points.len() > 2
+                && Line::fit(&points).is_some_and(|l| l.largest_residual(&points) > STRAIGHT * near)
+            {
+                points.pop();
+            }
+            points
         };
         for &i in &members {
             let mut pre = clean(i, &mut (s.saturating_sub(FIT_REACH)..s).rev());
@@ -345,6 +356,17 @@ impl Line {
             first,
             last,
         })
+    }
+
+    /// The largest distance of `points` from the line, px.
+    fn largest_residual(&self, points: &[(f64, [f64; 2])]) -> f64 {
+        points
+            .iter()
+            .map(|(t, p)| {
+                let q = self.at(*t);
+                (p[0] - q[0]).hypot(p[1] - q[1])
+            })
+            .fold(0.0, f64::max)
     }
 
     fn at(&self, t: f64) -> [f64; 2] {
@@ -468,6 +490,44 @@ mod tests {
         let r = resolve(&tracks, &[0, 0], None, 10.0);
         assert_eq!(r.len(), 1, "{r:?}");
         assert_eq!((r[0].frame, &r[0].from), (6, &vec![1, 0]));
+    }
+
+    /// A particle that bounced off a wall between the located points before a crossing:
+    /// its motion before the crossing is the one after the bounce, so its path through the
+    /// crossing stays on it (a line fitted over the bounce would bend it toward the wall).
+    #[test]
+    fn a_bounce_just_before_a_crossing_does_not_bend_the_path() {
+        // a: up at 2 px/frame until t = 5.5 (y = 3), then down; b passes it at frame 8.
+        let a = |t: usize| {
+            let t = t as f64;
+            let y = if t <= 5.5 {
+                14.0 - 2.0 * t
+            } else {
+                3.0 + 2.0 * (t - 5.5)
+            };
+            [30.0 + 0.5 * t, y]
+        };
+        let b = |t: usize| [40.0 - t as f64, 8.0 + 0.5 * t as f64];
+        let track = |own: &dyn Fn(usize) -> [f64; 2]| -> Vec<Seen> {
+            (0..16)
+                .map(|t| {
+                    let p = own(t);
+                    Seen {
+                        predicted: t == 8,
+                        ..seen(p[0], p[1])
+                    }
+                })
+                .collect()
+        };
+        let r = resolve(&[track(&a), track(&b)], &[0, 0], None, 10.0);
+        assert_eq!(r.len(), 1, "{r:?}");
+        let q = r[0].bridges[0].at(8.0);
+        let truth = a(8);
+        let e = (q[0] - truth[0]).hypot(q[1] - truth[1]);
+        assert!(
+            e < 0.1,
+            "a's path at frame 8: {q:?}, truth {truth:?} ({e:.2} px off)"
+        );
     }
 
     #[test]
