@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::solvers::{anneal, genetic, genetic_local, AnnealOptions, GaOptions};
 use crate::{
-    fit_start_state, linear_estimate, refine_by_size, uncertainty, CostFunction, FitCosts, FitReport,
+    fit_start_state_by_size, linear_estimate, refine_by_size, uncertainty, CostFunction, FitCosts, FitReport,
     IdentifyError, LocalSplit, MultiStepCost, Observations, Observer, OneStepCost, Problem, RefineOptions,
     Refinement,
 };
@@ -190,7 +190,7 @@ pub fn fit_observations(
     // Judge: fitted start state, costs, uncertainty.
     let refinement = match solved.refinement {
         Some(r) => r,
-        None => fit_start_state(&problem, &obs, &solved.params, &options.refine)?,
+        None => fit_start_state_by_size(&problem, &obs, &solved.params, &options.refine)?,
     };
     let params = refinement.params.clone();
     let unc = uncertainty(&problem, &refinement, obs.noise);

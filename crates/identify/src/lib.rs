@@ -92,7 +92,10 @@ pub use lsq::{
 pub use multi_step::{MultiStepCost, MultiStepFit};
 pub use observations::{Observations, VELOCITY_FIT_POINTS};
 pub use one_step::{neighbour_pairs, LocalSplit, OneStepCost};
-pub use patches::{refine_by_size, refine_in_patches, PatchRefinement, CORE_SIZE, PASSES, PATCH_LIMIT};
+pub use patches::{
+    fit_start_state_by_size, refine_by_size, refine_in_patches, PatchRefinement, CORE_SIZE, PASSES,
+    PATCH_LIMIT,
+};
 pub use problem::Problem;
 pub use refine::{fit_start_state, refine, RefineOptions, Refinement};
 pub use report::{BondKeys, FitCosts, FitReport, ParameterReport, TruthComparison};

@@ -34,7 +34,7 @@ use physfit_model::{ParticleId, Scene, State, Vec2};
 use rayon::prelude::*;
 use std::time::Instant;
 
-use crate::refine::{refine_with, WarmStart};
+use crate::refine::{fit_start_state_with, refine_with, WarmStart};
 use crate::{
     BondRef, IdentifyError, MultiStepCost, Observations, Observer, Problem, RefineOptions, Refinement,
 };
@@ -270,6 +270,37 @@ pub fn refine_in_patches(
     options: &RefineOptions,
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
+    in_patches(problem, observations, start, options, observer, false)
+}
+
+/// As [`crate::fit_start_state`] (the start state fitted for fixed parameters `params`, the
+/// Jacobian over both for the uncertainty): on the whole object up to [`PATCH_LIMIT`]
+/// unknowns, patch by patch beyond (as [`refine_in_patches`], with each patch's parameters
+/// held), so that judging a model found by another solver grows with the number of bonds too.
+pub fn fit_start_state_by_size(
+    problem: &Problem,
+    observations: &Observations,
+    params: &[f64],
+    options: &RefineOptions,
+) -> Result<Refinement, IdentifyError> {
+    let free = observations.fixed.iter().filter(|f| !**f).count();
+    if problem.dimension() + 4 * free > PATCH_LIMIT {
+        in_patches(problem, observations, params, options, &(), true)
+    } else {
+        crate::fit_start_state(problem, observations, params, options)
+    }
+}
+
+/// The patch-by-patch fit: the parameters and start state refined, or with `hold_params` only
+/// the start state.
+fn in_patches(
+    problem: &Problem,
+    observations: &Observations,
+    start: &[f64],
+    options: &RefineOptions,
+    observer: &dyn Observer,
+    hold_params: bool,
+) -> Result<Refinement, IdentifyError> {
     let t0 = Instant::now();
     // Every pass but the last only feeds the next, which starts from its Jacobian: secant
     // updates serve them (the last pass ends on a finite-difference Jacobian).
@@ -302,7 +333,7 @@ pub fn refine_in_patches(
     type Solved = Option<(PatchRefinement, Vec<Vec<Vec2>>)>;
     let pass = |start: &[f64],
                 ring_paths: Option<&[Vec<Vec2>]>,
-                warm: Option<(&State, &[Option<DMatrix<f64>>])>,
+                warm: Option<(&State, &[Option<PatchRefinement>])>,
                 last: bool|
      -> Vec<Result<Solved, IdentifyError>> {
         patches
@@ -341,8 +372,8 @@ pub fn refine_in_patches(
                     |o: &Observations| MultiStepCost::new(sub.clone(), o)?.with_driven_pinned_particles();
                 // Later passes start from the state the patches found before.
                 let sub_warm = match warm {
-                    Some((whole_state, jacobians)) => match &jacobians[c] {
-                        Some(jacobian) => {
+                    Some((whole_state, before)) => match &before[c] {
+                        Some(part) => {
                             let mut state = cost_for(&sub_obs)?.observed_anchor_state();
                             for (i, &p) in patch.particles[..patch.simulated].iter().enumerate() {
                                 state.positions[i] = whole_state.positions[p];
@@ -350,23 +381,28 @@ pub fn refine_in_patches(
                             }
                             Some(WarmStart {
                                 state,
-                                jacobian: jacobian.clone(),
+                                jacobian: part.refinement.jacobian.clone(),
                             })
                         }
                         None => None,
                     },
                     None => None,
                 };
-                let refinement = refine_with(
-                    &sub,
-                    &sub_obs,
-                    &sub_start,
-                    sub_warm.as_ref(),
-                    last,
-                    &options,
-                    &(),
-                    &cost_for,
-                )?;
+                let refinement = if hold_params {
+                    let warm_state = sub_warm.as_ref().map(|w| &w.state);
+                    fit_start_state_with(&sub, &sub_obs, &sub_start, warm_state, &options, &cost_for)?
+                } else {
+                    refine_with(
+                        &sub,
+                        &sub_obs,
+                        &sub_start,
+                        sub_warm.as_ref(),
+                        last,
+                        &options,
+                        &(),
+                        &cost_for,
+                    )?
+                };
                 let path = cost_for(&sub_obs)?
                     .trajectory(&refinement.params, &refinement.initial_state)
                     .unwrap_or_default();
@@ -382,27 +418,25 @@ pub fn refine_in_patches(
             .collect()
     };
     let mut params = start.to_vec();
-    let mut parts = Vec::with_capacity(patches.len());
     let (mut first_cost, mut last_cost, mut iterations, mut evaluations) = (0.0, 0.0, 0, 0);
     let mut ring_paths: Option<Vec<Vec<Vec2>>> = None;
-    // Each patch's Jacobian at the end of the last pass, which the next one starts from.
-    let mut jacobians: Vec<Option<DMatrix<f64>>> = vec![None; patches.len()];
+    // Each patch's refinement in the last pass, which the next one starts from (its state
+    // and Jacobian).
+    let mut parts: Vec<Option<PatchRefinement>> = (0..patches.len()).map(|_| None).collect();
     for round in 0..PASSES {
-        let warm = (round > 0).then_some((&state, &jacobians[..]));
+        let warm = (round > 0).then_some((&state, &parts[..]));
         let solved = pass(&params, ring_paths.as_deref(), warm, round + 1 == PASSES);
         let mut paths: Vec<Vec<Vec2>> = observations
             .positions
             .iter()
             .map(|f| f.iter().map(|x| x.unwrap_or_else(Vec2::zeros)).collect())
             .collect();
-        parts.clear();
         last_cost = 0.0;
         for (c, (patch, result)) in patches.iter().zip(solved).enumerate() {
             let Some((part, path)) = result? else {
-                jacobians[c] = None;
+                parts[c] = None;
                 continue;
             };
-            jacobians[c] = Some(part.refinement.jacobian.clone());
             for &(i, g) in &part.owned {
                 params[g] = part.refinement.params[i];
             }
@@ -425,12 +459,13 @@ pub fn refine_in_patches(
             last_cost += part.refinement.history.last().copied().unwrap_or(0.0);
             iterations += part.refinement.iteration_count;
             evaluations += part.refinement.cost_count;
-            parts.push(part);
+            parts[c] = Some(part);
         }
         ring_paths = Some(paths);
     }
     observer.observe(iterations, last_cost);
     let fit = whole.evaluate_from(&params, &state);
+    let parts: Vec<PatchRefinement> = parts.into_iter().flatten().collect();
     Ok(Refinement {
         params,
         initial_state: state,
@@ -525,6 +560,43 @@ mod tests {
             before
         );
         assert!(r.fit.rms < 1e-4, "whole-object multi-step RMS {} px", r.fit.rms);
+    }
+
+    #[test]
+    fn start_state_fitted_in_patches_holds_the_parameters_and_matches_the_whole_fit() {
+        // 0.05 px noise on a 4 x 4 lattice, parameters held at the truth: the patches fit the
+        // start state as the whole-object fit does, and their standard errors are close.
+        let (problem, obs, x) = lattice_problem(4, 0.05, 5);
+        let options = RefineOptions::default();
+        let whole = crate::fit_start_state(&problem, &obs, &x, &options).expect("whole");
+        let patched = in_patches(&problem, &obs, &x, &options, &(), true).expect("patches");
+        assert!(!patched.patches.is_empty(), "the patches were used");
+        assert_eq!(patched.params, x, "parameters held");
+        let worst = whole
+            .initial_state
+            .positions
+            .iter()
+            .zip(&patched.initial_state.positions)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.05, "start positions differ by up to {worst:.3} px");
+        assert!(
+            patched.fit.rms < 1.2 * whole.fit.rms,
+            "multi-step RMS {} px in patches, {} px whole",
+            patched.fit.rms,
+            whole.fit.rms
+        );
+        let (uw, up) = (
+            uncertainty(&problem, &whole, obs.noise),
+            uncertainty(&problem, &patched, obs.noise),
+        );
+        for (i, (a, b)) in up.std_errors.iter().zip(&uw.std_errors).enumerate() {
+            assert!(
+                a.is_finite() && *a >= 0.5 * b && *a <= 5.0 * b,
+                "{}: standard error {a:.3e} in patches, {b:.3e} whole",
+                problem.parameter_label(i)
+            );
+        }
     }
 
     #[test]

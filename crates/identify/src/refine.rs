@@ -408,17 +408,35 @@ pub(crate) fn refine_with(
 /// `observations`; returns it as a [`Refinement`] whose Jacobian covers parameters and state
 /// (for [`crate::uncertainty`]). This is how a model found by another solver is judged fairly:
 /// simulated from the start state that suits it best rather than from a noisy observed one.
+///
+/// This is the whole-object fit; [`crate::fit_start_state_by_size`] works patch by patch on
+/// large structures.
 pub fn fit_start_state(
     problem: &Problem,
     observations: &Observations,
     params: &[f64],
     options: &RefineOptions,
 ) -> Result<Refinement, IdentifyError> {
+    fit_start_state_with(problem, observations, params, None, options, &|obs| {
+        MultiStepCost::new(problem.clone(), obs)
+    })
+}
+
+/// As [`fit_start_state`], with the multi-step cost made by `cost_for`, from the `warm`
+/// start state where given (else the observed one).
+pub(crate) fn fit_start_state_with(
+    problem: &Problem,
+    observations: &Observations,
+    params: &[f64],
+    warm: Option<&State>,
+    options: &RefineOptions,
+    cost_for: &dyn Fn(&Observations) -> Result<MultiStepCost, IdentifyError>,
+) -> Result<Refinement, IdentifyError> {
     let t0 = Instant::now();
-    let full = MultiStepCost::new(problem.clone(), observations)?;
+    let full = cost_for(observations)?;
     let free = full.free_particles().to_vec();
     let dim = problem.dimension();
-    let template = full.observed_anchor_state();
+    let template = warm.cloned().unwrap_or_else(|| full.observed_anchor_state());
     let fps = observations.fps;
     let nf = free.len();
     let mut typical = vec![1.0; 2 * nf];
