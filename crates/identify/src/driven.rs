@@ -95,33 +95,6 @@ impl SplinePath {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn follows_a_circle_to_fourth_order_between_frames() {
-        // A point on a circle of radius 10 px at 0.1 rad per frame: inside, the error between
-        // frames is about 1e-4 (0.1)^4 of the radius; in the end intervals, where the slope
-        // comes from a one-sided cubic, about (0.1)^4 / 4 px per frame of slope error, so
-        // some 4e-5 px. A quadratic method would be off by about 1e-2 (0.1)^2 10 = 1e-3 px.
-        let path = |t: f64| Vec2::new(10.0 * (0.1 * t).cos(), 10.0 * (0.1 * t).sin());
-        let spline = SplinePath::new((0..60).map(|k| path(k as f64)).collect());
-        let mut worst: f64 = 0.0;
-        let mut worst_v: f64 = 0.0;
-        for i in 0..590 {
-            let t = i as f64 * 0.1 + 0.05;
-            let (x, v) = spline.at(t);
-            worst = worst.max((x - path(t)).norm());
-            let exact_v = Vec2::new(-(0.1 * t).sin(), (0.1 * t).cos());
-            worst_v = worst_v.max((v - exact_v).norm());
-        }
-        assert!(worst < 1e-4, "position error {worst:e} px");
-        assert!(worst_v < 5e-4, "velocity error {worst_v:e} px/frame");
-        assert_eq!(spline.at(3.0).0, path(3.0));
-    }
-}
-
 /// Pinned particles driven along [`SplinePath`]s, sampled once at every substep of the
 /// recording, so that the many simulations of a cost read a table instead of evaluating the
 /// splines twice per substep.
@@ -157,5 +130,46 @@ impl DrivenBoundary {
         let last = (self.samples.len() / n.max(1)).saturating_sub(1);
         let row = &self.samples[i.min(last) * n..(i.min(last) + 1) * n];
         self.particles.iter().zip(row).map(|(&p, &(x, v))| (p, x, v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn follows_a_circle_to_fourth_order_between_frames() {
+        // A point on a circle of radius 10 px at 0.1 rad per frame: inside, the error between
+        // frames is about 1e-4 (0.1)^4 of the radius; in the end intervals, where the slope
+        // comes from a one-sided cubic, about (0.1)^4 / 4 px per frame of slope error, so
+        // some 4e-5 px. A quadratic method would be off by about 1e-2 (0.1)^2 10 = 1e-3 px.
+        let path = |t: f64| Vec2::new(10.0 * (0.1 * t).cos(), 10.0 * (0.1 * t).sin());
+        let spline = SplinePath::new((0..60).map(|k| path(k as f64)).collect());
+        let mut worst: f64 = 0.0;
+        let mut worst_v: f64 = 0.0;
+        for i in 0..590 {
+            let t = i as f64 * 0.1 + 0.05;
+            let (x, v) = spline.at(t);
+            worst = worst.max((x - path(t)).norm());
+            let exact_v = Vec2::new(-(0.1 * t).sin(), (0.1 * t).cos());
+            worst_v = worst_v.max((v - exact_v).norm());
+        }
+        assert!(worst < 1e-4, "position error {worst:e} px");
+        assert!(worst_v < 5e-4, "velocity error {worst_v:e} px/frame");
+        assert_eq!(spline.at(3.0).0, path(3.0));
+    }
+
+    #[test]
+    fn the_boundary_table_holds_the_spline_at_every_substep() {
+        let points: Vec<Vec2> = (0..6).map(|k| Vec2::new(k as f64, (k * k) as f64)).collect();
+        let path = SplinePath::new(points);
+        let table = DrivenBoundary::new(&[(3, path.clone())], 6, 4);
+        for i in [0, 1, 7, 13, 20] {
+            let (p, x, v) = table.at(i).next().expect("one driven particle");
+            let (xs, vs) = path.at(i as f64 / 4.0);
+            assert_eq!((p, x, v), (3, xs, vs), "substep {i}");
+        }
+        // Beyond the recording: its last sample.
+        assert_eq!(table.at(99).next().map(|s| s.1), Some(path.at(5.0).0));
     }
 }

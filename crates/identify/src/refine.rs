@@ -263,7 +263,7 @@ pub(crate) fn refine_with(
     let mut spans = Vec::new();
     loop {
         // A stage nearly as long as the window is no easier than the window itself.
-        if span >= remaining || 4 * span >= 3 * remaining {
+        if 4 * span >= 3 * remaining {
             spans.push(remaining);
             break;
         }
