@@ -187,27 +187,44 @@ fn exact_observations(scene: &Scene) -> anyhow::Result<Observations> {
     Ok(Observations::from_recording(&rec, scene, 0))
 }
 
-/// Largest and median relative error, and the largest rest-angle error (degrees).
-fn errors(problem: &Problem, x: &[f64], truth: &[f64]) -> (f64, f64, f64) {
-    let mut rel: Vec<f64> = x
-        .iter()
-        .zip(truth)
-        .map(|(a, b)| ((a - b) / b.abs().max(1e-12)).abs())
-        .collect();
-    let angle = problem
-        .layout
-        .parameters
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.kind == ParameterKind::RestCos)
-        .map(|(i, _)| (rest_angle_degrees(x[i], 0.0).0 - rest_angle_degrees(truth[i], 0.0).0).abs())
-        .fold(0.0, f64::max);
+/// A fit's parameters against the truth.
+struct Errors {
+    /// Largest and median relative error over every parameter (rest cosines included).
+    largest: f64,
+    median: f64,
+    /// Largest rest-angle error, degrees.
+    worst_angle: f64,
+    /// Largest relative error of a stiffness or rest length, and its parameter.
+    worst_value: (f64, usize),
+    /// Stiffnesses and rest lengths within 5 %, rest angles within 4.5 degrees.
+    within_5_percent: usize,
+}
+
+fn errors(problem: &Problem, x: &[f64], truth: &[f64]) -> Errors {
+    let mut rel = Vec::with_capacity(x.len());
+    let (mut worst_angle, mut worst_value, mut within_5_percent) = (0.0f64, (0.0, 0), 0);
+    for (i, p) in problem.layout.parameters.iter().enumerate() {
+        let e = ((x[i] - truth[i]) / truth[i].abs().max(1e-12)).abs();
+        rel.push(e);
+        if p.kind == ParameterKind::RestCos {
+            let deg = (rest_angle_degrees(x[i], 0.0).0 - rest_angle_degrees(truth[i], 0.0).0).abs();
+            worst_angle = worst_angle.max(deg);
+            within_5_percent += usize::from(deg <= 4.5);
+        } else {
+            if e > worst_value.0 {
+                worst_value = (e, i);
+            }
+            within_5_percent += usize::from(e <= 0.05);
+        }
+    }
     rel.sort_by(|a, b| a.total_cmp(b));
-    (
-        rel.last().copied().unwrap_or(0.0),
-        rel.get(rel.len() / 2).copied().unwrap_or(0.0),
-        angle,
-    )
+    Errors {
+        largest: rel.last().copied().unwrap_or(0.0),
+        median: rel.get(rel.len() / 2).copied().unwrap_or(0.0),
+        worst_angle,
+        worst_value,
+        within_5_percent,
+    }
 }
 
 /// The paper's solvers on the paper's own set-up: exact positions and velocities of a recording
@@ -280,38 +297,18 @@ pub fn paper_setup(quick: bool) -> anyhow::Result<String> {
                 found.cost_count + polished.cost_count,
             ),
         ] {
-            let (max, median, angle) = errors(cost.problem(), &o.best, &x_true);
             let problem = cost.problem();
-            // Stiffnesses and rest lengths relatively, rest angles in degrees.
-            let judged: Vec<(f64, bool)> = problem
-                .layout
-                .parameters
-                .iter()
-                .enumerate()
-                .map(|(i, p)| {
-                    let (a, b) = (o.best[i], x_true[i]);
-                    if p.kind == ParameterKind::RestCos {
-                        let deg = (rest_angle_degrees(a, 0.0).0 - rest_angle_degrees(b, 0.0).0).abs();
-                        (0.0, deg <= 4.5)
-                    } else {
-                        let rel = ((a - b) / b.abs().max(1e-12)).abs();
-                        (rel, rel <= 0.05)
-                    }
-                })
-                .collect();
-            let (worst, at) = judged.iter().enumerate().fold(
-                (0.0, 0),
-                |(m, k), (i, (e, _))| if *e > m { (*e, i) } else { (m, k) },
-            );
+            let e = errors(problem, &o.best, &x_true);
             out.push_str(&format!(
-                "| {name} | {label} | {gens} | {evals} | {time:.2} s | {:.2e} px² | {} | {} | {angle:.3} deg | {} ({}) | {} of {} |\n",
+                "| {name} | {label} | {gens} | {evals} | {time:.2} s | {:.2e} px² | {} | {} | {:.3} deg | {} ({}) | {} of {} |\n",
                 cost.cost(&o.best),
-                pct(max),
-                pct(median),
-                pct(worst),
-                problem.parameter_label(at),
-                judged.iter().filter(|(_, ok)| *ok).count(),
-                judged.len(),
+                pct(e.largest),
+                pct(e.median),
+                e.worst_angle,
+                pct(e.worst_value.0),
+                problem.parameter_label(e.worst_value.1),
+                e.within_5_percent,
+                x_true.len(),
             ));
         }
     }

@@ -83,9 +83,7 @@ pub use layout::{
     layout_for, stiffness_scales, BondGenes, BondRef, Layout, Parameter, ParameterKind, StiffnessScales,
     STIFFNESS_BOUND_FACTOR,
 };
-pub use lm::{
-    jacobian, levenberg_marquardt, levenberg_marquardt_from_jacobian, LmOptions, LmOutcome, Residuals,
-};
+pub use lm::{jacobian, levenberg_marquardt, LmOptions, LmOutcome, Residuals};
 pub use lsq::{
     default_test_window, linear_estimate, LinearEstimate, DENSE_LIMIT, MIN_TEST_WINDOW, TEST_EXPONENT,
 };

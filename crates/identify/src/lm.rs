@@ -137,28 +137,14 @@ pub fn levenberg_marquardt(
     options: &LmOptions,
     observer: &dyn Observer,
 ) -> Option<LmOutcome> {
-    minimise(f, x0, lower, upper, typical, options, observer, None)
+    levenberg_marquardt_from(f, x0, lower, upper, typical, options, observer, None)
 }
 
-/// As [`levenberg_marquardt`], for a start close to the optimum of a nearly identical problem
-/// whose Jacobian `start` (residuals x variables) is known, carried forward by secant updates
+/// As [`levenberg_marquardt`], from the Jacobian `start` (residuals x variables) of a nearly
+/// identical problem at `x0` where one is known, carried forward by secant updates
 /// ([`LmOptions::secant_updates`]) from there.
 #[allow(clippy::too_many_arguments)]
-pub fn levenberg_marquardt_from_jacobian(
-    f: &Residuals<'_>,
-    x0: &[f64],
-    lower: &[f64],
-    upper: &[f64],
-    typical: &[f64],
-    options: &LmOptions,
-    observer: &dyn Observer,
-    start: DMatrix<f64>,
-) -> Option<LmOutcome> {
-    minimise(f, x0, lower, upper, typical, options, observer, Some(start))
-}
-
-#[allow(clippy::too_many_arguments)]
-fn minimise(
+pub(crate) fn levenberg_marquardt_from(
     f: &Residuals<'_>,
     x0: &[f64],
     lower: &[f64],
@@ -209,8 +195,8 @@ fn minimise(
                 j
             }
         };
-        let r_before = DVector::from_column_slice(&r);
-        let x_before = x.clone();
+        // Where the step starts, for the secant update.
+        let before = secant.then(|| (x.clone(), DVector::from_column_slice(&r)));
         let jt = j.transpose();
         let h = &jt * &j;
         let g = &jt * DVector::from_column_slice(&r);
@@ -280,36 +266,33 @@ fn minimise(
             }
             lambda *= 4.0;
         }
-        history.push(cost);
-        observer.observe(iterations, cost);
         if !accepted && !exact {
             // The carried Jacobian has gone stale: recompute it here and try again.
             continue;
         }
-        if secant && accepted {
+        history.push(cost);
+        observer.observe(iterations, cost);
+        let converged = gain < options.tolerance || negligible;
+        if !exact && options.confirm_convergence && converged {
+            // Converged as far as the carried Jacobian can tell: confirm with a recomputed one.
+            continue;
+        }
+        if !accepted || converged {
+            jac = Some(j);
+            break;
+        }
+        if let Some((x_before, r_before)) = before {
             // Broyden: the rank-one change of J that makes it map this step onto the change
             // of the residuals it caused.
+            let mut j = j;
             let step = DVector::from_iterator(n, x.iter().zip(&x_before).map(|(a, b)| a - b));
             let ss = step.norm_squared();
             if ss > 0.0 {
-                let dr = DVector::from_column_slice(&r) - r_before;
-                let miss = dr - &j * &step;
-                let mut updated = j.clone();
-                updated.ger(1.0 / ss, &miss, &step, 1.0);
-                carried = Some(updated);
+                let miss = DVector::from_column_slice(&r) - r_before - &j * &step;
+                j.ger(1.0 / ss, &miss, &step, 1.0);
             }
+            carried = Some(j);
         }
-        if !exact && options.confirm_convergence && (gain < options.tolerance || negligible) {
-            // Converged as far as the carried Jacobian can tell: confirm with a recomputed one.
-            carried = None;
-            continue;
-        }
-        jac = Some(j);
-        if !accepted || gain < options.tolerance || negligible {
-            break;
-        }
-        // The stored Jacobian is now at the previous point: recomputed below or next iteration.
-        jac = None;
     }
     let jacobian = match (jac, carried) {
         (Some(j), _) => j,

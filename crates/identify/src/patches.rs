@@ -242,6 +242,13 @@ fn patch_problem(
     (scene, sub)
 }
 
+/// Returns true if and only if the unknowns (parameters plus four per free particle) exceed
+/// [`PATCH_LIMIT`].
+fn needs_patches(problem: &Problem, observations: &Observations) -> bool {
+    let free = observations.fixed.iter().filter(|f| !**f).count();
+    problem.dimension() + 4 * free > PATCH_LIMIT
+}
+
 /// Refines `start` as `lsq` does: the whole object ([`crate::refine`]) up to [`PATCH_LIMIT`]
 /// unknowns (parameters plus four per free particle), patch by patch
 /// ([`refine_in_patches`]) beyond.
@@ -252,8 +259,7 @@ pub fn refine_by_size(
     options: &RefineOptions,
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
-    let free = observations.fixed.iter().filter(|f| !**f).count();
-    if problem.dimension() + 4 * free > PATCH_LIMIT {
+    if needs_patches(problem, observations) {
         refine_in_patches(problem, observations, start, options, observer)
     } else {
         crate::refine(problem, observations, start, options, observer)
@@ -283,8 +289,7 @@ pub fn fit_start_state_by_size(
     params: &[f64],
     options: &RefineOptions,
 ) -> Result<Refinement, IdentifyError> {
-    let free = observations.fixed.iter().filter(|f| !**f).count();
-    if problem.dimension() + 4 * free > PATCH_LIMIT {
+    if needs_patches(problem, observations) {
         in_patches(problem, observations, params, options, &(), true)
     } else {
         crate::fit_start_state(problem, observations, params, options)
@@ -302,12 +307,6 @@ fn in_patches(
     hold_params: bool,
 ) -> Result<Refinement, IdentifyError> {
     let t0 = Instant::now();
-    // Every pass but the last only feeds the next, which starts from its Jacobian: secant
-    // updates serve them (the last pass ends on a finite-difference Jacobian).
-    let options = RefineOptions {
-        secant_updates: true,
-        ..options.clone()
-    };
     let structure = &problem.structure;
     let free: Vec<bool> = observations.fixed.iter().map(|f| !f).collect();
     let patches = partition(structure, &free);
@@ -370,40 +369,44 @@ fn in_patches(
                 let sub_start: Vec<f64> = map.iter().map(|&g| start[g]).collect();
                 let cost_for =
                     |o: &Observations| MultiStepCost::new(sub.clone(), o)?.with_driven_pinned_particles();
-                // Later passes start from the state the patches found before.
-                let sub_warm = match warm {
-                    Some((whole_state, before)) => match &before[c] {
-                        Some(part) => {
-                            let mut state = cost_for(&sub_obs)?.observed_anchor_state();
-                            for (i, &p) in patch.particles[..patch.simulated].iter().enumerate() {
-                                state.positions[i] = whole_state.positions[p];
-                                state.velocities[i] = whole_state.velocities[p];
-                            }
-                            Some(WarmStart {
-                                state,
-                                jacobian: part.refinement.jacobian.clone(),
-                            })
-                        }
-                        None => None,
-                    },
-                    None => None,
-                };
+                let cost = cost_for(&sub_obs)?;
+                // Later passes start from the state the patches found before (and, refining,
+                // from this patch's Jacobian).
+                let before = warm.and_then(|(whole, parts)| Some((whole, parts[c].as_ref()?)));
+                let warm_state = before.map(|(whole, _)| {
+                    let mut state = cost.observed_anchor_state();
+                    for (i, &p) in patch.particles[..patch.simulated].iter().enumerate() {
+                        state.positions[i] = whole.positions[p];
+                        state.velocities[i] = whole.velocities[p];
+                    }
+                    state
+                });
                 let refinement = if hold_params {
-                    let warm_state = sub_warm.as_ref().map(|w| &w.state);
-                    fit_start_state_with(&sub, &sub_obs, &sub_start, warm_state, &options, &cost_for)?
+                    fit_start_state_with(
+                        &sub,
+                        &sub_obs,
+                        &sub_start,
+                        warm_state.as_ref(),
+                        options,
+                        &cost_for,
+                    )?
                 } else {
+                    let warm = warm_state.zip(before).map(|(state, (_, part))| WarmStart {
+                        state,
+                        jacobian: part.refinement.jacobian.clone(),
+                    });
                     refine_with(
                         &sub,
                         &sub_obs,
                         &sub_start,
-                        sub_warm.as_ref(),
+                        warm.as_ref(),
                         last,
-                        &options,
+                        options,
                         &(),
                         &cost_for,
                     )?
                 };
-                let path = cost_for(&sub_obs)?
+                let path = cost
                     .trajectory(&refinement.params, &refinement.initial_state)
                     .unwrap_or_default();
                 Ok(Some((

@@ -30,8 +30,8 @@ use physfit_model::{State, Vec2};
 use serde::Serialize;
 
 use crate::{
-    levenberg_marquardt, levenberg_marquardt_from_jacobian, stiffness_scales, IdentifyError, LmOptions,
-    MultiStepCost, MultiStepFit, Observations, Observer, ParameterKind, Problem,
+    levenberg_marquardt, stiffness_scales, IdentifyError, LmOptions, MultiStepCost, MultiStepFit,
+    Observations, Observer, ParameterKind, Problem,
 };
 
 /// Settings of [`refine`].
@@ -231,7 +231,7 @@ pub(crate) struct WarmStart {
 
 /// As [`refine`], with the multi-step cost of a span of observations made by `cost_for`.
 /// From a `warm` start the span is not grown: only the last stage, in natural coordinates, is
-/// run, from the warm start's Jacobian ([`crate::levenberg_marquardt_from_jacobian`]). Unless
+/// run, from the warm start's Jacobian (secant updates, [`crate::LmOptions`]). Unless
 /// `exact_jacobian`, the returned Jacobian may be a secant estimate.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn refine_with(
@@ -260,22 +260,18 @@ pub(crate) fn refine_with(
     let mut span = ((options.first_span_periods * period).ceil() as usize)
         .max(20)
         .min(remaining);
-    let mut spans = Vec::new();
-    loop {
+    // The stages in product coordinates (none from a warm start); the polish covers the window.
+    let mut stages = Vec::new();
+    while warm.is_none() {
         // A stage nearly as long as the window is no easier than the window itself.
         if 4 * span >= 3 * remaining {
-            spans.push(remaining);
+            stages.push(remaining);
             break;
         }
-        spans.push(span);
+        stages.push(span);
         let grown = (span as f64 * options.span_growth.max(1.1)).ceil() as usize;
         span = grown.max(span + 1).min(remaining);
     }
-    if warm.is_some() {
-        spans = vec![remaining];
-    }
-    // The stages in product coordinates (none from a warm start).
-    let stages = if warm.is_some() { &[][..] } else { &spans[..] };
 
     let coords = ProductCoordinates::new(problem);
     let (mut lower, mut upper, mut typical) = coords.bounds(problem);
@@ -356,12 +352,8 @@ pub(crate) fn refine_with(
         ..lm.clone()
     };
     let bounds = (&natural_lower[..], &natural_upper[..], &natural_typical[..]);
-    let outcome = match handed {
-        Some(jacobian) => levenberg_marquardt_from_jacobian(
-            &f, &z0, bounds.0, bounds.1, bounds.2, &polish, observer, jacobian,
-        ),
-        None => levenberg_marquardt(&f, &z0, bounds.0, bounds.1, bounds.2, &polish, observer),
-    };
+    let outcome =
+        crate::lm::levenberg_marquardt_from(&f, &z0, bounds.0, bounds.1, bounds.2, &polish, observer, handed);
     let mut outcome = outcome.ok_or_else(|| IdentifyError::NoFiniteCost {
         method: "lsq refinement".into(),
         detail: "the refined model's simulation is not finite".into(),
@@ -397,7 +389,11 @@ pub(crate) fn refine_with(
         history,
         iteration_count,
         cost_count,
-        spans,
+        spans: if stages.is_empty() {
+            vec![remaining]
+        } else {
+            stages
+        },
         seconds: t0.elapsed().as_secs_f64(),
         patches: Vec::new(),
     })

@@ -27,7 +27,7 @@ use crate::locate::Detection;
 /// (the median absolute deviation of fewer is too often near zero by chance).
 pub const OWN_SPREAD_MIN_CHANGES: usize = 8;
 /// Located points of a track's recent history its appearance is measured from.
-const HISTORY: usize = 24;
+pub const HISTORY: usize = 24;
 /// Unambiguous links after which the pooled spread stops looking at more frames (the
 /// relative error of a robust spread from this many is about 3 %).
 const POOLED_LINKS: usize = 2000;
@@ -52,27 +52,19 @@ pub struct Appearance {
 }
 
 impl Appearance {
-    /// The median of each feature over located points (each with its frame index; unknown
-    /// sizes left out), as one uncut appearance.
+    /// The median of each feature over the latest [`HISTORY`] of located points (each with its
+    /// frame index; unknown sizes left out), as one uncut appearance. Taken for every track in
+    /// every frame, it allocates nothing.
     pub fn median_of(points: &[(usize, Appearance)]) -> Appearance {
+        let recent = &points[points.len().saturating_sub(HISTORY)..];
         let feature = |f: fn(&Appearance) -> f64| {
-            if points.len() <= HISTORY {
-                // A track's recent history, every frame for every track: no allocation.
-                let mut v = Sample::default();
-                points
-                    .iter()
-                    .map(|(_, a)| f(a))
-                    .filter(|x| x.is_finite())
-                    .for_each(|x| v.push(x));
-                median(v.values())
-            } else {
-                let mut v: Vec<f64> = points
-                    .iter()
-                    .map(|(_, a)| f(a))
-                    .filter(|x| x.is_finite())
-                    .collect();
-                median(&mut v)
-            }
+            let mut v = Sample::default();
+            recent
+                .iter()
+                .map(|(_, a)| f(a))
+                .filter(|x| x.is_finite())
+                .for_each(|x| v.push(x));
+            median(v.values())
         };
         let ln_mass = feature(|a| a.ln_mass);
         Appearance {

@@ -1,9 +1,9 @@
 //! Real recordings (`/work/shared/real`, skipped with a message when absent): the tracker
 //! must follow a ball in camera footage it was never tuned on.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use physfit_track::{PointFlag, TrackOptions, TrackTable};
+use physfit_track::{PointFlag, TrackOptions, TrackOutcome, TrackTable};
 
 use crate::common::track;
 use crate::parabola::parabola;
@@ -59,18 +59,24 @@ fn ball_toss_follows_the_hand_clicks_within_two_pixels() {
     );
 }
 
-#[test]
-fn bouncing_ball_is_followed_through_every_frame() {
-    let Some(dir) = real_dir("bouncing-ball") else {
-        return;
-    };
-    let out = track(
+/// The bouncing-ball recording tracked with the ball named at its frame-0 position (from the
+/// recording's structure file).
+fn bouncing_ball_named(dir: &Path) -> TrackOutcome {
+    track(
         &dir.join("frames"),
         &TrackOptions {
             named_start: Some(vec![("ball".into(), [24.0, 19.6])]),
             ..TrackOptions::default()
         },
-    );
+    )
+}
+
+#[test]
+fn bouncing_ball_is_followed_through_every_frame() {
+    let Some(dir) = real_dir("bouncing-ball") else {
+        return;
+    };
+    let out = bouncing_ball_named(&dir);
     println!("bouncing-ball: {}\nwarnings {:?}", out.stats, out.warnings);
     let by = out.table.by_particle();
     let ball: Vec<_> = by.get("ball").expect("a ball track").clone();
@@ -138,9 +144,7 @@ fn bouncing_ball_is_followed_through_every_frame() {
 /// Leaves the track where a person can look at it when asked to (PHYSFIT_KEEP_TRACKS).
 fn write_for_inspection(table: &TrackTable) {
     if let Ok(path) = std::env::var("PHYSFIT_KEEP_TRACKS") {
-        table
-            .write_csv(std::path::Path::new(&path))
-            .expect("write tracks");
+        table.write_csv(Path::new(&path)).expect("write tracks");
     }
 }
 
@@ -153,13 +157,7 @@ fn bouncing_ball_sizes_come_from_the_moving_blob_without_a_structure() {
     let Some(dir) = real_dir("bouncing-ball") else {
         return;
     };
-    let named = track(
-        &dir.join("frames"),
-        &TrackOptions {
-            named_start: Some(vec![("ball".into(), [24.0, 19.6])]),
-            ..TrackOptions::default()
-        },
-    );
+    let named = bouncing_ball_named(&dir);
     let out = track(&dir.join("frames"), &TrackOptions::default());
     println!("bouncing-ball, no structure: {}", out.stats);
     assert!(
