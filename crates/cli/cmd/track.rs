@@ -59,6 +59,13 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
                 count(physfit_track::AmbiguityKind::Lost)
             );
         }
+        let s = &outcome.stats;
+        if s.refitted_count > 0 {
+            println!(
+                "shared blobs: {} points placed again from the image, {} handed to another track by the motion",
+                s.refitted_count, s.reordered_count
+            );
+        }
         println!("tracks -> {}", args.out.display());
     }
     if let Some(truth_path) = &args.truth {

@@ -12,6 +12,7 @@ mod link;
 mod locate;
 mod pipeline;
 mod score;
+mod shared;
 mod track_table;
 
 pub use appearance::*;

@@ -12,11 +12,12 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
+use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     estimate_background, find_blobs_with_scratch, link_detections, list_frames, load_frame,
     refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions, LocateScratch,
-    PointFlag, Scratch, TrackError, TrackTable,
+    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions, LinkOutcome,
+    LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -77,6 +78,12 @@ pub struct TrackStats {
     pub interpolated_count: usize,
     /// Points split from merged blobs (`flag = split`).
     pub split_count: usize,
+    /// Points of particles that shared a blob placed again from the image after linking
+    /// (named tracks: each group's particles fitted jointly with the measured
+    /// single-particle image).
+    pub refitted_count: usize,
+    /// Points handed to another track of their crossing by the motion after linking.
+    pub reordered_count: usize,
     /// Every ambiguity bridged, in frame order.
     pub ambiguities: Vec<Ambiguity>,
     /// Measured pixel noise, grey levels.
@@ -358,15 +365,48 @@ fn track_paths(
             memory: options.memory,
         },
     );
-    warnings.extend(linked.warnings.iter().cloned());
+    let mut relocated = Relocated::default();
+    let LinkOutcome {
+        mut table,
+        mut ambiguities,
+        warnings: link_warnings,
+    } = linked;
+    // With the particle count known, the points of particles that shared a blob are placed
+    // again from the image, jointly, and the motion judges once more which is which (see
+    // `crate::shared`).
+    if let Some(named) = options.named_start.as_deref() {
+        let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
+            let path = &paths[k - first].1;
+            let frame = load_frame(path)?;
+            check_size(path, &frame, reference, size)?;
+            let mut signal = Vec::new();
+            background.signal_into(&frame, &mut signal);
+            background.remove_gain(&frame, &mut signal);
+            Ok(signal)
+        };
+        relocated = relocate_shared(
+            &mut table.points,
+            &mut ambiguities,
+            &Starts {
+                positions: named,
+                frame: first,
+            },
+            &SharedBlobs {
+                signal_of: &signal_of,
+                width: size.0,
+                height: size.1,
+                radius,
+                window,
+            },
+        )?;
+    }
+    warnings.extend(link_warnings);
     warnings.extend(
-        linked
-            .ambiguities
+        ambiguities
             .iter()
             .filter(|a| a.kind != AmbiguityKind::Merged || options.named_start.is_some())
             .map(|a| a.to_string()),
     );
-    let table = linked.table;
     let stats = TrackStats {
         frame_count: total,
         frames: (first, last),
@@ -379,7 +419,9 @@ fn track_paths(
             .filter(|p| p.flag == PointFlag::Interpolated)
             .count(),
         split_count: table.points.iter().filter(|p| p.flag == PointFlag::Split).count(),
-        ambiguities: linked.ambiguities,
+        refitted_count: relocated.moved,
+        reordered_count: relocated.renamed,
+        ambiguities,
         noise_sigma: background.noise_sigma,
         radius,
         radius_estimated,

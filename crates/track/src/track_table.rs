@@ -21,7 +21,8 @@ pub enum PointFlag {
     Detected,
     /// Located by splitting a blob that held several particles.
     Split,
-    /// Not seen: bridged from the track's motion prediction.
+    /// Not seen as a blob of its own: bridged from the track's motion prediction (with a
+    /// structure, placed from the image where it shares a blob with other particles).
     Interpolated,
 }
 

@@ -72,6 +72,10 @@ pub struct Tracking {
     pub interpolated: usize,
     /// Points split from merged blobs (`flag = split`).
     pub split: usize,
+    /// Points of particles that shared a blob, placed again from the image after linking.
+    pub refitted: usize,
+    /// Points handed to another track of their crossing by the motion after linking.
+    pub reordered: usize,
     /// Ambiguities bridged, in words.
     pub ambiguities: Vec<String>,
     /// Frames in which some structure particle has no point.
@@ -388,6 +392,8 @@ fn tracking_summary(
         points: s.point_count,
         interpolated: s.interpolated_count,
         split: s.split_count,
+        refitted: s.refitted_count,
+        reordered: s.reordered_count,
         ambiguities: s.ambiguities.iter().map(ToString::to_string).collect(),
         frames_with_gaps,
         median_position_error: s.median_ep,
