@@ -60,6 +60,9 @@ struct Profile {
     bins: Vec<f64>,
     /// The largest bin: the level of a fully covered pixel, grey levels.
     peak: f64,
+    /// Whether the profile was measured on the recording's particles (else it is a disc of
+    /// the measured radius, whose level is only estimated).
+    measured: bool,
 }
 
 impl Profile {
@@ -73,6 +76,32 @@ impl Profile {
         let f = u - k as f64;
         let (a, b) = (self.bins[k], self.bins[k + 1]);
         (a + f * (b - a), (b - a) / PROFILE_BIN)
+    }
+
+    /// A uniform disc of radius `radius` (px) with a half-pixel anti-aliased edge, for a
+    /// recording with no isolated particle to measure (a chain of touching beads): its level
+    /// is the median located mass of `points` over the disc's area. `None` without masses.
+    fn disc(points: &[TrackPoint], radius: f64) -> Option<Profile> {
+        let mut masses: Vec<f64> = points
+            .iter()
+            .filter(|p| p.flag == PointFlag::Detected && p.mass.is_finite() && p.mass > 0.0)
+            .map(|p| p.mass)
+            .collect();
+        if masses.is_empty() || radius.is_nan() || radius <= 0.0 {
+            return None;
+        }
+        let mid = masses.len() / 2;
+        let peak =
+            *masses.select_nth_unstable_by(mid, f64::total_cmp).1 / (std::f64::consts::PI * radius * radius);
+        let n_bins = ((radius + 1.0) / PROFILE_BIN).ceil() as usize + 2;
+        let bins = (0..n_bins)
+            .map(|k| peak * (radius + 0.5 - k as f64 * PROFILE_BIN).clamp(0.0, 1.0))
+            .collect();
+        Some(Profile {
+            bins,
+            peak,
+            measured: false,
+        })
     }
 
     /// Reach of the image, px.
@@ -106,13 +135,23 @@ pub(crate) fn relocate_shared(
     for (i, p) in points.iter().enumerate() {
         by_frame.entry(p.frame).or_default().push(i);
     }
+    let overlap = 2.0 * blobs.radius;
     let work: Vec<&Vec<usize>> = by_frame
         .values()
-        .filter(|idx| idx.iter().any(|&i| points[i].flag != PointFlag::Detected))
+        .filter(|idx| {
+            idx.iter().any(|&i| points[i].flag != PointFlag::Detected) || has_overlap(points, idx, overlap)
+        })
         .collect();
-    let view: &[TrackPoint] = points;
-    let Some(profile) = measure_profile(view, &work, blobs)? else {
+    if work.is_empty() {
         return Ok(Relocated::default());
+    }
+    let view: &[TrackPoint] = points;
+    let profile = match measure_profile(view, &by_frame.values().collect::<Vec<_>>(), blobs)? {
+        Some(p) => p,
+        None => match Profile::disc(view, blobs.radius) {
+            Some(p) => p,
+            None => return Ok(Relocated::default()),
+        },
     };
     let fitted: Vec<Vec<Group>> = work
         .par_iter()
@@ -143,11 +182,11 @@ struct Group {
 }
 
 /// The single-particle profile, measured on up to [`PROFILE_SAMPLES`] isolated located
-/// particles (no other point within two windows and a reach) of the first frames in `work`
-/// that hold some; `None` when none does.
+/// particles (no other point within two windows and a radius) of the first frames of
+/// `frames` (each a list of point indices) that hold some; `None` when none does.
 fn measure_profile(
     points: &[TrackPoint],
-    work: &[&Vec<usize>],
+    frames: &[&Vec<usize>],
     blobs: &SharedBlobs<'_>,
 ) -> Result<Option<Profile>, TrackError> {
     let reach = blobs.window + 1.0;
@@ -156,7 +195,7 @@ fn measure_profile(
     let mut sum = vec![0.0; n_bins];
     let mut count = vec![0usize; n_bins];
     let mut taken = 0;
-    for idx in work {
+    for idx in frames {
         let isolated: Vec<[f64; 2]> = idx
             .iter()
             .filter(|&&i| points[i].flag == PointFlag::Detected)
@@ -220,7 +259,24 @@ fn measure_profile(
     if peak <= 0.0 {
         return Ok(None);
     }
-    Ok(Some(Profile { bins, peak }))
+    Ok(Some(Profile {
+        bins,
+        peak,
+        measured: true,
+    }))
+}
+
+/// Returns true if and only if two of the points `idx` (indices into `points`) lie closer
+/// than `overlap` px.
+fn has_overlap(points: &[TrackPoint], idx: &[usize], overlap: f64) -> bool {
+    let mut xs: Vec<[f64; 2]> = idx.iter().map(|&i| [points[i].x, points[i].y]).collect();
+    xs.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    xs.iter().enumerate().any(|(k, a)| {
+        xs[k + 1..]
+            .iter()
+            .take_while(|b| b[0] - a[0] < overlap)
+            .any(|b| dist2(*a, *b) < overlap * overlap)
+    })
 }
 
 fn dist2(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -301,9 +357,14 @@ fn relocate_frame(
         let r = root(&mut parent, a);
         comps.entry(r).or_default().push(i);
     }
+    let overlap = 2.0 * blobs.radius;
     let mut groups: Vec<Group> = comps
         .into_values()
-        .filter(|g| g.len() > 1 && g.iter().any(|&i| points[i].flag != PointFlag::Detected))
+        .filter(|g| {
+            g.len() > 1
+                && (g.iter().any(|&i| points[i].flag != PointFlag::Detected)
+                    || has_overlap(points, g, overlap))
+        })
         .map(|members| Group { members, fit: None })
         .collect();
     if groups.is_empty() {
@@ -312,6 +373,11 @@ fn relocate_frame(
     let signal = (blobs.signal_of)(points[idx[0]].frame)?;
     let reach = profile.reach();
     for g in &mut groups {
+        // A guessed image (a disc) places a pair; three or more particles in one blob can
+        // trade light for position under it (a start blob of three at 3-4 px went 4 px off).
+        if !profile.measured && g.members.len() > 2 {
+            continue;
+        }
         let seeds: Vec<[f64; 2]> = g.members.iter().map(|&i| at(i)).collect();
         // Light of other particles within reach of the group's pixels is part of the model
         // (fixed at their located positions).
@@ -380,15 +446,21 @@ struct Fit {
 }
 
 /// Fits the positions of particles seeded at `seeds` (px) to `pixels` by
-/// Levenberg-Marquardt.
+/// Levenberg-Marquardt (with a brightness scale common to them when the profile is a disc).
 fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, composition: Composition) -> Fit {
     let k = seeds.len();
-    let m = 2 * k;
+    // Unknowns: each position (x, y), then, for a profile that was not measured (a disc), one
+    // brightness scale for the group (its level is only estimated). A measured profile's
+    // level is the recording's own: a free scale would only let overlapping particles trade
+    // light for position.
+    let free_scale = !profile.measured;
+    let m = 2 * k + usize::from(free_scale);
     let peak = profile.peak;
     let clear = |t: f64| (1.0 - t / peak).clamp(0.0, 1.0);
-    // Sum of squared residuals at `pos`; with `normal`, also the Gauss-Newton normal
+    // Sum of squared residuals at `u`; with `normal`, also the Gauss-Newton normal
     // equations (JᵀJ and Jᵀr, r = measured − model).
-    let evaluate = |pos: &[[f64; 2]], mut normal: Option<(&mut DMatrix<f64>, &mut DVector<f64>)>| -> f64 {
+    let evaluate = |u: &[f64], mut normal: Option<(&mut DMatrix<f64>, &mut DVector<f64>)>| -> f64 {
+        let scale = if free_scale { u[2 * k] } else { 1.0 };
         let mut sse = 0.0;
         let mut grad = vec![0.0; m];
         // Each fitted particle's value and its derivatives along its own x and y.
@@ -398,8 +470,8 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
             b.fill(0.0);
         }
         for px in pixels {
-            for (v, c) in vals.iter_mut().zip(pos) {
-                let (dx, dy) = (px.x - c[0], px.y - c[1]);
+            for (j, v) in vals.iter_mut().enumerate() {
+                let (dx, dy) = (px.x - u[2 * j], px.y - u[2 * j + 1]);
                 let r = dx.hypot(dy);
                 let (t, dt) = profile.at(r);
                 *v = if r > 1e-9 {
@@ -408,11 +480,11 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
                     (t, 0.0, 0.0)
                 };
             }
-            let model = match composition {
+            let shape = match composition {
                 Composition::Sum => {
                     for (j, v) in vals.iter().enumerate() {
-                        grad[2 * j] = v.1;
-                        grad[2 * j + 1] = v.2;
+                        grad[2 * j] = scale * v.1;
+                        grad[2 * j + 1] = scale * v.2;
                     }
                     px.held_sum + vals.iter().map(|v| v.0).sum::<f64>()
                 }
@@ -426,13 +498,16 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
                                 .filter(|&(i, _)| i != j)
                                 .map(|(_, w)| clear(w.0))
                                 .product::<f64>();
-                        grad[2 * j] = rest * v.1;
-                        grad[2 * j + 1] = rest * v.2;
+                        grad[2 * j] = scale * rest * v.1;
+                        grad[2 * j + 1] = scale * rest * v.2;
                     }
                     peak * (1.0 - all_clear)
                 }
             };
-            let res = px.signal - model;
+            if free_scale {
+                grad[2 * k] = shape;
+            }
+            let res = px.signal - scale * shape;
             sse += res * res;
             if let Some((a, b)) = normal.as_mut() {
                 for i in (0..m).filter(|&i| grad[i] != 0.0) {
@@ -445,10 +520,14 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
         }
         sse
     };
-    let mut pos = seeds.to_vec();
+    let mut u: Vec<f64> = seeds
+        .iter()
+        .flat_map(|p| [p[0], p[1]])
+        .chain(free_scale.then_some(1.0))
+        .collect();
     let mut a = DMatrix::zeros(m, m);
     let mut b = DVector::zeros(m);
-    let mut sse = evaluate(&pos, Some((&mut a, &mut b)));
+    let mut sse = evaluate(&u, Some((&mut a, &mut b)));
     let mut lambda = 1e-3;
     for _ in 0..FIT_ITERATIONS {
         let mut damped = a.clone();
@@ -459,17 +538,13 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
             lambda *= 10.0;
             continue;
         };
-        let trial: Vec<[f64; 2]> = pos
-            .iter()
-            .enumerate()
-            .map(|(j, p)| [p[0] + step[2 * j], p[1] + step[2 * j + 1]])
-            .collect();
+        let trial: Vec<f64> = u.iter().zip(step.iter()).map(|(v, d)| v + d).collect();
         let trial_sse = evaluate(&trial, None);
         if trial_sse < sse {
-            pos = trial;
-            sse = evaluate(&pos, Some((&mut a, &mut b)));
+            u = trial;
+            sse = evaluate(&u, Some((&mut a, &mut b)));
             lambda = (lambda * 0.3).max(1e-9);
-            if step.amax() < FIT_STEP_TOLERANCE {
+            if step.rows(0, 2 * k).amax() < FIT_STEP_TOLERANCE {
                 break;
             }
         } else {
@@ -479,6 +554,7 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
             }
         }
     }
+    let pos: Vec<[f64; 2]> = u[..2 * k].chunks_exact(2).map(|c| [c[0], c[1]]).collect();
     // Covariance s² (JᵀJ)⁻¹, with s² the residual variance.
     let dof = pixels.len().saturating_sub(m).max(1) as f64;
     let inverse = a.try_inverse();
@@ -503,8 +579,9 @@ const FIT_ITERATIONS: usize = 50;
 /// A group's fit stops once a step moves no position more than this, px.
 const FIT_STEP_TOLERANCE: f64 = 1e-3;
 
-/// Most tracks in one crossing whose orders [`rename_by_motion`] weighs (4! orders a frame,
-/// and pairs of them as its states).
+/// Most tracks in one crossing whose orders [`rename_by_motion`] weighs together (4! orders
+/// a frame, and pairs of them as its states); a larger crossing is weighed a frame's group
+/// at a time.
 const MAX_CROSSING_TRACKS: usize = 4;
 
 /// How many times the variance of one acceleration (both axes) the motion must gain before
@@ -542,7 +619,20 @@ fn rename_by_motion(
     }
     let mut renamed = 0;
     for crossing in crossings(points, groups) {
-        renamed += settle_order(points, &mut tracks, groups, &crossing, ambiguities, starts);
+        let mut names: Vec<&str> = crossing
+            .iter()
+            .flat_map(|&g| groups[g].members.iter().map(|&i| points[i].particle.as_str()))
+            .collect();
+        names.sort_unstable();
+        names.dedup();
+        if names.len() <= MAX_CROSSING_TRACKS {
+            renamed += settle_order(points, &mut tracks, groups, &crossing, ambiguities, starts);
+        } else {
+            // Too many tracks to weigh every order of: each frame's group on its own.
+            for g in crossing {
+                renamed += settle_order(points, &mut tracks, groups, &[g], ambiguities, starts);
+            }
+        }
     }
     renamed
 }
