@@ -431,10 +431,15 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
         let step = steps.bound();
         let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
-        let looks: Vec<Option<TrackAppearance>> = live
-            .iter()
-            .map(|&i| TrackAppearance::from_history(&tracks[i].apps, t, pooled, r + 1.0))
-            .collect();
+        // Each track's appearance, computed when first asked for (only lone tracks with a
+        // candidate in their gate use it).
+        let looks: Vec<std::cell::OnceCell<Option<TrackAppearance>>> =
+            (0..live.len()).map(|_| std::cell::OnceCell::new()).collect();
+        let look_of = |k: usize| {
+            looks[k]
+                .get_or_init(|| TrackAppearance::from_history(&tracks[live[k]].apps, t, pooled, r + 1.0))
+                .as_ref()
+        };
         // Appearance tells a particle from untracked objects (a hand, a reflection). Among
         // tracked particles that come close, images merge and share light, so there motion
         // alone decides: only a track whose prediction has no other within reach uses it.
@@ -448,7 +453,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             // Lone: no other prediction within reach, allowing two scales of this
             // track's own prediction error.
             let lone = pred_nn[k] >= crowd + 2.0 * preds[k].1;
-            let (Some(look), Some(a), true) = (&looks[k], Appearance::of(&dets[j], 1), lone) else {
+            if !lone {
+                return Some(0.0);
+            }
+            let (Some(look), Some(a)) = (look_of(k), Appearance::of(&dets[j], 1)) else {
                 return Some(0.0);
             };
             // Motion blur changes the size as the speed changes, but gradually enough for the
@@ -955,19 +963,77 @@ fn median(mut v: Vec<f64>) -> f64 {
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// Distance from each point to its nearest other point (infinite for a lone point).
+/// Distance from each point to its nearest other point (at a distance above zero), px;
+/// infinite where there is none. The points are bucketed on a grid of cells about one mean
+/// spacing wide, and each query searches rings of cells outward until no cell left can hold
+/// a nearer point: a few cells a query, no allocation per query.
 fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
-    if points.len() < 2 {
-        return vec![f64::INFINITY; points.len()];
+    let n = points.len();
+    if n < 2 {
+        return vec![f64::INFINITY; n];
     }
-    let tree = ImmutableKdTree::<f64, 2>::new_from_slice(points);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let extent = [(hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9)];
+    let cell = (extent[0] * extent[1] / n as f64)
+        .sqrt()
+        .max(extent[0].max(extent[1]) / 1024.0);
+    let dims = [0, 1].map(|k| (extent[k] / cell) as usize + 1);
+    let cell_of = |p: &[f64; 2]| {
+        let c = |k: usize| (((p[k] - lo[k]) / cell) as usize).min(dims[k] - 1);
+        (c(0), c(1))
+    };
+    // Counting sort of the points by cell.
+    let mut start = vec![0usize; dims[0] * dims[1] + 1];
+    for p in points {
+        let (cx, cy) = cell_of(p);
+        start[cy * dims[0] + cx + 1] += 1;
+    }
+    for i in 0..dims[0] * dims[1] {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut sorted = vec![0usize; n];
+    for (i, p) in points.iter().enumerate() {
+        let (cx, cy) = cell_of(p);
+        let c = cy * dims[0] + cx;
+        sorted[fill[c]] = i;
+        fill[c] += 1;
+    }
     points
         .iter()
         .map(|p| {
-            tree.nearest_n::<SquaredEuclidean>(p, 2)
-                .into_iter()
-                .map(|nb| nb.distance.sqrt())
-                .fold(f64::INFINITY, |m, d| if d > 0.0 { m.min(d) } else { m })
+            let (cx, cy) = cell_of(p);
+            let mut best = f64::INFINITY;
+            for ring in 0..dims[0].max(dims[1]) {
+                // Points in this ring and beyond lie more than `ring - 1` cells away.
+                if ring > 0 && best <= ((ring - 1) as f64 * cell).powi(2) {
+                    break;
+                }
+                let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(dims[0] - 1));
+                let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(dims[1] - 1));
+                for gy in y0..=y1 {
+                    for gx in x0..=x1 {
+                        if gx.abs_diff(cx).max(gy.abs_diff(cy)) != ring {
+                            continue;
+                        }
+                        let c = gy * dims[0] + gx;
+                        for &j in &sorted[start[c]..start[c + 1]] {
+                            let q = &points[j];
+                            let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                            if d > 0.0 && d < best {
+                                best = d;
+                            }
+                        }
+                    }
+                }
+            }
+            best.sqrt()
         })
         .collect()
 }
@@ -1093,4 +1159,43 @@ fn collect_runs(events: &[(usize, AmbiguityKind, Vec<usize>)], tracks: &[Track])
     }
     out.sort_by(|a, b| (a.first_frame, a.kind, &a.particles).cmp(&(b.first_frame, b.kind, &b.particles)));
     out
+}
+
+#[cfg(test)]
+mod nearest_tests {
+    use super::nearest_other;
+
+    /// The grid search agrees with a brute-force search, on clustered, spread and collinear
+    /// points (and a duplicate, which is no neighbour).
+    #[test]
+    fn nearest_other_matches_brute_force() {
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut sets: Vec<Vec<[f64; 2]>> = vec![
+            (0..500).map(|_| [512.0 * next(), 512.0 * next()]).collect(),
+            (0..300)
+                .map(|i| [(i % 3) as f64 * 400.0 + 5.0 * next(), 3.0 * next()])
+                .collect(),
+            (0..50).map(|i| [i as f64 * 1.5, 7.0]).collect(),
+        ];
+        let dup = sets[0][3];
+        sets[0].push(dup);
+        for pts in &sets {
+            let got = nearest_other(pts);
+            for (i, p) in pts.iter().enumerate() {
+                let want = pts
+                    .iter()
+                    .map(|q| (q[0] - p[0]).hypot(q[1] - p[1]))
+                    .filter(|&d| d > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                assert!((got[i] - want).abs() < 1e-9, "point {i}: {} vs {want}", got[i]);
+            }
+        }
+        assert_eq!(nearest_other(&[[1.0, 2.0]]), [f64::INFINITY]);
+    }
 }
