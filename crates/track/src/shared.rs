@@ -704,9 +704,12 @@ fn settle_order(
     let frame_of = |g: usize| points[groups[g].members[0]].frame;
     let first = run.iter().map(|&g| frame_of(g)).min().unwrap_or(0);
     let last = run.iter().map(|&g| frame_of(g)).max().unwrap_or(0);
+    // The orders are weighed up to the frame after the crossing (a track may hand back
+    // what it took in its last frame), and hold on from there.
+    let end = last + 1;
     // Point of each track from two frames before to two after (None where it has none).
     let lo = first.saturating_sub(2);
-    let span = last + 2 - lo + 1;
+    let span = end + 2 - lo + 1;
     let at: Vec<Vec<Option<usize>>> = names
         .iter()
         .map(|n| {
@@ -726,7 +729,10 @@ fn settle_order(
     permutations(k, &mut |p| all.push(p.to_vec()));
     let identity: Vec<usize> = (0..k).collect();
     let id = all.iter().position(|p| *p == identity).unwrap_or(0);
-    // Inside the crossing only tracks of one group exchange positions.
+    // Which particle each track holds may change only where tracks meet: from one frame to
+    // the next, track `a` may take over the points of another track only if the two shared
+    // a group in one of the two frames. Between such changes the order persists, and after
+    // the crossing it holds for the rest of the recording.
     let group_of = |t: usize, a: usize| {
         run.iter().copied().find(|&g| {
             groups[g]
@@ -735,39 +741,34 @@ fn settle_order(
                 .any(|&i| points[i].frame == t && points[i].particle == names[a])
         })
     };
-    let allowed: Vec<Vec<usize>> = (first..=last)
-        .map(|t| {
-            let g: Vec<Option<usize>> = (0..k).map(|a| group_of(t, a)).collect();
-            (0..all.len())
-                .filter(|&q| {
-                    all[q]
-                        .iter()
-                        .enumerate()
-                        .all(|(a, &b)| a == b || (g[a].is_some() && g[a] == g[b]))
-                })
-                .collect()
-        })
+    let groups_at: Vec<Vec<Option<usize>>> = (first..=last)
+        .map(|t| (0..k).map(|a| group_of(t, a)).collect())
         .collect();
-    // Continuations may be exchanged between tracks of one group in the crossing's last
-    // frame, seen just after it, whose ambiguity reports do not run across its end.
-    let end_group: Vec<Option<usize>> = (0..k).map(|a| group_of(last, a)).collect();
+    let meet = |t: usize, b: usize, c: usize| {
+        b == c
+            || [t.checked_sub(1), Some(t)].into_iter().flatten().any(|u| {
+                (first..=last).contains(&u) && {
+                    let g = &groups_at[u - first];
+                    g[b].is_some() && g[b] == g[c]
+                }
+            })
+    };
+    // An order keeps which tracks have a point in a frame (no point is made or lost).
+    let keeps_points =
+        |t: usize, q: &[usize]| (0..k).all(|a| at[a][t - lo].is_some() == at[q[a]][t - lo].is_some());
+    let step_ok = |t: usize, p: &[usize], q: &[usize]| (0..k).all(|a| meet(t, p[a], q[a]));
+    let orders_at: Vec<Vec<usize>> = (first..=end)
+        .map(|t| (0..all.len()).filter(|&q| keeps_points(t, &all[q])).collect())
+        .collect();
+    // The order after the crossing renames the tracks' continuations: only tracks seen just
+    // after it whose ambiguity reports do not run across its end take part.
     let free_tail = |a: usize| {
-        at[a][last + 1 - lo].is_some()
+        at[a][end + 1 - lo].is_some()
             && !ambiguities
                 .iter()
-                .any(|e| e.first_frame <= last && e.last_frame > last && e.particles.contains(&names[a]))
+                .any(|e| e.first_frame <= end && e.last_frame > end && e.particles.contains(&names[a]))
     };
-    let tails: Vec<usize> = (0..all.len())
-        .filter(|&q| {
-            all[q].iter().enumerate().all(|(a, &b)| {
-                a == b
-                    || (free_tail(a)
-                        && free_tail(b)
-                        && end_group[a].is_some()
-                        && end_group[a] == end_group[b])
-            })
-        })
-        .collect();
+    let tail_ok = |q: &[usize]| (0..k).all(|a| q[a] == a || (free_tail(a) && free_tail(q[a])));
     // The named start positions, where the crossing holds their frame.
     let start_of: Vec<Option<[f64; 2]>> = names
         .iter()
@@ -778,9 +779,6 @@ fn settle_order(
         })
         .collect();
     let start_cost = |q: &[usize]| -> f64 {
-        if !(first..=last).contains(&starts.frame) {
-            return 0.0;
-        }
         (0..k)
             .filter_map(|a| {
                 let s = start_of[a]?;
@@ -803,7 +801,6 @@ fn settle_order(
         }
         c
     };
-    // Frame cost of order `q` at frame `t` beyond its accelerations (the start's).
     let at_frame = |t: usize, q: usize| {
         if t == starts.frame {
             start_cost(&all[q])
@@ -812,23 +809,29 @@ fn settle_order(
         }
     };
     // Dynamic programming over the frames: `cost[(p, q)]` is the least cost of the terms
-    // centred before frame `t` with orders p at t-1 and q at t.
+    // centred before frame `t` with orders p at t-1 and q at t (before the crossing, the
+    // linked order).
     type States = std::collections::HashMap<(usize, usize), f64>;
     let mut cost: States = States::new();
     let mut back: Vec<std::collections::HashMap<(usize, usize), usize>> = Vec::new();
-    for &q in &allowed[0] {
+    for &q in &orders_at[0] {
+        if !step_ok(first, &identity, &all[q]) {
+            continue;
+        }
         let before = first
             .checked_sub(1)
             .map_or(0.0, |t| term(t, &identity, &identity, &all[q]));
-        let c = before + at_frame(first, q);
-        cost.insert((id, q), c);
+        cost.insert((id, q), before + at_frame(first, q));
     }
-    for t in first + 1..=last {
+    for t in first + 1..=end {
         let mut next = States::new();
         let mut from: std::collections::HashMap<(usize, usize), usize> = std::collections::HashMap::new();
         for (&(p, q), &c) in &cost {
             let pp = if t - 1 == first { &identity } else { &all[p] };
-            for &r in &allowed[t - first] {
+            for &r in &orders_at[t - first] {
+                if !step_ok(t, &all[q], &all[r]) {
+                    continue;
+                }
                 let v = c + term(t - 1, pp, &all[q], &all[r]) + at_frame(t, r);
                 let e = next.entry((q, r)).or_insert(f64::INFINITY);
                 if v < *e {
@@ -840,24 +843,29 @@ fn settle_order(
         cost = next;
         back.push(from);
     }
-    // The end: the continuations' order `s` after the crossing.
-    let finish = |(p, q): (usize, usize), s: usize| {
-        let pp = if last == first { &identity } else { &all[p] };
-        term(last, pp, &all[q], &all[s]) + term(last + 1, &all[q], &all[s], &all[s])
+    // The end: the last order holds on after the crossing.
+    let finish = |(p, q): (usize, usize)| {
+        let pp = if end == first { &identity } else { &all[p] };
+        term(end, pp, &all[q], &all[q]) + term(end + 1, &all[q], &all[q], &all[q])
     };
-    let mut best = (f64::INFINITY, (id, id), id);
+    let mut best = (f64::INFINITY, (id, id));
     for (&state, &c) in &cost {
-        for &s in &tails {
-            let v = c + finish(state, s);
-            if v < best.0 {
-                best = (v, state, s);
-            }
+        if !tail_ok(&all[state.1]) {
+            continue;
+        }
+        let v = c + finish(state);
+        if v < best.0 {
+            best = (v, state);
         }
     }
-    let now: f64 = (first.saturating_sub(1)..=last + 1)
+    let now: f64 = (first.saturating_sub(1)..=end + 1)
         .map(|t| term(t, &identity, &identity, &identity))
         .sum::<f64>()
-        + start_cost(&identity);
+        + if (first..=last).contains(&starts.frame) {
+            start_cost(&identity)
+        } else {
+            0.0
+        };
     // Orders that differ by less than the position noise could make are left as linked: the
     // error of a second difference has variance 6σ² per axis.
     let mut eps: Vec<f64> = at
@@ -891,15 +899,16 @@ fn settle_order(
             4.0 * v * v
         })
         .sum();
-    let terms = (k * (last - first + 3)) as f64;
+    let terms = (k * (end - first + 3)) as f64;
     let explained = best.0 <= reversals + ORDER_SIGNIFICANCE * 12.0 * sigma * sigma * terms;
     if !(best.0 < now - ORDER_SIGNIFICANCE * 12.0 * sigma * sigma && explained) {
         return 0;
     }
     // The orders, frame by frame, back from the last.
-    let (_, (mut p, mut q), tail) = best;
-    let mut chosen = vec![id; last - first + 1];
-    for t in (first..=last).rev() {
+    let (_, (mut p, mut q)) = best;
+    let tail = q;
+    let mut chosen = vec![id; end - first + 1];
+    for t in (first..=end).rev() {
         chosen[t - first] = q;
         if t > first {
             let prev = back[t - first - 1][&(p, q)];
@@ -908,7 +917,7 @@ fn settle_order(
         }
     }
     let mut renamed = 0;
-    for t in first..=last {
+    for t in first..=end {
         let perm = &all[chosen[t - first]];
         let moved: Vec<Option<TrackPoint>> =
             (0..k).map(|a| at[a][t - lo].map(|i| points[i].clone())).collect();
@@ -932,7 +941,7 @@ fn settle_order(
             .iter()
             .map(|n| {
                 let own = &tracks[n];
-                let cut = own.partition_point(|&i| points[i].frame <= last);
+                let cut = own.partition_point(|&i| points[i].frame <= end);
                 (own[..cut].to_vec(), own[cut..].to_vec())
             })
             .collect();
@@ -945,7 +954,7 @@ fn settle_order(
             renamed += usize::from(a != b) * split[b].1.len();
             tracks.insert(names[a].clone(), joined);
         }
-        for e in ambiguities.iter_mut().filter(|e| e.first_frame > last) {
+        for e in ambiguities.iter_mut().filter(|e| e.first_frame > end) {
             for name in &mut e.particles {
                 if let Some(b) = names.iter().position(|n| n == name) {
                     if let Some(a) = tail.iter().position(|&x| x == b) {
