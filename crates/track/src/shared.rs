@@ -594,16 +594,19 @@ const MIN_POSITION_ERROR: f64 = 0.05;
 /// Hands the positions inside each crossing to the tracks whose motion they continue best,
 /// and the tracks after it to the particles whose motion they continue.
 ///
-/// A crossing is a run of groups in consecutive frames that share tracks. Of every sequence
-/// of orders of each frame's positions among its group's tracks, and every order of the
-/// tracks' continuations after the crossing, the one with the smallest sum of squared
-/// second differences (accelerations, px/frame²) along every track, through its points in
-/// the frames before and after, plus the squared distance of each track's first point from
-/// its named start where the crossing holds the start frame, is found by dynamic programming
-/// over the frames (a state is the orders of two consecutive frames, since an acceleration
-/// spans three). It replaces the linker's order where it gains more than the position noise
-/// could ([`ORDER_SIGNIFICANCE`]). Exchanged continuations take their ambiguity reports
-/// with them. Returns the points that changed hands.
+/// A crossing is a run of groups in consecutive frames that share tracks. An order says
+/// which track's point each track takes in a frame; it persists from frame to frame, may
+/// change only between tracks that shared a group in that frame or the one before, and the
+/// order reached in the frame after the crossing holds for the rest of the recording (the
+/// continuations are renamed). Of every such sequence, the one with the smallest sum of
+/// squared second differences (accelerations, px/frame²) along every track, through its
+/// points in the frames before and after, plus the squared distance of each track's first
+/// point from its named start where the crossing holds the start frame, is found by dynamic
+/// programming over the frames (a state is the orders of two consecutive frames, since an
+/// acceleration spans three). It replaces the linker's order where it gains more than the
+/// position noise could ([`ORDER_SIGNIFICANCE`]) and the motion explains it. Exchanged
+/// continuations take their ambiguity reports with them. Returns the points that changed
+/// hands.
 fn rename_by_motion(
     points: &mut [TrackPoint],
     groups: &[Group],
