@@ -7,6 +7,8 @@
 //! component is solved densely, so a frame of a thousand well-separated particles costs
 //! a thousand 1x1 problems.
 
+use crate::disjoint_sets::DisjointSets;
+
 /// A gated, sparse assignment problem: `pairs` are the allowed (row, column, cost) triples;
 /// leaving row `r` unmatched costs `row_miss[r]`, column `c` costs `col_miss[c]`.
 #[derive(Clone, Debug, Default)]
@@ -26,33 +28,22 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
     let nc = problem.col_miss.len();
     let mut result = vec![None; nr];
     // Union-find over rows (0..nr) and columns (nr..nr+nc).
-    let mut parent: Vec<usize> = (0..nr + nc).collect();
-    fn find(p: &mut [usize], mut a: usize) -> usize {
-        while p[a] != a {
-            p[a] = p[p[a]];
-            a = p[a];
-        }
-        a
-    }
+    let mut sets = DisjointSets::new(nr + nc);
     for &(r, c, _) in &problem.pairs {
-        let a = find(&mut parent, r);
-        let b = find(&mut parent, nr + c);
-        if a != b {
-            parent[a] = b;
-        }
+        sets.union(r, nr + c);
     }
     let mut groups: std::collections::HashMap<usize, (Vec<usize>, Vec<usize>)> = Default::default();
     for r in 0..nr {
-        let root = find(&mut parent, r);
+        let root = sets.root(r);
         groups.entry(root).or_default().0.push(r);
     }
     for c in 0..nc {
-        let root = find(&mut parent, nr + c);
+        let root = sets.root(nr + c);
         groups.entry(root).or_default().1.push(c);
     }
     let mut pairs_by_root: std::collections::HashMap<usize, Vec<(usize, usize, f64)>> = Default::default();
     for &(r, c, cost) in &problem.pairs {
-        let root = find(&mut parent, r);
+        let root = sets.root(r);
         pairs_by_root.entry(root).or_default().push((r, c, cost));
     }
     let mut roots: Vec<usize> = groups.keys().copied().collect();

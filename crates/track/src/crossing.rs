@@ -19,6 +19,8 @@
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
+use crate::disjoint_sets::DisjointSets;
+
 /// One point of a track as the crossing pass sees it.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Seen {
@@ -156,14 +158,7 @@ pub(crate) fn resolve(
         }
     }
     // Crossings: union of runs and of the tracks that came near them while they ran.
-    let mut parent: Vec<usize> = (0..runs.len()).collect();
-    fn find(p: &mut [usize], mut a: usize) -> usize {
-        while p[a] != a {
-            p[a] = p[p[a]];
-            a = p[a];
-        }
-        a
-    }
+    let mut sets = DisjointSets::new(runs.len());
     // Each run's partner tracks: (run, other track).
     let mut partners: Vec<(usize, usize)> = Vec::new();
     let mut trees: std::collections::HashMap<usize, (ImmutableKdTree<f64, 2>, Vec<usize>)> =
@@ -195,22 +190,19 @@ pub(crate) fn resolve(
         let (_, s, e) = runs[r];
         for (q, &(jj, s2, e2)) in runs.iter().enumerate() {
             if jj == j && s2 <= e + 1 && s <= e2 + 1 {
-                let (a, b) = (find(&mut parent, r), find(&mut parent, q));
-                parent[a] = b;
+                sets.union(r, q);
             }
         }
     }
     let mut groups: std::collections::BTreeMap<usize, (Vec<usize>, usize, usize)> = Default::default();
     for (r, &(i, s, e)) in runs.iter().enumerate() {
-        let g = groups
-            .entry(find(&mut parent, r))
-            .or_insert((Vec::new(), usize::MAX, 0));
+        let g = groups.entry(sets.root(r)).or_insert((Vec::new(), usize::MAX, 0));
         g.0.push(i);
         g.1 = g.1.min(s);
         g.2 = g.2.max(e);
     }
     for &(r, j) in &partners {
-        let root = find(&mut parent, r);
+        let root = sets.root(r);
         if let Some(g) = groups.get_mut(&root) {
             g.0.push(j);
         }

@@ -6,6 +6,7 @@ mod assignment;
 mod background;
 mod crossing;
 mod detect;
+mod disjoint_sets;
 mod error;
 mod frames;
 mod link;

@@ -290,22 +290,28 @@ fn track_paths(
     let background = background;
     let window = locate_window(radius);
 
+    // Frame `i` of the window: the sample already decoded, or the file decoded and checked.
+    let frame_at = |i: usize| -> Result<std::borrow::Cow<'_, Frame>, TrackError> {
+        Ok(match sample_of[i] {
+            Some(j) => std::borrow::Cow::Borrowed(&sample_frames[j]),
+            None => {
+                let path = &paths[i].1;
+                let loaded = load_frame(path)?;
+                check_size(path, &loaded, reference, size)?;
+                std::borrow::Cow::Owned(loaded)
+            }
+        })
+    };
+
     // Locate every frame, in parallel.
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = paths.len();
     let located: Result<Vec<FrameDetections>, TrackError> = paths
         .par_iter()
         .enumerate()
-        .map_init(Worker::default, |w, (i, (k, path))| {
-            let loaded;
-            let frame = match sample_of[i] {
-                Some(j) => &sample_frames[j],
-                None => {
-                    loaded = load_frame(path)?;
-                    check_size(path, &loaded, reference, size)?;
-                    &loaded
-                }
-            };
+        .map_init(Worker::default, |w, (i, (k, _))| {
+            let frame = frame_at(i)?;
+            let frame = &*frame;
             // Blobs are found in the plain signal (the band-pass ignores a flat change of
             // brightness, and a gain is not uniform enough over a real frame to correct the
             // component labelling with); centroids are measured in the gain-corrected one,
@@ -376,9 +382,7 @@ fn track_paths(
     // `crate::shared`).
     if let Some(named) = options.named_start.as_deref() {
         let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-            let path = &paths[k - first].1;
-            let frame = load_frame(path)?;
-            check_size(path, &frame, reference, size)?;
+            let frame = frame_at(k - first)?;
             let mut signal = Vec::new();
             background.signal_into(&frame, &mut signal);
             background.remove_gain(&frame, &mut signal);

@@ -20,6 +20,7 @@
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
+use crate::disjoint_sets::DisjointSets;
 use crate::link::Ambiguity;
 use crate::track_table::{PointFlag, TrackPoint};
 use crate::TrackError;
@@ -102,6 +103,12 @@ impl Profile {
             peak,
             measured: false,
         })
+    }
+
+    /// The fraction of a pixel an image of signal `t` (grey levels) leaves uncovered, for
+    /// [`Composition::Cover`].
+    fn clear(&self, t: f64) -> f64 {
+        (1.0 - t / self.peak).clamp(0.0, 1.0)
     }
 
     /// Reach of the image, px.
@@ -330,14 +337,7 @@ fn relocate_frame(
     // Groups: connected components of the touching relation, among components holding a
     // flagged point.
     let n = idx.len();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut a: usize) -> usize {
-        while parent[a] != a {
-            parent[a] = parent[parent[a]];
-            a = parent[a];
-        }
-        a
-    }
+    let mut sets = DisjointSets::new(n);
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| at(idx[a])[0].total_cmp(&at(idx[b])[0]));
     for (k, &a) in order.iter().enumerate() {
@@ -347,15 +347,13 @@ fn relocate_frame(
                 break;
             }
             if dist2(pa, pb) < touch * touch {
-                let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
-                parent[ra] = rb;
+                sets.union(a, b);
             }
         }
     }
     let mut comps: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
     for (a, &i) in idx.iter().enumerate() {
-        let r = root(&mut parent, a);
-        comps.entry(r).or_default().push(i);
+        comps.entry(sets.root(a)).or_default().push(i);
     }
     let overlap = 2.0 * blobs.radius;
     let mut groups: Vec<Group> = comps
@@ -389,19 +387,18 @@ fn relocate_frame(
             .collect();
         let mut pixels: Vec<Pixel> = Vec::new();
         for_pixels_near(&seeds, blobs.window, blobs.width, blobs.height, |x, y, i| {
-            let held: Vec<f64> = others
-                .iter()
-                .map(|o| profile.at((x - o[0]).hypot(y - o[1])).0)
-                .collect();
+            let (mut held_sum, mut held_clear) = (0.0, 1.0);
+            for o in &others {
+                let t = profile.at((x - o[0]).hypot(y - o[1])).0;
+                held_sum += t;
+                held_clear *= profile.clear(t);
+            }
             pixels.push(Pixel {
                 x,
                 y,
                 signal: f64::from(signal[i]),
-                held_sum: held.iter().sum(),
-                held_clear: held
-                    .iter()
-                    .map(|&t| (1.0 - t / profile.peak).clamp(0.0, 1.0))
-                    .product(),
+                held_sum,
+                held_clear,
             });
         });
         let best = [Composition::Sum, Composition::Cover]
@@ -455,8 +452,7 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
     // light for position.
     let free_scale = !profile.measured;
     let m = 2 * k + usize::from(free_scale);
-    let peak = profile.peak;
-    let clear = |t: f64| (1.0 - t / peak).clamp(0.0, 1.0);
+    let clear = |t: f64| profile.clear(t);
     // Sum of squared residuals at `u`; with `normal`, also the Gauss-Newton normal
     // equations (JᵀJ and Jᵀr, r = measured − model).
     let evaluate = |u: &[f64], mut normal: Option<(&mut DMatrix<f64>, &mut DVector<f64>)>| -> f64 {
@@ -501,7 +497,7 @@ fn fit_positions(pixels: &[Pixel], seeds: &[[f64; 2]], profile: &Profile, compos
                         grad[2 * j] = scale * rest * v.1;
                         grad[2 * j + 1] = scale * rest * v.2;
                     }
-                    peak * (1.0 - all_clear)
+                    profile.peak * (1.0 - all_clear)
                 }
             };
             if free_scale {
@@ -622,18 +618,14 @@ fn rename_by_motion(
     }
     let mut renamed = 0;
     for crossing in crossings(points, groups) {
-        let mut names: Vec<&str> = crossing
-            .iter()
-            .flat_map(|&g| groups[g].members.iter().map(|&i| points[i].particle.as_str()))
-            .collect();
-        names.sort_unstable();
-        names.dedup();
-        if names.len() <= MAX_CROSSING_TRACKS {
-            renamed += settle_order(points, &mut tracks, groups, &crossing, ambiguities, starts);
-        } else {
+        match settle_order(points, &mut tracks, groups, &crossing, ambiguities, starts) {
+            Some(n) => renamed += n,
             // Too many tracks to weigh every order of: each frame's group on its own.
-            for g in crossing {
-                renamed += settle_order(points, &mut tracks, groups, &[g], ambiguities, starts);
+            None => {
+                for g in crossing {
+                    renamed +=
+                        settle_order(points, &mut tracks, groups, &[g], ambiguities, starts).unwrap_or(0);
+                }
             }
         }
     }
@@ -653,14 +645,7 @@ pub(crate) struct Starts<'a> {
 fn crossings(points: &[TrackPoint], groups: &[Group]) -> Vec<Vec<usize>> {
     let mut order: Vec<usize> = (0..groups.len()).collect();
     order.sort_by_key(|&g| points[groups[g].members[0]].frame);
-    let mut parent: Vec<usize> = (0..groups.len()).collect();
-    fn root(parent: &mut [usize], mut a: usize) -> usize {
-        while parent[a] != a {
-            parent[a] = parent[parent[a]];
-            a = parent[a];
-        }
-        a
-    }
+    let mut sets = DisjointSets::new(groups.len());
     // The latest group of each track, by name.
     let mut latest: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
     for &g in &order {
@@ -669,8 +654,7 @@ fn crossings(points: &[TrackPoint], groups: &[Group]) -> Vec<Vec<usize>> {
             let name = points[i].particle.as_str();
             if let Some(&h) = latest.get(name) {
                 if points[groups[h].members[0]].frame + 1 >= frame {
-                    let (a, b) = (root(&mut parent, g), root(&mut parent, h));
-                    parent[a] = b;
+                    sets.union(g, h);
                 }
             }
             latest.insert(name, g);
@@ -678,14 +662,15 @@ fn crossings(points: &[TrackPoint], groups: &[Group]) -> Vec<Vec<usize>> {
     }
     let mut runs: std::collections::BTreeMap<usize, Vec<usize>> = std::collections::BTreeMap::new();
     for &g in &order {
-        let r = root(&mut parent, g);
-        runs.entry(r).or_default().push(g);
+        runs.entry(sets.root(g)).or_default().push(g);
     }
     runs.into_values().collect()
 }
 
 /// [`rename_by_motion`] for one crossing (`run`: indices into `groups`, frame order);
-/// `tracks` holds each track's point indices in frame order and is kept up to date.
+/// `tracks` holds each track's point indices in frame order and is kept up to date. Returns
+/// the points that changed hands, or `None` if the crossing holds more than
+/// [`MAX_CROSSING_TRACKS`] tracks.
 fn settle_order(
     points: &mut [TrackPoint],
     tracks: &mut std::collections::HashMap<String, Vec<usize>>,
@@ -693,7 +678,7 @@ fn settle_order(
     run: &[usize],
     ambiguities: &mut [Ambiguity],
     starts: &Starts<'_>,
-) -> usize {
+) -> Option<usize> {
     let mut names: Vec<String> = run
         .iter()
         .flat_map(|&g| groups[g].members.iter().map(|&i| points[i].particle.clone()))
@@ -701,8 +686,11 @@ fn settle_order(
     names.sort();
     names.dedup();
     let k = names.len();
-    if !(2..=MAX_CROSSING_TRACKS).contains(&k) {
-        return 0;
+    if k > MAX_CROSSING_TRACKS {
+        return None;
+    }
+    if k < 2 {
+        return Some(0);
     }
     let frame_of = |g: usize| points[groups[g].members[0]].frame;
     let first = run.iter().map(|&g| frame_of(g)).min().unwrap_or(0);
@@ -905,7 +893,7 @@ fn settle_order(
     let terms = (k * (end - first + 3)) as f64;
     let explained = best.0 <= reversals + ORDER_SIGNIFICANCE * 12.0 * sigma * sigma * terms;
     if !(best.0 < now - ORDER_SIGNIFICANCE * 12.0 * sigma * sigma && explained) {
-        return 0;
+        return Some(0);
     }
     // The orders, frame by frame, back from the last.
     let (_, (mut p, mut q)) = best;
@@ -967,7 +955,7 @@ fn settle_order(
             }
         }
     }
-    renamed
+    Some(renamed)
 }
 
 /// Calls `f` with every permutation of `0..k` (Heap's algorithm).
@@ -994,6 +982,12 @@ fn permutations(k: usize, f: &mut impl FnMut(&[usize])) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// No named starts.
+    const NO_STARTS: Starts<'static> = Starts {
+        positions: &[],
+        frame: 0,
+    };
 
     /// Fraction of pixel `(x, y)` inside the disc of radius `r` about `c` (16 x 16 samples).
     fn coverage(x: f64, y: f64, c: [f64; 2], r: f64) -> f64 {
@@ -1133,13 +1127,9 @@ mod tests {
     /// continuations exchanged from frame 5 on, with the reports of ambiguities after it.
     #[test]
     fn the_motion_gives_each_track_its_own_positions_and_continuation() {
-        let no_starts = Starts {
-            positions: &[],
-            frame: 0,
-        };
         let (mut points, groups) = crossing(4, 5);
         assert!(!names_follow_paths(&points));
-        let renamed = rename_by_motion(&mut points, &groups, &mut [], &no_starts);
+        let renamed = rename_by_motion(&mut points, &groups, &mut [], &NO_STARTS);
         assert_eq!(renamed, 4);
         assert!(names_follow_paths(&points));
 
@@ -1150,7 +1140,7 @@ mod tests {
             first_frame: 8,
             last_frame: 8,
         }];
-        rename_by_motion(&mut points, &groups, &mut reports, &no_starts);
+        rename_by_motion(&mut points, &groups, &mut reports, &NO_STARTS);
         assert!(names_follow_paths(&points));
         assert_eq!(reports[0].particles, ["b"], "the report follows the continuation");
     }
@@ -1158,16 +1148,12 @@ mod tests {
     /// An exchange smaller than the position noise is left alone.
     #[test]
     fn a_change_within_the_noise_is_not_made() {
-        let no_starts = Starts {
-            positions: &[],
-            frame: 0,
-        };
         let (mut points, groups) = crossing(4, 5);
         for p in &mut points {
             p.ep = 5.0;
         }
         let before: Vec<(f64, f64)> = points.iter().map(|p| (p.x, p.y)).collect();
-        assert_eq!(rename_by_motion(&mut points, &groups, &mut [], &no_starts), 0);
+        assert_eq!(rename_by_motion(&mut points, &groups, &mut [], &NO_STARTS), 0);
         let after: Vec<(f64, f64)> = points.iter().map(|p| (p.x, p.y)).collect();
         assert_eq!(after, before);
     }
