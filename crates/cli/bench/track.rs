@@ -12,7 +12,7 @@ use anyhow::Context;
 use physfit_model::{Colour, Recording, RenderSettings, Vec2};
 use physfit_render::render_sequence;
 use physfit_track::{
-    list_frames, load_frame, score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable,
+    list_frames, score_tracks, track_folder, Frame, FrameDecoder, TrackOptions, TrackPoint, TrackTable,
 };
 
 /// Frame size, px.
@@ -145,9 +145,12 @@ fn truth_table(rec: &Recording) -> TrackTable {
 /// Seconds to decode every frame of `dir` on one thread (read, PNG decode, to f32).
 fn decode_seconds(dir: &Path) -> anyhow::Result<f64> {
     let files = list_frames(dir)?;
+    // With reused buffers, as the tracker decodes.
+    let (mut decoder, mut frame) = (FrameDecoder::default(), Frame::default());
     let start = Instant::now();
     for f in &files {
-        std::hint::black_box(load_frame(f)?);
+        decoder.load_into(f, &mut frame)?;
+        std::hint::black_box(&frame);
     }
     Ok(start.elapsed().as_secs_f64())
 }

@@ -7,6 +7,7 @@
 //! parallel; linking is sequential.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -16,14 +17,18 @@ use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     estimate_background, find_blobs_with_scratch, link_detections, list_frames, load_frame,
     refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDetections, LinkOptions, LinkOutcome,
-    LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, LinkOptions,
+    LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
 const BACKGROUND_SAMPLES: usize = 25;
 /// Frames sampled to estimate the particle radius.
 const RADIUS_SAMPLES: usize = 5;
+/// Blobs the size estimates want: of the [`RADIUS_SAMPLES`] frames, only as many are searched
+/// as should hold this many (the medians are then known to a twentieth of the blobs' own
+/// spread), so a crowded recording measures one frame, not five.
+const SIZE_BLOBS: usize = 400;
 /// Radius, px, the estimation starts from; the rounds make it independent of this.
 const START_RADIUS: f64 = 3.0;
 /// Most rounds of the radius estimate (each re-detects and re-measures with the last
@@ -290,19 +295,12 @@ fn track_paths(
     let background = background;
     let window = locate_window(radius);
 
-    // Frame `i` of the window: the sample already decoded, or the file decoded and checked.
-    let frame_at = |i: usize| -> Result<std::borrow::Cow<'_, Frame>, TrackError> {
-        Ok(match sample_of[i] {
-            Some(j) => std::borrow::Cow::Borrowed(&sample_frames[j]),
-            None => {
-                let path = &paths[i].1;
-                let loaded = load_frame(path)?;
-                check_size(path, &loaded, reference, size)?;
-                std::borrow::Cow::Owned(loaded)
-            }
-        })
+    // Frame `i` of the window decoded (into `buf`, with `decoder`'s buffers) and checked.
+    let frame_in = |i: usize, decoder: &mut FrameDecoder, buf: &mut Frame| -> Result<(), TrackError> {
+        let path = &paths[i].1;
+        decoder.load_into(path, buf)?;
+        check_size(path, buf, reference, size)
     };
-
     // Locate every frame, in parallel.
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = paths.len();
@@ -310,8 +308,14 @@ fn track_paths(
         .par_iter()
         .enumerate()
         .map_init(Worker::default, |w, (i, (k, _))| {
-            let frame = frame_at(i)?;
-            let frame = &*frame;
+            // The sample already decoded, or the file decoded into the worker's buffer.
+            let frame = match sample_of[i] {
+                Some(j) => &sample_frames[j],
+                None => {
+                    frame_in(i, &mut w.decoder, &mut w.frame)?;
+                    &w.frame
+                }
+            };
             // Blobs are found in the plain signal (the band-pass ignores a flat change of
             // brightness, and a gain is not uniform enough over a real frame to correct the
             // component labelling with); centroids are measured in the gain-corrected one,
@@ -382,10 +386,18 @@ fn track_paths(
     // `crate::shared`).
     if let Some(named) = options.named_start.as_deref() {
         let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-            let frame = frame_at(k - first)?;
+            let i = k - first;
+            let mut loaded = Frame::default();
+            let frame = match sample_of[i] {
+                Some(j) => &sample_frames[j],
+                None => {
+                    frame_in(i, &mut FrameDecoder::default(), &mut loaded)?;
+                    &loaded
+                }
+            };
             let mut signal = Vec::new();
-            background.signal_into(&frame, &mut signal);
-            background.remove_gain(&frame, &mut signal);
+            background.signal_into(frame, &mut signal);
+            background.remove_gain(frame, &mut signal);
             Ok(signal)
         };
         relocated = relocate_shared(
@@ -441,10 +453,13 @@ fn track_paths(
     })
 }
 
-/// One worker thread's buffers, reused from frame to frame: the signal image, the filters'
-/// and blob regions' buffers (a frame-sized region map among them) and the centroids'.
+/// One worker thread's buffers, reused from frame to frame: the decoder's and the decoded
+/// frame's, the signal image, the filters' and blob regions' buffers (a frame-sized region
+/// map among them) and the centroids'.
 #[derive(Default)]
 struct Worker {
+    decoder: FrameDecoder,
+    frame: Frame,
     signal: Vec<f32>,
     detect: Scratch,
     locate: LocateScratch,
@@ -562,16 +577,20 @@ impl Sizes {
         starts: Option<&[[f64; 2]]>,
     ) -> Sizes {
         // The estimation frames' signals, plain (what blobs are found in) and gain-corrected
-        // (what centroids are measured in), computed once for every round of the estimates.
-        let estimation: Vec<SampleSignals> = samples[..samples.len().min(RADIUS_SAMPLES)]
-            .iter()
-            .map(|frame| SampleSignals::of(background, frame))
-            .collect();
+        // (what centroids are measured in), computed when first needed, once for every
+        // round of the estimates.
+        let estimation = Estimation {
+            background,
+            frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
+            signals: std::iter::repeat_with(OnceLock::new)
+                .take(samples.len().min(RADIUS_SAMPLES))
+                .collect(),
+        };
         let (radius, radius_estimated) = match given {
             Some(r) => (r, false),
-            None => (estimate_radius(background, &estimation, starts), true),
+            None => (estimate_radius(&estimation, starts), true),
         };
-        let expected = expected_size(background, &estimation, radius, starts);
+        let expected = expected_size(&estimation, radius, starts);
         Sizes {
             radius,
             radius_estimated,
@@ -600,6 +619,37 @@ impl SampleSignals {
     }
 }
 
+/// The frames the particle sizes are estimated on, with their signals once computed.
+struct Estimation<'a> {
+    background: &'a Background,
+    frames: &'a [Frame],
+    signals: Vec<OnceLock<SampleSignals>>,
+}
+
+impl Estimation<'_> {
+    /// The signals of frame `j`.
+    fn signals(&self, j: usize) -> &SampleSignals {
+        self.signals[j].get_or_init(|| SampleSignals::of(self.background, &self.frames[j]))
+    }
+
+    /// `measure` (one frame's signals and a worker: its measures) over the first frame and
+    /// as many more as should bring the measures to [`SIZE_BLOBS`] at the first frame's
+    /// count (the others in parallel), concatenated in frame order; empty without frames.
+    fn over_frames<T: Send>(&self, measure: impl Fn(&SampleSignals, &mut Worker) -> Vec<T> + Sync) -> Vec<T> {
+        if self.frames.is_empty() {
+            return Vec::new();
+        }
+        let mut all = measure(self.signals(0), &mut Worker::default());
+        let wanted = SIZE_BLOBS.div_ceil(all.len().max(1)).min(self.frames.len());
+        let more: Vec<Vec<T>> = (1..wanted)
+            .into_par_iter()
+            .map_init(Worker::default, |w, j| measure(self.signals(j), w))
+            .collect();
+        all.extend(more.into_iter().flatten());
+        all
+    }
+}
+
 /// Estimates the particle radius, px, from the blobs of a few frames: a uniform disc of
 /// radius `R` has radius of gyration `R / sqrt(2)`, so `R = sqrt(2)` times the median
 /// measured gyration radius (measured in the gain-corrected signal: an exposure change
@@ -607,11 +657,13 @@ impl SampleSignals {
 /// the current estimate, re-measure) until it changes by less than 0.01 px make the answer
 /// independent of the starting value.
 ///
-/// With `starts` (the named particles' positions in the first frame of `frames`), only the
-/// blob nearest each start in that frame is measured; otherwise every blob of every frame.
+/// With `starts` (the named particles' positions in the first estimation frame), only the
+/// blob nearest each start in that frame is measured; otherwise every blob of the frames
+/// [`Estimation::over_frames`] searches.
 /// On real video the blobs are mostly texture specks and clutter, and their median is not
 /// the particles' size; the structure's start positions say which blobs are particles.
-fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Option<&[[f64; 2]]>) -> f64 {
+fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 {
+    let background = estimation.background;
     let mut radius = START_RADIUS;
     for _ in 0..RADIUS_ROUNDS {
         let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
@@ -622,8 +674,9 @@ fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Op
                 .collect()
         };
         let mut sizes: Vec<f64> = match starts {
-            Some(starts) if !frames.is_empty() => {
-                let found = locate_unfiltered(background, &frames[0], radius, &mut Worker::default());
+            Some(starts) if !estimation.frames.is_empty() => {
+                let found =
+                    locate_unfiltered(background, estimation.signals(0), radius, &mut Worker::default());
                 sizes_of(
                     nearest_each(&found, starts, |d| [d.x, d.y])
                         .into_iter()
@@ -631,13 +684,7 @@ fn estimate_radius(background: &Background, frames: &[SampleSignals], starts: Op
                         .collect(),
                 )
             }
-            _ => frames
-                .par_iter()
-                .map_init(Worker::default, |w, frame| {
-                    sizes_of(locate_unfiltered(background, frame, radius, w))
-                })
-                .collect::<Vec<Vec<f64>>>()
-                .concat(),
+            _ => estimation.over_frames(|frame, w| sizes_of(locate_unfiltered(background, frame, radius, w))),
         };
         if sizes.is_empty() {
             break;
@@ -718,29 +765,20 @@ fn nearest_each<'a, T>(items: &'a [T], starts: &[[f64; 2]], at: impl Fn(&T) -> [
 /// One particle's blob measures at `radius` (medians of [`Blob::area`] and
 /// [`Blob::extent`], as blobs are found, in the plain signal); `None` when no blob is found
 /// (size rejection is then off). With `starts`, of the blobs nearest the named particles'
-/// start positions in the first frame; otherwise of every blob in `frames` (see
+/// start positions in the first frame; otherwise of every blob of the frames
+/// [`Estimation::over_frames`] searches (see
 /// [`estimate_radius`] for why).
-fn expected_size(
-    background: &Background,
-    frames: &[SampleSignals],
-    radius: f64,
-    starts: Option<&[[f64; 2]]>,
-) -> Option<BlobSize> {
+fn expected_size(estimation: &Estimation, radius: f64, starts: Option<&[[f64; 2]]>) -> Option<BlobSize> {
+    let background = estimation.background;
     let blobs: Vec<Blob> = match starts {
-        Some(starts) if !frames.is_empty() => {
-            let blobs = unfiltered_blobs(background, &frames[0], radius, &mut Worker::default());
+        Some(starts) if !estimation.frames.is_empty() => {
+            let blobs = unfiltered_blobs(background, estimation.signals(0), radius, &mut Worker::default());
             nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
                 .into_iter()
                 .copied()
                 .collect()
         }
-        _ => frames
-            .par_iter()
-            .map_init(Worker::default, |w, frame| {
-                unfiltered_blobs(background, frame, radius, w)
-            })
-            .collect::<Vec<Vec<Blob>>>()
-            .concat(),
+        _ => estimation.over_frames(|frame, w| unfiltered_blobs(background, frame, radius, w)),
     };
     let inside: Vec<&Blob> = blobs.iter().filter(|b| !b.at_border).collect();
     if inside.is_empty() {
