@@ -105,12 +105,14 @@ pub(crate) const STRUCTURED_LIMIT: f64 = 0.02;
 const GAIN_SAMPLES: usize = 8_192;
 
 /// Pixels the background model is chosen on (an even sample of the frame): the fractions of
-/// structured and moving pixels are then known to about 0.2 % of the frame.
-const DECISION_PIXELS: usize = 65_536;
+/// structured and moving pixels are then known to about 0.4 % of the frame (0.1 % near the
+/// 2 % of [`STRUCTURED_LIMIT`]). Samples are far apart in 25 frames of a megabyte each, so
+/// each costs a cache miss: four times as many took 9 ms more of a 200-frame recording.
+const DECISION_PIXELS: usize = 16_384;
 
 /// Pixel values (over all samples) the noise estimates are taken from: the median of this
-/// many is within about 0.2 % of the population's.
-const NOISE_SAMPLES: usize = 500_000;
+/// many is within about 0.3 % of the population's (each costs a cache miss, as above).
+const NOISE_SAMPLES: usize = 125_000;
 
 /// Estimates the background of a recording from sample frames (all the same size and
 /// channel count; at least one). See the module documentation for the method.
@@ -210,7 +212,10 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         clip_offset: 0.0,
         structure_threshold: tau,
     };
-    bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32);
+    // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
+    // successive frames' samples fall on other columns).
+    let stride = (k * width * height / NOISE_SAMPLES).max(1) | 1;
+    bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32, stride);
     // The lowest signal a pixel can show: its value at the clip level (0 where particles
     // are brighter in a channel, 255 where darker).
     let clip: Vec<f32> = bg
@@ -218,22 +223,19 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         .iter()
         .map(|&u| if u >= 0.0 { 0.0 } else { 255.0 })
         .collect();
-    let floor = bg.signal(&Frame::filled(width, height, &clip));
-    // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
-    // successive frames' samples fall on other columns).
-    let stride = (k * width * height / NOISE_SAMPLES).max(1) | 1;
     let mut negatives: Vec<f32> = Vec::new();
     let mut sampled: Vec<f32> = Vec::new();
     let mut clipped = 0usize;
-    let mut signal = Vec::new();
     for (s, f) in samples.iter().enumerate() {
-        bg.signal_into(f, &mut signal);
         // 8-bit frames hold whole levels, so the signal takes values one level apart and
         // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
         // deterministic dither spread evenly over one level makes the distribution
         // continuous again: its spread is then that of the quantised noise itself.
-        for i in (s % stride..signal.len()).step_by(stride) {
-            let (v, lo) = (signal[i], floor[i]);
+        for i in (s % stride..width * height).step_by(stride) {
+            let (v, lo) = (
+                bg.signal_at(&f.data[i * channels..(i + 1) * channels], i),
+                bg.signal_at(&clip, i),
+            );
             let d = v + dither(i);
             if d < 0.0 {
                 negatives.push(-d);
@@ -454,15 +456,25 @@ impl Background {
             }
             _ => {
                 let c = self.channels;
-                let u = &self.direction;
                 out.extend(
                     frame
                         .data
                         .chunks_exact(c)
                         .zip(self.image.chunks_exact(c))
-                        .map(|(p, b)| p.iter().zip(b).zip(u).map(|((p, b), u)| u * (p - b)).sum::<f32>()),
+                        .map(|(p, b)| colour_signal(p, b, &self.direction)),
                 );
             }
+        }
+    }
+
+    /// The particle signal of one pixel, `pixel` (its channels' values, grey levels) at
+    /// pixel index `i`: the value [`Background::signal_into`] gives there, to the bit.
+    pub fn signal_at(&self, pixel: &[f32], i: usize) -> f32 {
+        let c = self.channels;
+        match (c, self.model) {
+            (1, BackgroundModel::Constant) => self.direction[0] * (pixel[0] - self.level[0]),
+            (1, BackgroundModel::PerPixel) => self.direction[0] * (pixel[0] - self.image[i]),
+            _ => colour_signal(pixel, &self.image[i * c..(i + 1) * c], &self.direction),
         }
     }
 
@@ -471,6 +483,12 @@ impl Background {
     pub fn is_dark_on_light(&self) -> bool {
         self.direction.iter().sum::<f32>() < 0.0
     }
+}
+
+/// The signal of a colour pixel `p` against background `b`: the difference projected on the
+/// particles' colour direction `u`, grey levels.
+fn colour_signal(p: &[f32], b: &[f32], u: &[f32]) -> f32 {
+    p.iter().zip(b).zip(u).map(|((p, b), u)| u * (p - b)).sum::<f32>()
 }
 
 /// Mean and standard deviation (grey levels) of the bulk of `values` (reordered) by iterated
@@ -620,14 +638,16 @@ fn mode_level(image: &[f32], channels: usize, c: usize) -> f32 {
 
 /// The principal direction of the differences from the background over the pixels that
 /// differ by more than `threshold` in some channel, signed so that particles project
-/// positive on average.
-fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32) -> Vec<f32> {
+/// positive on average. Every `stride`-th pixel of each sample is looked at (an odd stride,
+/// started one pixel later in each successive sample, as the noise sample is taken).
+fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32, stride: usize) -> Vec<f32> {
     let c = bg.channels;
     let mut cov = [[0.0f64; 3]; 3];
     let mut mean = [0.0f64; 3];
     let mut count = 0usize;
-    for f in samples {
-        for (p, b) in f.data.chunks_exact(c).zip(bg.image.chunks_exact(c)) {
+    for (s, f) in samples.iter().enumerate() {
+        let pixels = f.data.chunks_exact(c).zip(bg.image.chunks_exact(c));
+        for (p, b) in pixels.skip(s % stride).step_by(stride) {
             let mut d = [0.0f64; 3];
             let mut big = false;
             for ch in 0..c {

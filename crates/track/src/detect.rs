@@ -102,16 +102,18 @@ pub fn find_blobs(signal: &[f32], width: usize, height: usize, params: &DetectPa
     find_blobs_with_scratch(signal, width, height, params, &mut scratch)
 }
 
-/// Reusable buffers of [`find_blobs_with_scratch`]: the two filtered images, the filters'
-/// running sums and the labelling's runs. Holding one per worker thread means no frame
+/// Reusable buffers of [`find_blobs_with_scratch`]: the small box mean of the frame, the
+/// band-pass response of three rows, the filters' running sums and the labelling's runs. Holding one per worker thread means no frame
 /// allocates.
 #[derive(Default, Debug)]
 pub struct Scratch {
     small: Vec<f32>,
-    large: Vec<f32>,
+    /// The band-pass response (small minus large box mean) of the last three rows, row `y` at
+    /// `(y % 3) * width`, then their large box means, row `y` at `(3 + y % 3) * width`.
+    band: Vec<f32>,
     filter: FilterScratch,
-    peaks: Vec<(f32, u32, u32)>,
-    kept: Vec<(f32, u32, u32)>,
+    peaks: Vec<Peak>,
+    kept: Vec<Peak>,
     cell_head: Vec<u32>,
     cell_next: Vec<u32>,
     labels: Labels,
@@ -131,15 +133,6 @@ pub fn find_blobs_with_scratch(
     }
     let h = box_half_width(params.radius);
     let big = 2 * h + 1;
-    box_means(
-        signal,
-        width,
-        height,
-        [h, big],
-        [&mut scratch.small, &mut scratch.large],
-        &mut scratch.filter,
-    );
-    let (small, large) = (&scratch.small, &scratch.large);
     let sigma = params.noise_sigma.max(1e-6);
     // Near the border the boxes hold fewer pixels, so their means are noisier: the noise of
     // each filtered pixel is propagated from its own pixel counts (interior counts give the
@@ -169,44 +162,76 @@ pub fn find_blobs_with_scratch(
     // interior ones, already applied).
     let margin = big;
 
-    // Local maxima of the band-pass response (strict against earlier neighbours in raster
-    // order, non-strict against later ones, so a plateau yields one maximum per row run).
-    let peaks = &mut scratch.peaks;
+    // One pass down the frame: each row's box means are formed, the small one kept (the
+    // blobs grow in it), the band-pass response kept for three rows; the row above is then
+    // searched for local maxima (it has both neighbours), and the row's mask runs are
+    // labelled. Everything a row needs is still in the first-level cache.
+    let Scratch {
+        small,
+        band,
+        filter,
+        peaks,
+        labels: comps,
+        ..
+    } = scratch;
+    small.resize(width * height, 0.0);
+    band.resize(6 * width, 0.0);
     peaks.clear();
-    for (y, &fy) in mask_fy.iter().enumerate().take(height) {
-        let row = y * width;
-        let srow = &small[row..row + width];
-        let lrow = &large[row..row + width];
+    comps.begin();
+    let mut scan = |y: usize, band: &[f32], small: &[f32]| {
+        let row = |yy: usize| &band[(yy % 3) * width..(yy % 3 + 1) * width];
+        let (brow, srow) = (row(y), &small[y * width..(y + 1) * width]);
+        let fy = mask_fy[y];
         for x0 in (0..width).step_by(CHUNK) {
             let x1 = (x0 + CHUNK).min(width);
             // Most of a frame is background: a whole chunk is ruled out at once (branch-free,
             // vectorised) before any pixel is looked at alone.
-            if !any_above(&srow[x0..x1], &lrow[x0..x1], peak_min) {
+            if !any_above(&brow[x0..x1], peak_min) {
                 continue;
             }
             for x in x0..x1 {
-                let v = srow[x] - lrow[x];
+                let v = brow[x];
                 if v <= peak_min || srow[x] <= mask_x[x] * fy {
                     continue;
                 }
                 // Most pixels above the threshold sit on a particle's flank: their row
                 // neighbours rule them out before the full test.
-                if (x > 0 && srow[x - 1] - lrow[x - 1] >= v)
-                    || (x + 1 < width && srow[x + 1] - lrow[x + 1] > v)
-                {
+                if (x > 0 && brow[x - 1] >= v) || (x + 1 < width && brow[x + 1] > v) {
                     continue;
                 }
                 let at_edge = x < margin || y < margin || x + margin >= width || y + margin >= height;
                 if at_edge && f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
                     continue;
                 }
-                if is_local_max(small, large, width, height, x, y, v) {
-                    peaks.push((v, x as u32, y as u32));
+                if is_local_max(row, width, height, x, y, v) {
+                    peaks.push(Peak {
+                        band: v,
+                        large: band[(3 + y % 3) * width + x],
+                        x: x as u32,
+                        y: y as u32,
+                    });
                 }
             }
         }
-    }
-    peaks.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then((a.2, a.1).cmp(&(b.2, b.1))));
+    };
+    box_rows(signal, width, height, [h, big], filter, |y, s_row, l_row| {
+        small[y * width..(y + 1) * width].copy_from_slice(s_row);
+        let b = &mut band[(y % 3) * width..(y % 3 + 1) * width];
+        for ((b, s), l) in b.iter_mut().zip(s_row).zip(l_row) {
+            *b = s - l;
+        }
+        band[(3 + y % 3) * width..(4 + y % 3) * width].copy_from_slice(l_row);
+        comps.push_row(y, s_row, &mask_x, mask_fy[y]);
+        if y > 0 {
+            scan(y - 1, band, small);
+        }
+    });
+    scan(height - 1, band, small);
+    comps.finish(width, height);
+
+    // Local maxima of the band-pass response (strict against earlier neighbours in raster
+    // order, non-strict against later ones, so a plateau yields one maximum per row run).
+    peaks.sort_unstable_by(|a, b| b.band.total_cmp(&a.band).then((a.y, a.x).cmp(&(b.y, b.x))));
 
     // Non-maximum suppression within one radius, on a grid of cells one radius wide (each
     // cell's kept peaks as a linked list through `cell_next`).
@@ -222,17 +247,17 @@ pub fn find_blobs_with_scratch(
     let kept = &mut scratch.kept;
     kept.clear();
     let r2 = r_nms * r_nms;
-    for &(v, x, y) in peaks.iter() {
-        let (x, y) = (x as usize, y as usize);
+    for &peak in peaks.iter() {
+        let (x, y) = (peak.x as usize, peak.y as usize);
         let (cx, cy) = (x / cell, y / cell);
         let mut clash = false;
         'g: for gy in cy.saturating_sub(1)..=(cy + 1).min(gh - 1) {
             for gx in cx.saturating_sub(1)..=(cx + 1).min(gw - 1) {
                 let mut k = head[gy * gw + gx];
                 while k != u32::MAX {
-                    let (_, ox, oy) = kept[k as usize];
-                    let dx = f64::from(ox) - x as f64;
-                    let dy = f64::from(oy) - y as f64;
+                    let other = kept[k as usize];
+                    let dx = f64::from(other.x) - x as f64;
+                    let dy = f64::from(other.y) - y as f64;
                     if dx * dx + dy * dy < r2 {
                         clash = true;
                         break 'g;
@@ -245,19 +270,17 @@ pub fn find_blobs_with_scratch(
             let c = cy * gw + cx;
             next.push(head[c]);
             head[c] = kept.len() as u32;
-            kept.push((v, x as u32, y as u32));
+            kept.push(peak);
         }
     }
 
     // Each candidate's extent: the component of the smoothed signal above the noise mask
     // that holds it, shared among its candidates. A noise peak or a speck of texture barely
     // rises above the mask; a particle stands out of it with its whole skirt.
-    let comps = &mut scratch.labels;
-    comps.label(small, width, height, &mask_x, &mask_fy);
     let mut seeds_per_comp: Vec<u32> = vec![0; comps.area.len()];
     let labels: Vec<Option<usize>> = kept
         .iter()
-        .map(|&(_, x, y)| comps.label_at(x as usize, y as usize))
+        .map(|p| comps.label_at(p.x as usize, p.y as usize))
         .collect();
     for l in labels.iter().flatten() {
         seeds_per_comp[*l] += 1;
@@ -270,17 +293,19 @@ pub fn find_blobs_with_scratch(
     // exposure change, a shadow) nor take in texture at its edge, as a noise-mask component
     // does.
     let regions = &mut scratch.regions;
+    let small = &scratch.small[..];
     regions.reset(width * height);
     let cap = ((FLOOD_CAP_AREAS * params.radius * params.radius).ceil() as usize).max(64);
     let mut seeds_per: Vec<u32> = Vec::with_capacity(kept.len());
     let mut in_region: Vec<usize> = Vec::with_capacity(kept.len());
-    for &(v, x, y) in kept.iter() {
-        let i = y as usize * width + x as usize;
+    for peak in kept.iter() {
+        let (x, y) = (peak.x as usize, peak.y as usize);
+        let i = y * width + x;
         let region = match regions.region_at(i) {
             Some(r) => r,
             None => {
-                let floor = mask_x[x as usize] * mask_fy[y as usize];
-                let level = (large[i] + 0.5 * v).max(floor);
+                let floor = mask_x[x] * mask_fy[y];
+                let level = (peak.large + 0.5 * peak.band).max(floor);
                 regions.grow(small, width, height, i, level, cap)
             }
         };
@@ -292,7 +317,7 @@ pub fn find_blobs_with_scratch(
     }
 
     let mut out = BlobSet::default();
-    for ((&(v, x, y), &region), label) in kept.iter().zip(&in_region).zip(&labels) {
+    for ((peak, &region), label) in kept.iter().zip(&in_region).zip(&labels) {
         let seeds = seeds_per[region].max(1);
         let area = regions.area[region] as f64 / f64::from(seeds);
         let at_border = regions.border[region];
@@ -324,9 +349,9 @@ pub fn find_blobs_with_scratch(
             }
         }
         out.blobs.push(Blob {
-            x: x as usize,
-            y: y as usize,
-            peak: v,
+            x: peak.x as usize,
+            y: peak.y as usize,
+            peak: peak.band,
             area,
             extent,
             at_border,
@@ -338,12 +363,22 @@ pub fn find_blobs_with_scratch(
 /// Pixels tested together by the quick rejections of background.
 const CHUNK: usize = 16;
 
-/// Returns true if and only if some `small - large` exceeds `t`.
-fn any_above(small: &[f32], large: &[f32], t: f32) -> bool {
-    small
-        .iter()
-        .zip(large)
-        .fold(false, |any, (s, l)| any | (s - l > t))
+/// A local maximum of the band-pass response: where, and how strong.
+#[derive(Clone, Copy, Debug)]
+struct Peak {
+    /// Band-pass response (small minus large box mean), grey levels.
+    band: f32,
+    /// Large box mean (the local background), grey levels.
+    large: f32,
+    /// Column, px.
+    x: u32,
+    /// Row, px.
+    y: u32,
+}
+
+/// Returns true if and only if some value of `line` exceeds `t`.
+fn any_above(line: &[f32], t: f32) -> bool {
+    line.iter().fold(false, |any, v| any | (*v > t))
 }
 
 /// Returns true if and only if some `line[x]` exceeds `mask[x] * f`.
@@ -354,25 +389,29 @@ fn any_above_mask(line: &[f32], mask: &[f32], f: f32) -> bool {
 }
 
 /// Returns true if and only if the band-pass response `v` at `(x, y)` is a local maximum:
-/// strictly above its earlier neighbours in raster order, at least its later ones.
-fn is_local_max(
-    small: &[f32],
-    large: &[f32],
+/// strictly above its earlier neighbours in raster order, at least its later ones. `band(yy)`
+/// is row `yy` of the response (asked for rows `y - 1` to `y + 1` within the frame).
+fn is_local_max<'a>(
+    band: impl Fn(usize) -> &'a [f32],
     width: usize,
     height: usize,
     x: usize,
     y: usize,
     v: f32,
 ) -> bool {
-    let i = y * width + x;
     for yy in y.saturating_sub(1)..=(y + 1).min(height - 1) {
-        for xx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
-            let j = yy * width + xx;
-            if j == i {
+        let lo = x.saturating_sub(1);
+        for (xx, &w) in band(yy)
+            .iter()
+            .enumerate()
+            .take((x + 1).min(width - 1) + 1)
+            .skip(lo)
+        {
+            if (yy, xx) == (y, x) {
                 continue;
             }
-            let w = small[j] - large[j];
-            if (j < i && w >= v) || (j > i && w > v) {
+            let earlier = yy < y || (yy == y && xx < x);
+            if (earlier && w >= v) || (!earlier && w > v) {
                 return false;
             }
         }
@@ -405,69 +444,66 @@ impl Labels {
         row.get(k).filter(|r| r.0 as usize <= x).map(|r| r.2 as usize)
     }
 
-    /// Labels the components of `image > mask_x[x] * fy[y]`.
-    fn label(&mut self, image: &[f32], width: usize, height: usize, mask_x: &[f32], fy: &[f32]) {
-        fn find(parent: &mut [u32], mut a: u32) -> u32 {
-            while parent[a as usize] != a {
-                let p = parent[parent[a as usize] as usize];
-                parent[a as usize] = p;
-                a = p;
-            }
-            a
-        }
+    /// Starts labelling a frame (its rows follow through [`Labels::push_row`]).
+    fn begin(&mut self) {
         self.runs.clear();
         self.row_start.clear();
         self.parent.clear();
-        let mut prev_start = 0;
-        for y in 0..height {
-            let line = &image[y * width..(y + 1) * width];
-            let ty = fy[y];
-            let start_here = self.runs.len();
-            self.row_start.push(start_here);
-            let mut x = 0;
-            while x < width {
-                if x % CHUNK == 0
-                    && x + CHUNK <= width
-                    && !any_above_mask(&line[x..x + CHUNK], &mask_x[x..x + CHUNK], ty)
-                {
-                    x += CHUNK;
-                    continue;
-                }
-                if line[x] > mask_x[x] * ty {
-                    let s = x;
-                    while x < width && line[x] > mask_x[x] * ty {
-                        x += 1;
-                    }
-                    let label = self.parent.len() as u32;
-                    self.parent.push(label);
-                    self.runs.push((s as u32, x as u32, label));
-                } else {
+    }
+
+    /// Adds row `y` (rows come in order from 0): its runs of `line[x] > mask_x[x] * ty`,
+    /// joined to the previous row's runs they touch (8-connectivity).
+    fn push_row(&mut self, y: usize, line: &[f32], mask_x: &[f32], ty: f32) {
+        let width = line.len();
+        let prev_start = self.row_start.last().copied().unwrap_or(0);
+        let start_here = self.runs.len();
+        self.row_start.push(start_here);
+        let mut x = 0;
+        while x < width {
+            if x % CHUNK == 0
+                && x + CHUNK <= width
+                && !any_above_mask(&line[x..x + CHUNK], &mask_x[x..x + CHUNK], ty)
+            {
+                x += CHUNK;
+                continue;
+            }
+            if line[x] > mask_x[x] * ty {
+                let s = x;
+                while x < width && line[x] > mask_x[x] * ty {
                     x += 1;
                 }
+                let label = self.parent.len() as u32;
+                self.parent.push(label);
+                self.runs.push((s as u32, x as u32, label));
+            } else {
+                x += 1;
             }
-            if y > 0 {
-                // Runs of the previous row overlapping [start - 1, end] (8-connectivity).
-                let mut k = prev_start;
-                for r in start_here..self.runs.len() {
-                    let run = self.runs[r];
-                    while k < start_here && self.runs[k].1 < run.0 {
-                        k += 1;
+        }
+        if y > 0 {
+            // Runs of the previous row overlapping [start - 1, end] (8-connectivity).
+            let mut k = prev_start;
+            for r in start_here..self.runs.len() {
+                let run = self.runs[r];
+                while k < start_here && self.runs[k].1 < run.0 {
+                    k += 1;
+                }
+                let mut j = k;
+                while j < start_here && self.runs[j].0 <= run.1 {
+                    let a = find(&mut self.parent, run.2);
+                    let b = find(&mut self.parent, self.runs[j].2);
+                    if a != b {
+                        self.parent[a.max(b) as usize] = a.min(b);
                     }
-                    let mut j = k;
-                    while j < start_here && self.runs[j].0 <= run.1 {
-                        let a = find(&mut self.parent, run.2);
-                        let b = find(&mut self.parent, self.runs[j].2);
-                        if a != b {
-                            self.parent[a.max(b) as usize] = a.min(b);
-                        }
-                        j += 1;
-                    }
+                    j += 1;
                 }
             }
-            prev_start = start_here;
         }
+    }
+
+    /// Ends the frame (`width` x `height`, every row pushed): compact labels, with each
+    /// one's area and whether it touches the border.
+    fn finish(&mut self, width: usize, height: usize) {
         self.row_start.push(self.runs.len());
-        // Compact labels.
         self.compact.clear();
         self.compact.resize(self.parent.len(), u32::MAX);
         self.area.clear();
@@ -490,6 +526,16 @@ impl Labels {
     }
 }
 
+/// The root of `a` in the union-find forest `parent`, halving the path on the way.
+fn find(parent: &mut [u32], mut a: u32) -> u32 {
+    while parent[a as usize] != a {
+        let p = parent[parent[a as usize] as usize];
+        parent[a as usize] = p;
+        a = p;
+    }
+    a
+}
+
 /// The blobs of one frame's candidates, grown by flood fill, with reusable buffers.
 #[derive(Default, Debug)]
 struct Regions {
@@ -497,8 +543,8 @@ struct Regions {
     owner: Vec<u32>,
     /// Pixels given a region this frame (reset by the next [`Regions::reset`]).
     claimed: Vec<u32>,
-    /// Flood-fill work list.
-    stack: Vec<u32>,
+    /// Flood-fill work list: pixels as (column, row), so that none is divided by the width.
+    stack: Vec<(u32, u32)>,
     /// Pixel count per region.
     area: Vec<usize>,
     /// Whether each region touches the image border.
@@ -541,13 +587,12 @@ impl Regions {
         let mut area = 0;
         let mut border = false;
         self.stack.clear();
-        self.stack.push(seed as u32);
+        self.stack.push(((seed % width) as u32, (seed / width) as u32));
         self.owner[seed] = id as u32;
         self.claimed.push(seed as u32);
-        while let Some(p) = self.stack.pop() {
-            let p = p as usize;
+        while let Some((x, y)) = self.stack.pop() {
+            let (x, y) = (x as usize, y as usize);
             area += 1;
-            let (x, y) = (p % width, p / width);
             border |= x == 0 || y == 0 || x + 1 == width || y + 1 == height;
             if area + self.stack.len() >= cap {
                 continue;
@@ -558,7 +603,7 @@ impl Regions {
                     if self.owner[q] == u32::MAX && image[q] >= level {
                         self.owner[q] = id as u32;
                         self.claimed.push(q as u32);
-                        self.stack.push(q as u32);
+                        self.stack.push((xx as u32, yy as u32));
                     }
                 }
             }
@@ -603,11 +648,14 @@ fn box_row(out: &mut [f32], pre: &[i32], inv_x: &[f64], h: usize, y: usize, heig
     }
 }
 
-/// Running sums of [`box_means`], kept between frames.
+/// Running sums of [`box_rows`], kept between frames.
 #[derive(Default, Debug)]
 pub(crate) struct FilterScratch {
-    /// The image in fixed point (see [`box_means`]).
+    /// The rows of the image in fixed point (see [`box_rows`]) the boxes about the current
+    /// row span, plus one: row `r` at `(r % ring) * width`.
     fixed: Vec<i32>,
+    /// The current output row of each filter.
+    rows: [Vec<f32>; 2],
     /// Column sums over each filter's rows (one row per filter, fixed point).
     cols: [Vec<i32>; 2],
     /// Prefix sums along the row of each filter's column sums (`width + 1`, fixed point,
@@ -630,11 +678,9 @@ fn fixed_unit(side: usize) -> f32 {
 }
 
 /// `image` in fixed point (`unit` per grey level, rounded to nearest, clamped to
-/// [`SIGNAL_BOUND`]), into `out`.
-fn to_fixed(image: &[f32], unit: f32, out: &mut Vec<i32>) {
+/// [`SIGNAL_BOUND`]), into `out` (as long as `image`).
+fn to_fixed(image: &[f32], unit: f32, out: &mut [i32]) {
     let bound = SIGNAL_BOUND * unit;
-    // Every element is written below: the buffer is only sized.
-    out.resize(image.len(), 0);
     #[cfg(target_arch = "x86_64")]
     {
         // SAFETY: SSE2 is part of the x86_64 baseline, and `out` is as long as `image`.
@@ -725,13 +771,7 @@ unsafe fn prefix_sums_sse2(col: &[i32], pre: &mut [i32]) {
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
 /// out of each mean), into `outs`.
-///
-/// Separable and streaming: each output row adds the entering image row to a running column
-/// sum and subtracts the leaving one (vectorised across the row), then takes differences of
-/// a prefix sum along the row. The sums are exact integers on the image rounded to fixed
-/// point ([`fixed_unit`]), so the running column sums never drift and the prefix sums may
-/// wrap (their differences, the box sums, fit); the prefix sums are formed four lanes at a
-/// time ([`prefix_sums`]).
+#[cfg(test)]
 pub(crate) fn box_means(
     image: &[f32],
     width: usize,
@@ -741,15 +781,58 @@ pub(crate) fn box_means(
     scratch: &mut FilterScratch,
 ) {
     let [out_a, out_b] = outs;
-    // Every output pixel is written below: the buffers are only sized, not cleared.
     for out in [&mut *out_a, &mut *out_b] {
         out.resize(width * height, 0.0);
     }
-    let unit = fixed_unit(2 * halves[0].max(halves[1]) + 1);
-    to_fixed(image, unit, &mut scratch.fixed);
-    let image = &scratch.fixed[..];
-    let [col_a, col_b] = &mut scratch.cols;
-    let [pre_a, pre_b] = &mut scratch.prefix;
+    box_rows(image, width, height, halves, scratch, |y, a, b| {
+        out_a[y * width..(y + 1) * width].copy_from_slice(a);
+        out_b[y * width..(y + 1) * width].copy_from_slice(b);
+    });
+}
+
+/// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
+/// out of each mean), row after row: `emit(y, a, b)` is handed row `y` of each.
+///
+/// Separable and streaming: each output row adds the entering image row to a running column
+/// sum and subtracts the leaving one (vectorised across the row), then takes differences of
+/// a prefix sum along the row. The sums are exact integers on the image rounded to fixed
+/// point ([`fixed_unit`]), so the running column sums never drift and the prefix sums may
+/// wrap (their differences, the box sums, fit); the prefix sums are formed four lanes at a
+/// time ([`prefix_sums`]). Only the rows the boxes span are held in fixed point, so the
+/// whole pass stays in cache.
+pub(crate) fn box_rows(
+    image: &[f32],
+    width: usize,
+    height: usize,
+    halves: [usize; 2],
+    scratch: &mut FilterScratch,
+    mut emit: impl FnMut(usize, &[f32], &[f32]),
+) {
+    let reach = halves[0].max(halves[1]);
+    let unit = fixed_unit(2 * reach + 1);
+    // Rows y - reach - 1 to y + reach are needed at row y.
+    let ring = 2 * reach + 2;
+    let FilterScratch {
+        fixed,
+        rows: [row_a, row_b],
+        cols: [col_a, col_b],
+        prefix: [pre_a, pre_b],
+    } = scratch;
+    // Every element is written before it is read: the buffers are only sized.
+    fixed.resize(ring * width, 0);
+    row_a.resize(width, 0.0);
+    row_b.resize(width, 0.0);
+    let convert = |fixed: &mut [i32], r: usize| {
+        let slot = (r % ring) * width;
+        to_fixed(
+            &image[r * width..(r + 1) * width],
+            unit,
+            &mut fixed[slot..slot + width],
+        );
+    };
+    for r in 0..reach.min(height) {
+        convert(fixed, r);
+    }
     for (col, pre, &h) in [
         (&mut *col_a, &mut *pre_a, &halves[0]),
         (&mut *col_b, &mut *pre_b, &halves[1]),
@@ -758,19 +841,23 @@ pub(crate) fn box_means(
         col.resize(width, 0);
         pre.clear();
         pre.resize(width + 1, 0);
-        for row in image.chunks_exact(width).take(h.min(height)) {
-            for (c, v) in col.iter_mut().zip(row) {
+        for r in 0..h.min(height) {
+            for (c, v) in col.iter_mut().zip(&fixed[(r % ring) * width..]) {
                 *c = c.wrapping_add(*v);
             }
         }
     }
     let inv_x: [Vec<f64>; 2] = halves.map(|h| box_counts(width, h).iter().map(|c| 1.0 / c).collect());
+    let fixed_row = |r: usize| (r % ring) * width..(r % ring + 1) * width;
     for y in 0..height {
+        if y + reach < height {
+            convert(fixed, y + reach);
+        }
         for (col, &h) in [(&mut *col_a, &halves[0]), (&mut *col_b, &halves[1])] {
             if y + h < height {
-                let add = &image[(y + h) * width..(y + h + 1) * width];
+                let add = &fixed[fixed_row(y + h)];
                 if y > h {
-                    let sub = &image[(y - h - 1) * width..(y - h) * width];
+                    let sub = &fixed[fixed_row(y - h - 1)];
                     for ((c, a), s) in col.iter_mut().zip(add).zip(sub) {
                         *c = c.wrapping_add(a.wrapping_sub(*s));
                     }
@@ -780,7 +867,7 @@ pub(crate) fn box_means(
                     }
                 }
             } else if y > h {
-                let sub = &image[(y - h - 1) * width..(y - h) * width];
+                let sub = &fixed[fixed_row(y - h - 1)];
                 for (c, s) in col.iter_mut().zip(sub) {
                     *c = c.wrapping_sub(*s);
                 }
@@ -788,18 +875,10 @@ pub(crate) fn box_means(
         }
         prefix_sums(col_a, pre_a);
         prefix_sums(col_b, pre_b);
-        let row = y * width..(y + 1) * width;
         let unit = f64::from(unit);
-        box_row(
-            &mut out_a[row.clone()],
-            pre_a,
-            &inv_x[0],
-            halves[0],
-            y,
-            height,
-            unit,
-        );
-        box_row(&mut out_b[row], pre_b, &inv_x[1], halves[1], y, height, unit);
+        box_row(row_a, pre_a, &inv_x[0], halves[0], y, height, unit);
+        box_row(row_b, pre_b, &inv_x[1], halves[1], y, height, unit);
+        emit(y, row_a, row_b);
     }
 }
 

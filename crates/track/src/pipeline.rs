@@ -226,6 +226,7 @@ fn track_paths(
         sample_of[i] = Some(j);
     }
     let mut background = estimate_background(&sample_frames, options.background);
+    let workers = Workers::default();
     // With named particles, their frame-A blobs are the particles: the sizes are measured on
     // them alone, so that texture or clutter, however plentiful, cannot set the scale.
     let starts: Option<Vec<[f64; 2]>> = options
@@ -233,19 +234,21 @@ fn track_paths(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
-    let mut sizes = Sizes::measure(&background, &sample_frames, options.radius, starts);
+    let mut sizes = Sizes::measure(&background, &sample_frames, options.radius, starts, &workers);
     // The per-pixel median without the particles found in each sample frame (out to twice the
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
     if background.model == BackgroundModel::PerPixel {
         let found: Vec<Vec<[f64; 2]>> = sample_frames
             .par_iter()
-            .map_init(Worker::default, |w, frame| {
-                background.signal_into(frame, &mut w.signal);
-                find_blobs_with_scratch(&w.signal, size.0, size.1, &sizes.params, &mut w.detect)
-                    .blobs
-                    .iter()
-                    .map(|b| [b.x as f64, b.y as f64])
-                    .collect()
+            .map(|frame| {
+                workers.with(|w| {
+                    background.signal_into(frame, &mut w.signal);
+                    find_blobs_with_scratch(&w.signal, size.0, size.1, &sizes.params, &mut w.detect)
+                        .blobs
+                        .iter()
+                        .map(|b| [b.x as f64, b.y as f64])
+                        .collect()
+                })
             })
             .collect();
         let reach = 2.0 * sizes.radius + 1.0;
@@ -255,7 +258,7 @@ fn track_paths(
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
             background = estimate_background(&sample_frames, BackgroundChoice::Constant);
-            sizes = Sizes::measure(&background, &sample_frames, options.radius, starts);
+            sizes = Sizes::measure(&background, &sample_frames, options.radius, starts, &workers);
         } else {
             background.exclude_particles(&sample_frames, &found, reach);
             if starts.is_none() && options.radius.is_none() {
@@ -278,10 +281,17 @@ fn track_paths(
                             }
                         };
                     }
-                    let moving =
-                        moving_blobs(&background, three.map(|j| &sample_frames[j]), size, &sizes.params);
+                    let moving = workers.with(|w| {
+                        moving_blobs(
+                            &background,
+                            three.map(|j| &sample_frames[j]),
+                            size,
+                            &sizes.params,
+                            w,
+                        )
+                    });
                     if !moving.is_empty() {
-                        sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving));
+                        sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving), &workers);
                     }
                 }
             }
@@ -307,39 +317,41 @@ fn track_paths(
     let located: Result<Vec<FrameDetections>, TrackError> = paths
         .par_iter()
         .enumerate()
-        .map_init(Worker::default, |w, (i, (k, _))| {
-            // The sample already decoded, or the file decoded into the worker's buffer.
-            let frame = match sample_of[i] {
-                Some(j) => &sample_frames[j],
-                None => {
-                    frame_in(i, &mut w.decoder, &mut w.frame)?;
-                    &w.frame
-                }
-            };
-            // Blobs are found in the plain signal (the band-pass ignores a flat change of
-            // brightness, and a gain is not uniform enough over a real frame to correct the
-            // component labelling with); centroids are measured in the gain-corrected one,
-            // since a centroid window integrates any offset left in it.
-            background.signal_into(frame, &mut w.signal);
-            let blobs = find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect);
-            background.remove_gain(frame, &mut w.signal);
-            let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
-            let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
-            let detections = refine_centroids_with_scratch(
-                &w.signal,
-                size.0,
-                size.1,
-                &seeds,
-                &areas,
-                window,
-                background.noise_sigma,
-                &mut w.locate,
-            );
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, total);
-            Ok(FrameDetections {
-                frame: *k,
-                detections,
+        .map(|(i, (k, _))| {
+            workers.with(|w| {
+                // The sample already decoded, or the file decoded into the worker's buffer.
+                let frame = match sample_of[i] {
+                    Some(j) => &sample_frames[j],
+                    None => {
+                        frame_in(i, &mut w.decoder, &mut w.frame)?;
+                        &w.frame
+                    }
+                };
+                // Blobs are found in the plain signal (the band-pass ignores a flat change of
+                // brightness, and a gain is not uniform enough over a real frame to correct the
+                // component labelling with); centroids are measured in the gain-corrected one,
+                // since a centroid window integrates any offset left in it.
+                background.signal_into(frame, &mut w.signal);
+                let blobs = find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect);
+                background.remove_gain(frame, &mut w.signal);
+                let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
+                let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
+                let detections = refine_centroids_with_scratch(
+                    &w.signal,
+                    size.0,
+                    size.1,
+                    &seeds,
+                    &areas,
+                    window,
+                    background.noise_sigma,
+                    &mut w.locate,
+                );
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(n, total);
+                Ok(FrameDetections {
+                    frame: *k,
+                    detections,
+                })
             })
         })
         .collect();
@@ -465,6 +477,27 @@ struct Worker {
     locate: LocateScratch,
 }
 
+/// Idle workers, handed out to each frame's job and taken back after: their frame-sized
+/// buffers are allocated once per thread for the whole recording, not once per stage or per
+/// rayon job (a fresh megabyte is page-faulted in again, as costly as filtering a frame).
+#[derive(Default)]
+struct Workers(std::sync::Mutex<Vec<Worker>>);
+
+impl Workers {
+    /// `f` run with an idle worker (a new one when none is idle).
+    fn with<R>(&self, f: impl FnOnce(&mut Worker) -> R) -> R {
+        let mut w = self.idle().pop().unwrap_or_default();
+        let out = f(&mut w);
+        self.idle().push(w);
+        out
+    }
+
+    fn idle(&self) -> std::sync::MutexGuard<'_, Vec<Worker>> {
+        // A job that panicked took its worker with it; the list itself is intact.
+        self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
 /// Centroid window radius for particles of radius `radius` (at half the peak signal), px:
 /// the disc, its anti-aliased edge (half a pixel) and the half-pixel ramp of the window
 /// weight, so the window holds all of an isolated disc's signal and as little background
@@ -522,12 +555,12 @@ fn moving_blobs(
     frames: [&Frame; 3],
     size: (usize, usize),
     params: &DetectParameters,
+    w: &mut Worker,
 ) -> Vec<[f64; 2]> {
     let unfiltered = DetectParameters {
         expected: None,
         ..params.clone()
     };
-    let mut w = Worker::default();
     let [a, b, c] = frames.map(|frame| -> Vec<[f64; 2]> {
         background.signal_into(frame, &mut w.signal);
         find_blobs_with_scratch(&w.signal, size.0, size.1, &unfiltered, &mut w.detect)
@@ -575,12 +608,14 @@ impl Sizes {
         samples: &[Frame],
         given: Option<f64>,
         starts: Option<&[[f64; 2]]>,
+        workers: &Workers,
     ) -> Sizes {
         // The estimation frames' signals, plain (what blobs are found in) and gain-corrected
         // (what centroids are measured in), computed when first needed, once for every
         // round of the estimates.
         let estimation = Estimation {
             background,
+            workers,
             frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
             signals: std::iter::repeat_with(OnceLock::new)
                 .take(samples.len().min(RADIUS_SAMPLES))
@@ -622,6 +657,7 @@ impl SampleSignals {
 /// The frames the particle sizes are estimated on, with their signals once computed.
 struct Estimation<'a> {
     background: &'a Background,
+    workers: &'a Workers,
     frames: &'a [Frame],
     signals: Vec<OnceLock<SampleSignals>>,
 }
@@ -639,11 +675,11 @@ impl Estimation<'_> {
         if self.frames.is_empty() {
             return Vec::new();
         }
-        let mut all = measure(self.signals(0), &mut Worker::default());
+        let mut all = self.workers.with(|w| measure(self.signals(0), w));
         let wanted = SIZE_BLOBS.div_ceil(all.len().max(1)).min(self.frames.len());
         let more: Vec<Vec<T>> = (1..wanted)
             .into_par_iter()
-            .map_init(Worker::default, |w, j| measure(self.signals(j), w))
+            .map(|j| self.workers.with(|w| measure(self.signals(j), w)))
             .collect();
         all.extend(more.into_iter().flatten());
         all
@@ -675,8 +711,9 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
         };
         let mut sizes: Vec<f64> = match starts {
             Some(starts) if !estimation.frames.is_empty() => {
-                let found =
-                    locate_unfiltered(background, estimation.signals(0), radius, &mut Worker::default());
+                let found = estimation
+                    .workers
+                    .with(|w| locate_unfiltered(background, estimation.signals(0), radius, w));
                 sizes_of(
                     nearest_each(&found, starts, |d| [d.x, d.y])
                         .into_iter()
@@ -772,7 +809,9 @@ fn expected_size(estimation: &Estimation, radius: f64, starts: Option<&[[f64; 2]
     let background = estimation.background;
     let blobs: Vec<Blob> = match starts {
         Some(starts) if !estimation.frames.is_empty() => {
-            let blobs = unfiltered_blobs(background, estimation.signals(0), radius, &mut Worker::default());
+            let blobs = estimation
+                .workers
+                .with(|w| unfiltered_blobs(background, estimation.signals(0), radius, w));
             nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
                 .into_iter()
                 .copied()
