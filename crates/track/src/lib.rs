@@ -12,6 +12,7 @@ mod frames;
 mod link;
 mod locate;
 mod pipeline;
+mod point_grid;
 mod score;
 mod shared;
 mod track_table;

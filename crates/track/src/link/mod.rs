@@ -33,11 +33,10 @@
 //! while it is in the image. Without them, every unmatched detection starts a track named
 //! by an integer, and tracks unseen for more than `memory` frames end.
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
-
 use crate::appearance::{Appearance, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
+use crate::point_grid::{nearest_other, PointGrid};
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 
 mod settle;
@@ -478,7 +477,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
 
         let cols = BlobColumns::of(dets, &one);
         let points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
-        let tree = (!points.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(&points));
+        let grid = PointGrid::new(&points);
         let mut problem = SparseProblem {
             pairs: Vec::new(),
             // Missing costs a full position gate plus a full appearance gate's worth.
@@ -486,15 +485,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             col_miss: vec![0.0; cols.count()],
         };
         for (k, &(p, s)) in preds.iter().enumerate() {
-            let Some(tree) = &tree else { break };
-            let g = GATE_SIGMAS * s;
-            for nb in tree.within_unsorted::<SquaredEuclidean>(&p, g * g) {
-                let j = nb.item as usize;
-                let Some(look) = look_cost(k, j, APPEARANCE_GATE_SIGMAS) else {
-                    continue;
-                };
-                cols.push_pairs(&mut problem, k, j, nb.distance / (s * s) + look);
-            }
+            grid.within(&p, GATE_SIGMAS * s, |j, d2| {
+                if let Some(look) = look_cost(k, j, APPEARANCE_GATE_SIGMAS) {
+                    cols.push_pairs(&mut problem, k, j, d2 / (s * s) + look);
+                }
+            });
         }
         let assign = solve_sparse(&problem);
         let mut det_tracks: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
@@ -518,19 +513,19 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 continue;
             }
             let p = preds[k].0;
-            let best = tree.as_ref().and_then(|tree| {
-                tree.within_unsorted::<SquaredEuclidean>(&p, merge_r * merge_r)
-                    .into_iter()
-                    // Only a blob whose light says it holds more particles than it was
-                    // given: otherwise two tracks would glue onto one particle, and the
-                    // other particle, left unclaimed nearby, would be lost for good.
-                    .filter(|nb| {
-                        let j = nb.item as usize;
-                        !det_tracks[j].is_empty() && one.holds_more(&dets[j], det_tracks[j].len())
-                    })
-                    .min_by(|a, b| a.distance.total_cmp(&b.distance))
-                    .map(|nb| nb.item as usize)
+            // Only a blob whose light says it holds more particles than it was given:
+            // otherwise two tracks would glue onto one particle, and the other particle, left
+            // unclaimed nearby, would be lost for good.
+            let mut best: Option<(usize, f64)> = None;
+            grid.within(&p, merge_r, |j, d2| {
+                if !det_tracks[j].is_empty()
+                    && one.holds_more(&dets[j], det_tracks[j].len())
+                    && best.map_or(true, |b| d2 < b.1)
+                {
+                    best = Some((j, d2));
+                }
             });
+            let best = best.map(|b| b.0);
             match best {
                 Some(j) => det_tracks[j].push(k),
                 None => still.push(k),
@@ -963,81 +958,6 @@ fn median(mut v: Vec<f64>) -> f64 {
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// Distance from each point to its nearest other point (at a distance above zero), px;
-/// infinite where there is none. The points are bucketed on a grid of cells about one mean
-/// spacing wide, and each query searches rings of cells outward until no cell left can hold
-/// a nearer point: a few cells a query, no allocation per query.
-fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
-    let n = points.len();
-    if n < 2 {
-        return vec![f64::INFINITY; n];
-    }
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in points {
-        for k in 0..2 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    let extent = [(hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9)];
-    let cell = (extent[0] * extent[1] / n as f64)
-        .sqrt()
-        .max(extent[0].max(extent[1]) / 1024.0);
-    let dims = [0, 1].map(|k| (extent[k] / cell) as usize + 1);
-    let cell_of = |p: &[f64; 2]| {
-        let c = |k: usize| (((p[k] - lo[k]) / cell) as usize).min(dims[k] - 1);
-        (c(0), c(1))
-    };
-    // Counting sort of the points by cell.
-    let mut start = vec![0usize; dims[0] * dims[1] + 1];
-    for p in points {
-        let (cx, cy) = cell_of(p);
-        start[cy * dims[0] + cx + 1] += 1;
-    }
-    for i in 0..dims[0] * dims[1] {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut sorted = vec![0usize; n];
-    for (i, p) in points.iter().enumerate() {
-        let (cx, cy) = cell_of(p);
-        let c = cy * dims[0] + cx;
-        sorted[fill[c]] = i;
-        fill[c] += 1;
-    }
-    points
-        .iter()
-        .map(|p| {
-            let (cx, cy) = cell_of(p);
-            let mut best = f64::INFINITY;
-            for ring in 0..dims[0].max(dims[1]) {
-                // Points in this ring and beyond lie more than `ring - 1` cells away.
-                if ring > 0 && best <= ((ring - 1) as f64 * cell).powi(2) {
-                    break;
-                }
-                let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(dims[0] - 1));
-                let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(dims[1] - 1));
-                for gy in y0..=y1 {
-                    for gx in x0..=x1 {
-                        if gx.abs_diff(cx).max(gy.abs_diff(cy)) != ring {
-                            continue;
-                        }
-                        let c = gy * dims[0] + gx;
-                        for &j in &sorted[start[c]..start[c + 1]] {
-                            let q = &points[j];
-                            let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
-                            if d > 0.0 && d < best {
-                                best = d;
-                            }
-                        }
-                    }
-                }
-            }
-            best.sqrt()
-        })
-        .collect()
-}
-
 fn start_tracks(
     tracks: &mut Vec<Track>,
     fd: &FrameDetections,
@@ -1159,43 +1079,4 @@ fn collect_runs(events: &[(usize, AmbiguityKind, Vec<usize>)], tracks: &[Track])
     }
     out.sort_by(|a, b| (a.first_frame, a.kind, &a.particles).cmp(&(b.first_frame, b.kind, &b.particles)));
     out
-}
-
-#[cfg(test)]
-mod nearest_tests {
-    use super::nearest_other;
-
-    /// The grid search agrees with a brute-force search, on clustered, spread and collinear
-    /// points (and a duplicate, which is no neighbour).
-    #[test]
-    fn nearest_other_matches_brute_force() {
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut sets: Vec<Vec<[f64; 2]>> = vec![
-            (0..500).map(|_| [512.0 * next(), 512.0 * next()]).collect(),
-            (0..300)
-                .map(|i| [(i % 3) as f64 * 400.0 + 5.0 * next(), 3.0 * next()])
-                .collect(),
-            (0..50).map(|i| [i as f64 * 1.5, 7.0]).collect(),
-        ];
-        let dup = sets[0][3];
-        sets[0].push(dup);
-        for pts in &sets {
-            let got = nearest_other(pts);
-            for (i, p) in pts.iter().enumerate() {
-                let want = pts
-                    .iter()
-                    .map(|q| (q[0] - p[0]).hypot(q[1] - p[1]))
-                    .filter(|&d| d > 0.0)
-                    .fold(f64::INFINITY, f64::min);
-                assert!((got[i] - want).abs() < 1e-9, "point {i}: {} vs {want}", got[i]);
-            }
-        }
-        assert_eq!(nearest_other(&[[1.0, 2.0]]), [f64::INFINITY]);
-    }
 }

@@ -1,0 +1,216 @@
+//! [`PointGrid`]: points in the image plane bucketed on a grid of square cells, for the
+//! neighbour queries of linking (nearest other point, points within a radius) at a few cells
+//! a query and no allocation per query.
+
+/// Points (px) bucketed by cell, cells about one mean spacing wide.
+pub(crate) struct PointGrid<'a> {
+    points: &'a [[f64; 2]],
+    /// Lower corner of the points' bounding box, px.
+    lo: [f64; 2],
+    /// Cell side, px.
+    cell: f64,
+    /// Cells along x and y.
+    dims: [usize; 2],
+    /// Indices of the points sorted by cell (row-major cells).
+    sorted: Vec<u32>,
+    /// `sorted[start[c]..start[c + 1]]` are the points of cell `c`.
+    start: Vec<u32>,
+}
+
+impl<'a> PointGrid<'a> {
+    /// Buckets `points` (at least one; finite) by a counting sort on cells about one mean
+    /// spacing wide (at least 1/1024 of the larger extent, so a line of points does not
+    /// make the grid huge).
+    pub(crate) fn new(points: &'a [[f64; 2]]) -> PointGrid<'a> {
+        let n = points.len();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in points {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if n == 0 {
+            (lo, hi) = ([0.0; 2], [0.0; 2]);
+        }
+        let extent = [(hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9)];
+        let cell = (extent[0] * extent[1] / n.max(1) as f64)
+            .sqrt()
+            .max(extent[0].max(extent[1]) / 1024.0);
+        let dims = [0, 1].map(|k| (extent[k] / cell) as usize + 1);
+        let mut grid = PointGrid {
+            points,
+            lo,
+            cell,
+            dims,
+            sorted: vec![0; n],
+            start: vec![0; dims[0] * dims[1] + 1],
+        };
+        for p in points {
+            let (cx, cy) = grid.cell_of(p);
+            grid.start[cy * dims[0] + cx + 1] += 1;
+        }
+        for i in 0..dims[0] * dims[1] {
+            grid.start[i + 1] += grid.start[i];
+        }
+        let mut fill = grid.start.clone();
+        for (i, p) in points.iter().enumerate() {
+            let (cx, cy) = grid.cell_of(p);
+            let c = cy * dims[0] + cx;
+            grid.sorted[fill[c] as usize] = i as u32;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    /// The cell holding `p` (clamped to the grid).
+    fn cell_of(&self, p: &[f64; 2]) -> (usize, usize) {
+        let c = |k: usize| {
+            let v = ((p[k] - self.lo[k]) / self.cell).floor();
+            if v.is_nan() || v <= 0.0 {
+                0
+            } else {
+                (v as usize).min(self.dims[k] - 1)
+            }
+        };
+        (c(0), c(1))
+    }
+
+    /// The points of cell `(gx, gy)`.
+    fn in_cell(&self, gx: usize, gy: usize) -> &[u32] {
+        let c = gy * self.dims[0] + gx;
+        &self.sorted[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// Distance from `p` to the nearest point at a distance above zero, px; infinite when
+    /// there is none. Rings of cells are searched outward until no cell left can hold a
+    /// nearer point.
+    pub(crate) fn nearest_other(&self, p: &[f64; 2]) -> f64 {
+        let (cx, cy) = self.cell_of(p);
+        let mut best = f64::INFINITY;
+        for ring in 0..self.dims[0].max(self.dims[1]) {
+            // Points in this ring and beyond lie more than `ring - 1` cells away.
+            if ring > 0 && best <= ((ring - 1) as f64 * self.cell).powi(2) {
+                break;
+            }
+            let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(self.dims[0] - 1));
+            let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(self.dims[1] - 1));
+            for gy in y0..=y1 {
+                for gx in x0..=x1 {
+                    if gx.abs_diff(cx).max(gy.abs_diff(cy)) != ring {
+                        continue;
+                    }
+                    for &j in self.in_cell(gx, gy) {
+                        let q = &self.points[j as usize];
+                        let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                        if d > 0.0 && d < best {
+                            best = d;
+                        }
+                    }
+                }
+            }
+        }
+        best.sqrt()
+    }
+
+    /// Calls `f(index, squared distance)` for every point within `radius` px of `p`
+    /// (boundary included), in cell order.
+    pub(crate) fn within(&self, p: &[f64; 2], radius: f64, mut f: impl FnMut(usize, f64)) {
+        if self.points.is_empty() || radius.is_nan() || radius < 0.0 {
+            return;
+        }
+        let r2 = radius * radius;
+        let (x0, y0) = self.cell_of(&[p[0] - radius, p[1] - radius]);
+        let (x1, y1) = self.cell_of(&[p[0] + radius, p[1] + radius]);
+        for gy in y0..=y1 {
+            for gx in x0..=x1 {
+                for &j in self.in_cell(gx, gy) {
+                    let q = &self.points[j as usize];
+                    let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                    if d <= r2 {
+                        f(j as usize, d);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Distance from each point to its nearest other point (at a distance above zero), px;
+/// infinite where there is none.
+pub(crate) fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
+    if points.len() < 2 {
+        return vec![f64::INFINITY; points.len()];
+    }
+    let grid = PointGrid::new(points);
+    points.iter().map(|p| grid.nearest_other(p)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Clustered, spread and collinear point sets (the first with a duplicate point).
+    fn point_sets() -> Vec<Vec<[f64; 2]>> {
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut sets: Vec<Vec<[f64; 2]>> = vec![
+            (0..500).map(|_| [512.0 * next(), 512.0 * next()]).collect(),
+            (0..300)
+                .map(|i| [(i % 3) as f64 * 400.0 + 5.0 * next(), 3.0 * next()])
+                .collect(),
+            (0..50).map(|i| [i as f64 * 1.5, 7.0]).collect(),
+        ];
+        let dup = sets[0][3];
+        sets[0].push(dup);
+        sets
+    }
+
+    /// The grid search agrees with a brute-force search (a duplicate is no neighbour).
+    #[test]
+    fn nearest_other_matches_brute_force() {
+        for pts in &point_sets() {
+            let got = nearest_other(pts);
+            for (i, p) in pts.iter().enumerate() {
+                let want = pts
+                    .iter()
+                    .map(|q| (q[0] - p[0]).hypot(q[1] - p[1]))
+                    .filter(|&d| d > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                assert!((got[i] - want).abs() < 1e-9, "point {i}: {} vs {want}", got[i]);
+            }
+        }
+        assert_eq!(nearest_other(&[[1.0, 2.0]]), [f64::INFINITY]);
+    }
+
+    /// `within` finds exactly the points a brute-force search finds, for query points
+    /// inside and outside the points' box and radii from zero to beyond the box.
+    #[test]
+    fn within_matches_brute_force() {
+        for pts in &point_sets() {
+            let grid = PointGrid::new(pts);
+            let queries = [pts[0], pts[7], [-30.0, -30.0], [600.0, 1.0], [250.0, 250.0]];
+            for q in queries {
+                for radius in [0.0, 0.7, 3.0, 25.0, 2000.0] {
+                    let mut got: Vec<(usize, f64)> = Vec::new();
+                    grid.within(&q, radius, |j, d| got.push((j, d)));
+                    got.sort_by_key(|g| g.0);
+                    let want: Vec<(usize, f64)> = pts
+                        .iter()
+                        .enumerate()
+                        .map(|(j, p)| (j, (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)))
+                        .filter(|&(_, d)| d <= radius * radius)
+                        .collect();
+                    assert_eq!(got, want, "query {q:?} radius {radius}");
+                }
+            }
+        }
+        let none: [[f64; 2]; 0] = [];
+        PointGrid::new(&none).within(&[0.0, 0.0], 5.0, |_, _| panic!("no points"));
+    }
+}
