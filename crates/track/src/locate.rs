@@ -437,12 +437,36 @@ fn unit_ramp(x: f32) -> f32 {
 }
 
 /// Adds one window row (offsets `dx`, signal `s`, split factors `split` or none, row offset
-/// `dy`, all lane-padded) to the lane-wise sums `acc` of [`window_stats`]. The weights are
-/// formed over the whole row first (`w`, `r2`: scratch), then summed lane-wise, so both
-/// loops vectorise without per-lane branches.
+/// `dy`, all lane-padded) to the lane-wise sums `acc` of [`window_stats`]: per pixel the
+/// weight `w = unit_ramp(reach − r)` (times the split), then `w s`, `w s dx`, `w s dy`,
+/// `w s r²` and `w² r²`, each lane summing every fourth pixel.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn accumulate_row(
+    acc: &mut [[f32; LANES]; 5],
+    dx: &[f32],
+    s: &[f32],
+    split: Option<&[f32]>,
+    dy: f32,
+    reach: f32,
+    w: &mut Vec<f32>,
+    r2: &mut Vec<f32>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let _ = (w, r2);
+        // SAFETY: SSE2 is part of the x86_64 baseline.
+        unsafe { accumulate_row_sse2(acc, dx, s, split, dy, reach) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    accumulate_row_portable(acc, dx, s, split, dy, reach, w, r2);
+}
+
+/// [`accumulate_row`] in plain Rust: the weights formed over the whole row first (`w`,
+/// `r2`: scratch), then summed lane-wise.
+#[cfg(any(test, not(target_arch = "x86_64")))]
+#[allow(clippy::too_many_arguments)]
+fn accumulate_row_portable(
     acc: &mut [[f32; LANES]; 5],
     dx: &[f32],
     s: &[f32],
@@ -478,6 +502,57 @@ fn accumulate_row(
             acc[2][l] += ws * dy;
             acc[3][l] += ws * r2[l];
             acc[4][l] += w[l] * w[l] * r2[l];
+        }
+    }
+}
+
+/// [`accumulate_row`] four pixels at a time, the sums held in registers (the portable loop,
+/// compiled for x86_64, shuffled single lanes and took a third of the tracker's instructions
+/// at N = 1000). The same operations in the same order as the portable loop, lane by lane, so the sums are equal to
+/// the bit (the ramp's `max(x, 0)` gives +0 where the portable form gives −0, which adds
+/// nothing to a sum).
+///
+/// # Safety
+/// The CPU must have SSE2 (every x86_64 does).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "sse2")]
+unsafe fn accumulate_row_sse2(
+    acc: &mut [[f32; LANES]; 5],
+    dx: &[f32],
+    s: &[f32],
+    split: Option<&[f32]>,
+    dy: f32,
+    reach: f32,
+) {
+    use std::arch::x86_64::{
+        _mm_add_ps, _mm_loadu_ps, _mm_max_ps, _mm_min_ps, _mm_mul_ps, _mm_set1_ps, _mm_setzero_ps,
+        _mm_sqrt_ps, _mm_storeu_ps, _mm_sub_ps,
+    };
+    let chunks = dx.len().min(s.len()) / LANES;
+    let chunks = split.map_or(chunks, |f| chunks.min(f.len() / LANES));
+    // SAFETY (all loads and stores): `acc`'s rows hold LANES values each, and chunk `c` reads
+    // elements LANES c .. LANES (c + 1), within every slice by the bound on `chunks`.
+    unsafe {
+        let mut sums = acc.map(|row| _mm_loadu_ps(row.as_ptr()));
+        let (dyv, dy2, reachv) = (_mm_set1_ps(dy), _mm_set1_ps(dy * dy), _mm_set1_ps(reach));
+        let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
+        for c in 0..chunks {
+            let at = c * LANES;
+            let d = _mm_loadu_ps(dx.as_ptr().add(at));
+            let r2 = _mm_add_ps(_mm_mul_ps(d, d), dy2);
+            let mut w = _mm_max_ps(_mm_min_ps(_mm_sub_ps(reachv, _mm_sqrt_ps(r2)), one), zero);
+            if let Some(f) = split {
+                w = _mm_mul_ps(w, _mm_loadu_ps(f.as_ptr().add(at)));
+            }
+            let ws = _mm_mul_ps(w, _mm_loadu_ps(s.as_ptr().add(at)));
+            sums[0] = _mm_add_ps(sums[0], ws);
+            sums[1] = _mm_add_ps(sums[1], _mm_mul_ps(ws, d));
+            sums[2] = _mm_add_ps(sums[2], _mm_mul_ps(ws, dyv));
+            sums[3] = _mm_add_ps(sums[3], _mm_mul_ps(ws, r2));
+            sums[4] = _mm_add_ps(sums[4], _mm_mul_ps(_mm_mul_ps(w, w), r2));
+        }
+        for (row, v) in acc.iter_mut().zip(sums) {
+            _mm_storeu_ps(row.as_mut_ptr(), v);
         }
     }
 }
@@ -519,6 +594,38 @@ fn neighbour_lists(points: &[[f64; 2]], reach: f64, neighbours: &mut Vec<u32>, o
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The SSE2 row sums equal the portable loop's to the bit, with and without splits, on
+    /// rows that reach past the window and rows wholly inside it.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse2_row_sums_equal_the_portable_loop() {
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for case in 0..40 {
+            let n = 4 * (1 + case % 5);
+            let dx0 = -(n as f32) / 2.0 + next();
+            let dx: Vec<f32> = (0..n).map(|k| dx0 + k as f32).collect();
+            let s: Vec<f32> = (0..n).map(|_| 250.0 * next() - 20.0).collect();
+            let split: Vec<f32> = (0..n).map(|_| next()).collect();
+            let (dy, reach) = (6.0 * next() - 3.0, 2.0 + 4.0 * next());
+            for with_split in [None, Some(&split[..])] {
+                let start = [[0.5f32; LANES]; 5];
+                let (mut a, mut b) = (start, start);
+                let (mut w, mut r2) = (Vec::new(), Vec::new());
+                accumulate_row_portable(&mut a, &dx, &s, with_split, dy, reach, &mut w, &mut r2);
+                // SAFETY: every x86_64 has SSE2.
+                unsafe { accumulate_row_sse2(&mut b, &dx, &s, with_split, dy, reach) };
+                let bits = |m: [[f32; LANES]; 5]| m.map(|r| r.map(f32::to_bits));
+                assert_eq!(bits(a), bits(b), "case {case}, split {}", with_split.is_some());
+            }
+        }
+    }
 
     /// A disc of radius `r` with exact area coverage from 16x16 supersampling.
     /// Adds a disc of amplitude `amp` with exact area coverage (the project's renderer), so
