@@ -708,6 +708,41 @@ mod tests {
         f
     }
 
+    /// `signal_at` gives `signal_into`'s value to the bit, for grey and colour frames
+    /// against constant and per-pixel backgrounds.
+    #[test]
+    fn signal_at_equals_the_whole_frame_signal() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 255.0
+        };
+        for channels in [1usize, 3] {
+            let frames: Vec<Frame> = (0..5)
+                .map(|_| Frame {
+                    width: 9,
+                    height: 7,
+                    channels,
+                    data: (0..9 * 7 * channels).map(|_| next()).collect(),
+                })
+                .collect();
+            for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+                let bg = estimate_background(&frames, choice);
+                let whole = bg.signal(&frames[2]);
+                for (i, v) in whole.iter().enumerate() {
+                    let pixel = &frames[2].data[i * channels..(i + 1) * channels];
+                    assert_eq!(
+                        bg.signal_at(pixel, i).to_bits(),
+                        v.to_bits(),
+                        "{channels} channels, {choice:?}, pixel {i}"
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn dark_on_light_gets_negative_direction_and_positive_signal() {
         let samples: Vec<Frame> = (0..5)

@@ -156,8 +156,7 @@ pub fn load_frame(path: &Path) -> Result<Frame, TrackError> {
 }
 
 /// Decodes frame files one after another into reused buffers (the file's bytes and its
-/// decoded samples), so that a stream of frames allocates nothing after the first: a fresh
-/// 1 MB buffer per frame costs page faults that add about a tenth to the decoding time.
+/// decoded samples), so that a stream of frames allocates nothing after the first.
 #[derive(Debug, Default)]
 pub struct FrameDecoder {
     /// The last file's bytes.

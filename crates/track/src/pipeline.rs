@@ -305,11 +305,12 @@ fn track_paths(
     let background = background;
     let window = locate_window(radius);
 
-    // Frame `i` of the window decoded (into `buf`, with `decoder`'s buffers) and checked.
-    let frame_in = |i: usize, decoder: &mut FrameDecoder, buf: &mut Frame| -> Result<(), TrackError> {
-        let path = &paths[i].1;
-        decoder.load_into(path, buf)?;
-        check_size(path, buf, reference, size)
+    let frames = WindowFrames {
+        paths: &paths,
+        sample_of: &sample_of,
+        samples: &sample_frames,
+        reference,
+        size,
     };
     // Locate every frame, in parallel.
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -319,14 +320,7 @@ fn track_paths(
         .enumerate()
         .map(|(i, (k, _))| {
             workers.with(|w| {
-                // The sample already decoded, or the file decoded into the worker's buffer.
-                let frame = match sample_of[i] {
-                    Some(j) => &sample_frames[j],
-                    None => {
-                        frame_in(i, &mut w.decoder, &mut w.frame)?;
-                        &w.frame
-                    }
-                };
+                let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
                 // Blobs are found in the plain signal (the band-pass ignores a flat change of
                 // brightness, and a gain is not uniform enough over a real frame to correct the
                 // component labelling with); centroids are measured in the gain-corrected one,
@@ -398,15 +392,8 @@ fn track_paths(
     // `crate::shared`).
     if let Some(named) = options.named_start.as_deref() {
         let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-            let i = k - first;
             let mut loaded = Frame::default();
-            let frame = match sample_of[i] {
-                Some(j) => &sample_frames[j],
-                None => {
-                    frame_in(i, &mut FrameDecoder::default(), &mut loaded)?;
-                    &loaded
-                }
-            };
+            let frame = frames.get(k - first, &mut FrameDecoder::default(), &mut loaded)?;
             let mut signal = Vec::new();
             background.signal_into(frame, &mut signal);
             background.remove_gain(frame, &mut signal);
@@ -463,6 +450,38 @@ fn track_paths(
         stats,
         detections: located,
     })
+}
+
+/// The frames of the tracked window: the samples already decoded, the others read from their
+/// files on demand.
+struct WindowFrames<'a> {
+    /// Each frame's index and file.
+    paths: &'a [(usize, PathBuf)],
+    /// Each frame's place among `samples`, if it is one.
+    sample_of: &'a [Option<usize>],
+    samples: &'a [Frame],
+    /// The file whose size every frame must have, and that size (width, height, px).
+    reference: &'a Path,
+    size: (usize, usize),
+}
+
+impl WindowFrames<'_> {
+    /// Frame `i` of the window: the sample already decoded, or the file decoded into `buf`
+    /// (with `decoder`'s buffers) and checked against the reference size.
+    fn get<'b>(
+        &'b self,
+        i: usize,
+        decoder: &mut FrameDecoder,
+        buf: &'b mut Frame,
+    ) -> Result<&'b Frame, TrackError> {
+        if let Some(j) = self.sample_of[i] {
+            return Ok(&self.samples[j]);
+        }
+        let path = &self.paths[i].1;
+        decoder.load_into(path, buf)?;
+        check_size(path, buf, self.reference, self.size)?;
+        Ok(buf)
+    }
 }
 
 /// One worker thread's buffers, reused from frame to frame: the decoder's and the decoded
