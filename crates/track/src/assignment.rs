@@ -32,27 +32,39 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
     for &(r, c, _) in &problem.pairs {
         sets.union(r, nr + c);
     }
-    let mut groups: std::collections::HashMap<usize, (Vec<usize>, Vec<usize>)> = Default::default();
-    for r in 0..nr {
-        let root = sets.root(r);
-        groups.entry(root).or_default().0.push(r);
-    }
-    for c in 0..nc {
-        let root = sets.root(nr + c);
-        groups.entry(root).or_default().1.push(c);
-    }
-    let mut pairs_by_root: std::collections::HashMap<usize, Vec<(usize, usize, f64)>> = Default::default();
-    for &(r, c, cost) in &problem.pairs {
-        let root = sets.root(r);
-        pairs_by_root.entry(root).or_default().push((r, c, cost));
-    }
-    let mut roots: Vec<usize> = groups.keys().copied().collect();
-    roots.sort_unstable();
-    for root in roots {
-        let (rows, cols) = &groups[&root];
-        let Some(pairs) = pairs_by_root.get(&root) else {
+    // Each component's rows, columns and pairs, gathered into flat lists by a counting sort
+    // on the component (rows and columns ascending, pairs in the problem's order): a crowded
+    // frame has a thousand components, mostly one track and one blob, and a map of vectors
+    // allocated two thousand of them a frame.
+    let mut component = vec![u32::MAX; nr + nc];
+    let mut count = 0u32;
+    let of: Vec<u32> = (0..nr + nc)
+        .map(|v| {
+            let root = sets.root(v);
+            if component[root] == u32::MAX {
+                component[root] = count;
+                count += 1;
+            }
+            component[root]
+        })
+        .collect();
+    let groups = count as usize;
+    let (row_start, rows) = by_component((0..nr).map(|r| (of[r], r)), groups);
+    let (col_start, cols) = by_component((0..nc).map(|c| (of[nr + c], c)), groups);
+    let (pair_start, pair_index) = by_component(
+        problem.pairs.iter().enumerate().map(|(k, &(r, _, _))| (of[r], k)),
+        groups,
+    );
+    let pairs: Vec<(usize, usize, f64)> = pair_index.iter().map(|&k| problem.pairs[k]).collect();
+    for g in 0..groups {
+        let pairs = &pairs[pair_start[g]..pair_start[g + 1]];
+        if pairs.is_empty() {
             continue;
-        };
+        }
+        let (rows, cols) = (
+            &rows[row_start[g]..row_start[g + 1]],
+            &cols[col_start[g]..col_start[g + 1]],
+        );
         if rows.len() == 1 && cols.len() == 1 {
             let (r, c, cost) = pairs.iter().fold(pairs[0], |a, b| if b.2 < a.2 { *b } else { a });
             if cost <= problem.row_miss[r] + problem.col_miss[c] {
@@ -65,6 +77,26 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
         }
     }
     result
+}
+
+/// `items` (component, item) sorted by component, stably (a counting sort over `groups`
+/// components): the items, and where each component's start (`groups + 1` offsets).
+fn by_component(items: impl Iterator<Item = (u32, usize)>, groups: usize) -> (Vec<usize>, Vec<usize>) {
+    let items: Vec<(u32, usize)> = items.collect();
+    let mut start = vec![0usize; groups + 1];
+    for &(g, _) in &items {
+        start[g as usize + 1] += 1;
+    }
+    for g in 0..groups {
+        start[g + 1] += start[g];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![0usize; items.len()];
+    for (g, item) in items {
+        list[fill[g as usize]] = item;
+        fill[g as usize] += 1;
+    }
+    (start, list)
 }
 
 /// Solves one connected component by successive shortest augmenting paths on the sparse
