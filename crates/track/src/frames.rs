@@ -357,4 +357,112 @@ mod tests {
         assert!(e.contains("frame_3.png") && e.contains("empty"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// Files of every layout decode through one reused decoder to the 8-bit scale: 16-bit
+    /// grey and RGBA PNG (the decoder's native-endian samples), grey+alpha, RGB, and a grey
+    /// JPEG (lossy: within a few levels), each file after a larger one.
+    #[test]
+    fn every_layout_decodes_through_a_reused_decoder() {
+        let dir = std::env::temp_dir().join(format!("physfit-layouts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (w, h) = (24u32, 16u32);
+        let level = |x: u32, y: u32| (x * 9 + y * 5) % 256;
+        let save = |name: &str, img: DynamicImage, format: image::ImageFormat| {
+            let path = dir.join(name);
+            img.save_with_format(&path, format).unwrap();
+            path
+        };
+        /// A file, its channels, the tolerance (levels) and the expected level at (x, y, channel).
+        type Case = (PathBuf, usize, f32, Box<dyn Fn(u32, u32, usize) -> f32>);
+        let cases: Vec<Case> = vec![
+            (
+                save(
+                    "a_rgba16.png",
+                    DynamicImage::ImageRgba16(image::ImageBuffer::from_fn(w, h, |x, y| {
+                        let v = (level(x, y) * 257) as u16;
+                        image::Rgba([v, 65535 - v, 1000, 7])
+                    })),
+                    image::ImageFormat::Png,
+                ),
+                3,
+                1e-3,
+                Box::new(move |x, y, c| {
+                    let v = (level(x, y) * 257) as f32;
+                    [v, 65535.0 - v, 1000.0][c] / 257.0
+                }),
+            ),
+            (
+                save(
+                    "b_grey16.png",
+                    DynamicImage::ImageLuma16(image::ImageBuffer::from_fn(w, h, |x, y| {
+                        image::Luma([(level(x, y) * 200) as u16])
+                    })),
+                    image::ImageFormat::Png,
+                ),
+                1,
+                1e-3,
+                Box::new(move |x, y, _| (level(x, y) * 200) as f32 / 257.0),
+            ),
+            (
+                save(
+                    "c_grey_alpha.png",
+                    DynamicImage::ImageLumaA8(image::ImageBuffer::from_fn(w, h, |x, y| {
+                        image::LumaA([level(x, y) as u8, 3])
+                    })),
+                    image::ImageFormat::Png,
+                ),
+                1,
+                0.0,
+                Box::new(move |x, y, _| level(x, y) as f32),
+            ),
+            (
+                save(
+                    "d_rgb.png",
+                    DynamicImage::ImageRgb8(image::ImageBuffer::from_fn(w, h, |x, y| {
+                        image::Rgb([level(x, y) as u8, 10, 250])
+                    })),
+                    image::ImageFormat::Png,
+                ),
+                3,
+                0.0,
+                Box::new(move |x, y, c| [level(x, y) as f32, 10.0, 250.0][c]),
+            ),
+            (
+                save(
+                    "e_grey.jpg",
+                    DynamicImage::ImageLuma8(image::ImageBuffer::from_fn(w, h, |x, _| {
+                        image::Luma([if x < w / 2 { 40 } else { 200 }])
+                    })),
+                    image::ImageFormat::Jpeg,
+                ),
+                1,
+                12.0,
+                Box::new(move |x, _, _| if x < w / 2 { 40.0 } else { 200.0 }),
+            ),
+        ];
+        let (mut decoder, mut frame) = (FrameDecoder::default(), Frame::default());
+        for (path, channels, tolerance, want) in &cases {
+            decoder.load_into(path, &mut frame).unwrap();
+            assert_eq!(
+                (frame.width, frame.height, frame.channels),
+                (w as usize, h as usize, *channels)
+            );
+            assert_eq!(frame.data.len(), (w * h) as usize * channels);
+            // Away from the JPEG's one edge, where its blocks ring.
+            for y in 0..h {
+                for x in (0..w).filter(|x| x.abs_diff(w / 2) > 2) {
+                    for c in 0..*channels {
+                        let got = frame.data[(y * w + x) as usize * channels + c];
+                        let expected = want(x, y, c);
+                        assert!(
+                            (got - expected).abs() <= *tolerance,
+                            "{}: ({x}, {y}) channel {c}: {got} vs {expected}",
+                            path.display()
+                        );
+                    }
+                }
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
