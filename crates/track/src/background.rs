@@ -712,20 +712,15 @@ mod tests {
     /// against constant and per-pixel backgrounds.
     #[test]
     fn signal_at_equals_the_whole_frame_signal() {
-        let mut state = 7u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 255.0
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         for channels in [1usize, 3] {
             let frames: Vec<Frame> = (0..5)
                 .map(|_| Frame {
                     width: 9,
                     height: 7,
                     channels,
-                    data: (0..9 * 7 * channels).map(|_| next()).collect(),
+                    data: (0..9 * 7 * channels).map(|_| rng.gen_range(0.0..255.0)).collect(),
                 })
                 .collect();
             for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {

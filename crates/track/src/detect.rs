@@ -109,8 +109,10 @@ pub fn find_blobs(signal: &[f32], width: usize, height: usize, params: &DetectPa
 pub struct Scratch {
     small: Vec<f32>,
     /// The band-pass response (small minus large box mean) of the last three rows, row `y` at
-    /// `(y % 3) * width`, then their large box means, row `y` at `(3 + y % 3) * width`.
+    /// `(y % 3) * width`.
     band: Vec<f32>,
+    /// The large box mean of the same rows, laid out alike.
+    large: Vec<f32>,
     filter: FilterScratch,
     peaks: Vec<Peak>,
     kept: Vec<Peak>,
@@ -169,17 +171,24 @@ pub fn find_blobs_with_scratch(
     let Scratch {
         small,
         band,
+        large,
         filter,
         peaks,
         labels: comps,
         ..
     } = scratch;
     small.resize(width * height, 0.0);
-    band.resize(6 * width, 0.0);
+    band.resize(3 * width, 0.0);
+    large.resize(3 * width, 0.0);
+    // Row `y`'s place in the three-row buffers.
+    let ring = |y: usize| (y % 3) * width..(y % 3 + 1) * width;
     peaks.clear();
     comps.begin();
-    let mut scan = |y: usize, band: &[f32], small: &[f32]| {
-        let row = |yy: usize| &band[(yy % 3) * width..(yy % 3 + 1) * width];
+    // Local maxima of the band-pass response in row `y` (strict against earlier neighbours in
+    // raster order, non-strict against later ones, so a plateau yields one maximum per row
+    // run).
+    let mut scan = |y: usize, band: &[f32], large: &[f32], small: &[f32]| {
+        let row = |yy: usize| &band[ring(yy)];
         let (brow, srow) = (row(y), &small[y * width..(y + 1) * width]);
         let fy = mask_fy[y];
         for x0 in (0..width).step_by(CHUNK) {
@@ -206,7 +215,7 @@ pub fn find_blobs_with_scratch(
                 if is_local_max(row, width, height, x, y, v) {
                     peaks.push(Peak {
                         band: v,
-                        large: band[(3 + y % 3) * width + x],
+                        large: large[ring(y)][x],
                         x: x as u32,
                         y: y as u32,
                     });
@@ -216,21 +225,19 @@ pub fn find_blobs_with_scratch(
     };
     box_rows(signal, width, height, [h, big], filter, |y, s_row, l_row| {
         small[y * width..(y + 1) * width].copy_from_slice(s_row);
-        let b = &mut band[(y % 3) * width..(y % 3 + 1) * width];
-        for ((b, s), l) in b.iter_mut().zip(s_row).zip(l_row) {
+        for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
             *b = s - l;
         }
-        band[(3 + y % 3) * width..(4 + y % 3) * width].copy_from_slice(l_row);
+        large[ring(y)].copy_from_slice(l_row);
         comps.push_row(y, s_row, &mask_x, mask_fy[y]);
         if y > 0 {
-            scan(y - 1, band, small);
+            scan(y - 1, band, large, small);
         }
     });
-    scan(height - 1, band, small);
+    scan(height - 1, band, large, small);
     comps.finish(width, height);
 
-    // Local maxima of the band-pass response (strict against earlier neighbours in raster
-    // order, non-strict against later ones, so a plateau yields one maximum per row run).
+    // Strongest first.
     peaks.sort_unstable_by(|a, b| b.band.total_cmp(&a.band).then((a.y, a.x).cmp(&(b.y, b.x))));
 
     // Non-maximum suppression within one radius, on a grid of cells one radius wide (each

@@ -209,9 +209,12 @@ pub fn frame_from_image(image: &DynamicImage) -> Frame {
     if samples_to_frame(image.as_bytes(), image.color(), size, &mut frame).is_err() {
         // A layout the decoders do not produce today: through image's own conversion.
         let rgb = image.to_rgb32f();
-        frame.channels = 3;
-        frame.data.clear();
-        frame.data.extend(rgb.as_raw().iter().map(|&v| v * 255.0));
+        frame = Frame {
+            width: size.0,
+            height: size.1,
+            channels: 3,
+            data: rgb.as_raw().iter().map(|&v| v * 255.0).collect(),
+        };
     }
     frame
 }

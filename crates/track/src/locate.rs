@@ -93,9 +93,6 @@ struct RowBuffers {
     dx: Vec<f32>,
     s: Vec<f32>,
     split: Vec<f32>,
-    /// One row's window weights and squared distances from the centre.
-    w: Vec<f32>,
-    r2: Vec<f32>,
 }
 
 /// [`refine_centroids`] with reusable buffers.
@@ -409,13 +406,13 @@ fn window_stats(
         let split = split_here.then_some(&rows.split[..]);
         accumulate_row(
             &mut acc,
-            &rows.dx,
-            srow,
-            split,
-            dy,
-            reach32,
-            &mut rows.w,
-            &mut rows.r2,
+            &Row {
+                dx: &rows.dx,
+                s: srow,
+                split,
+                dy,
+                reach: reach32,
+            },
         );
     }
     let [mass, sdx, sdy, sr2, w2r2] = acc.map(|a| a.iter().map(|&v| f64::from(v)).sum::<f64>());
@@ -436,73 +433,50 @@ fn unit_ramp(x: f32) -> f32 {
     x * positive
 }
 
-/// Adds one window row (offsets `dx`, signal `s`, split factors `split` or none, row offset
-/// `dy`, all lane-padded) to the lane-wise sums `acc` of [`window_stats`]: per pixel the
-/// weight `w = unit_ramp(reach − r)` (times the split), then `w s`, `w s dx`, `w s dy`,
-/// `w s r²` and `w² r²`, each lane summing every fourth pixel.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn accumulate_row(
-    acc: &mut [[f32; LANES]; 5],
-    dx: &[f32],
-    s: &[f32],
-    split: Option<&[f32]>,
+/// One window row as [`window_stats`] sums it, lane-padded alike: each pixel's offset from
+/// the centre `dx` (px), its signal `s` (grey levels) and its split factor (`None`: 1), the
+/// row's offset `dy` (px) and the window's ramp end `reach` (px).
+struct Row<'a> {
+    dx: &'a [f32],
+    s: &'a [f32],
+    split: Option<&'a [f32]>,
     dy: f32,
     reach: f32,
-    w: &mut Vec<f32>,
-    r2: &mut Vec<f32>,
-) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        let _ = (w, r2);
-        // SAFETY: SSE2 is part of the x86_64 baseline.
-        unsafe { accumulate_row_sse2(acc, dx, s, split, dy, reach) }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    accumulate_row_portable(acc, dx, s, split, dy, reach, w, r2);
 }
 
-/// [`accumulate_row`] in plain Rust: the weights formed over the whole row first (`w`,
-/// `r2`: scratch), then summed lane-wise.
+/// Adds `row` to the lane-wise sums `acc` of [`window_stats`]: per pixel the weight
+/// `w = unit_ramp(reach − r)` (times the split), then `w s`, `w s dx`, `w s dy`, `w s r²` and
+/// `w² r²`, each lane summing every fourth pixel.
+#[inline(always)]
+fn accumulate_row(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE2 is part of the x86_64 baseline.
+    unsafe {
+        accumulate_row_sse2(acc, row)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    accumulate_row_portable(acc, row);
+}
+
+/// [`accumulate_row`] in plain Rust, the operations in the kernel's order.
 #[cfg(any(test, not(target_arch = "x86_64")))]
-#[allow(clippy::too_many_arguments)]
-fn accumulate_row_portable(
-    acc: &mut [[f32; LANES]; 5],
-    dx: &[f32],
-    s: &[f32],
-    split: Option<&[f32]>,
-    dy: f32,
-    reach: f32,
-    w: &mut Vec<f32>,
-    r2: &mut Vec<f32>,
-) {
-    let dy2 = dy * dy;
-    w.resize(dx.len(), 0.0);
-    r2.resize(dx.len(), 0.0);
-    for ((w, r2), &dx) in w.iter_mut().zip(r2.iter_mut()).zip(dx) {
-        let d2 = dx * dx + dy2;
-        *r2 = d2;
-        *w = unit_ramp(reach - d2.sqrt());
-    }
-    if let Some(split) = split {
-        for (w, f) in w.iter_mut().zip(split) {
-            *w *= f;
+fn accumulate_row_portable(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
+    let dy2 = row.dy * row.dy;
+    let chunks = row.dx.len().min(row.s.len()) / LANES;
+    let chunks = row.split.map_or(chunks, |f| chunks.min(f.len() / LANES));
+    for (at, (&dx, &signal)) in row.dx.iter().zip(row.s).enumerate().take(chunks * LANES) {
+        let l = at % LANES;
+        let r2 = dx * dx + dy2;
+        let mut w = unit_ramp(row.reach - r2.sqrt());
+        if let Some(f) = row.split {
+            w *= f[at];
         }
-    }
-    for (((w, s), dx), r2) in w
-        .chunks_exact(LANES)
-        .zip(s.chunks_exact(LANES))
-        .zip(dx.chunks_exact(LANES))
-        .zip(r2.chunks_exact(LANES))
-    {
-        for l in 0..LANES {
-            let ws = w[l] * s[l];
-            acc[0][l] += ws;
-            acc[1][l] += ws * dx[l];
-            acc[2][l] += ws * dy;
-            acc[3][l] += ws * r2[l];
-            acc[4][l] += w[l] * w[l] * r2[l];
-        }
+        let ws = w * signal;
+        acc[0][l] += ws;
+        acc[1][l] += ws * dx;
+        acc[2][l] += ws * row.dy;
+        acc[3][l] += ws * r2;
+        acc[4][l] += w * w * r2;
     }
 }
 
@@ -516,24 +490,24 @@ fn accumulate_row_portable(
 /// The CPU must have SSE2 (every x86_64 does).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
-unsafe fn accumulate_row_sse2(
-    acc: &mut [[f32; LANES]; 5],
-    dx: &[f32],
-    s: &[f32],
-    split: Option<&[f32]>,
-    dy: f32,
-    reach: f32,
-) {
+unsafe fn accumulate_row_sse2(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
     use std::arch::x86_64::{
         _mm_add_ps, _mm_loadu_ps, _mm_max_ps, _mm_min_ps, _mm_mul_ps, _mm_set1_ps, _mm_setzero_ps,
         _mm_sqrt_ps, _mm_storeu_ps, _mm_sub_ps,
     };
+    let Row {
+        dx,
+        s,
+        split,
+        dy,
+        reach,
+    } = *row;
     let chunks = dx.len().min(s.len()) / LANES;
     let chunks = split.map_or(chunks, |f| chunks.min(f.len() / LANES));
     // SAFETY (all loads and stores): `acc`'s rows hold LANES values each, and chunk `c` reads
     // elements LANES c .. LANES (c + 1), within every slice by the bound on `chunks`.
     unsafe {
-        let mut sums = acc.map(|row| _mm_loadu_ps(row.as_ptr()));
+        let mut sums = acc.map(|lanes| _mm_loadu_ps(lanes.as_ptr()));
         let (dyv, dy2, reachv) = (_mm_set1_ps(dy), _mm_set1_ps(dy * dy), _mm_set1_ps(reach));
         let (zero, one) = (_mm_setzero_ps(), _mm_set1_ps(1.0));
         for c in 0..chunks {
@@ -551,8 +525,8 @@ unsafe fn accumulate_row_sse2(
             sums[3] = _mm_add_ps(sums[3], _mm_mul_ps(ws, r2));
             sums[4] = _mm_add_ps(sums[4], _mm_mul_ps(_mm_mul_ps(w, w), r2));
         }
-        for (row, v) in acc.iter_mut().zip(sums) {
-            _mm_storeu_ps(row.as_mut_ptr(), v);
+        for (lanes, v) in acc.iter_mut().zip(sums) {
+            _mm_storeu_ps(lanes.as_mut_ptr(), v);
         }
     }
 }
@@ -600,27 +574,28 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn sse2_row_sums_equal_the_portable_loop() {
-        let mut state = 99u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(99);
         for case in 0..40 {
             let n = 4 * (1 + case % 5);
-            let dx0 = -(n as f32) / 2.0 + next();
+            let dx0 = -(n as f32) / 2.0 + rng.gen::<f32>();
             let dx: Vec<f32> = (0..n).map(|k| dx0 + k as f32).collect();
-            let s: Vec<f32> = (0..n).map(|_| 250.0 * next() - 20.0).collect();
-            let split: Vec<f32> = (0..n).map(|_| next()).collect();
-            let (dy, reach) = (6.0 * next() - 3.0, 2.0 + 4.0 * next());
+            let s: Vec<f32> = (0..n).map(|_| rng.gen_range(-20.0..230.0)).collect();
+            let split: Vec<f32> = (0..n).map(|_| rng.gen::<f32>()).collect();
+            let (dy, reach) = (rng.gen_range(-3.0..3.0), rng.gen_range(2.0..6.0));
             for with_split in [None, Some(&split[..])] {
+                let row = Row {
+                    dx: &dx,
+                    s: &s,
+                    split: with_split,
+                    dy,
+                    reach,
+                };
                 let start = [[0.5f32; LANES]; 5];
                 let (mut a, mut b) = (start, start);
-                let (mut w, mut r2) = (Vec::new(), Vec::new());
-                accumulate_row_portable(&mut a, &dx, &s, with_split, dy, reach, &mut w, &mut r2);
+                accumulate_row_portable(&mut a, &row);
                 // SAFETY: every x86_64 has SSE2.
-                unsafe { accumulate_row_sse2(&mut b, &dx, &s, with_split, dy, reach) };
+                unsafe { accumulate_row_sse2(&mut b, &row) };
                 let bits = |m: [[f32; LANES]; 5]| m.map(|r| r.map(f32::to_bits));
                 assert_eq!(bits(a), bits(b), "case {case}, split {}", with_split.is_some());
             }

@@ -152,13 +152,9 @@ mod tests {
 
     /// Clustered, spread and collinear point sets (the first with a duplicate point).
     fn point_sets() -> Vec<Vec<[f64; 2]>> {
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12345);
+        let mut next = || rng.gen::<f64>();
         let mut sets: Vec<Vec<[f64; 2]>> = vec![
             (0..500).map(|_| [512.0 * next(), 512.0 * next()]).collect(),
             (0..300)

@@ -299,23 +299,18 @@ fn for_pixels_near(
     height: usize,
     mut f: impl FnMut(f64, f64, usize),
 ) {
-    let lo = |v: f64| (v - reach).floor().max(0.0) as usize;
-    let x0 = centres.iter().map(|c| lo(c[0])).min().unwrap_or(0);
-    let y0 = centres.iter().map(|c| lo(c[1])).min().unwrap_or(0);
-    let x1 = centres
-        .iter()
-        .map(|c| (c[0] + reach).ceil() as usize)
-        .max()
-        .unwrap_or(0)
-        .min(width.saturating_sub(1));
-    let y1 = centres
-        .iter()
-        .map(|c| (c[1] + reach).ceil() as usize)
-        .max()
-        .unwrap_or(0)
-        .min(height.saturating_sub(1));
-    for y in y0..=y1 {
-        for x in x0..=x1 {
+    // The pixels along axis `k` (of `len`) within `reach` of some centre.
+    let span = |k: usize, len: usize| {
+        let lo = centres
+            .iter()
+            .map(|c| (c[k] - reach).floor().max(0.0) as usize)
+            .min();
+        let hi = centres.iter().map(|c| (c[k] + reach).ceil() as usize).max();
+        lo.unwrap_or(0)..=hi.unwrap_or(0).min(len.saturating_sub(1))
+    };
+    let xs = span(0, width);
+    for y in span(1, height) {
+        for x in xs.clone() {
             let (xf, yf) = (x as f64, y as f64);
             if centres.iter().any(|c| dist2(*c, [xf, yf]) <= reach * reach) {
                 f(xf, yf, y * width + x);
