@@ -56,6 +56,10 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
         groups,
     );
     let pairs: Vec<(usize, usize, f64)> = pair_index.iter().map(|&k| problem.pairs[k]).collect();
+    let mut scratch = ComponentScratch {
+        local: vec![0; nr + nc],
+        ..ComponentScratch::default()
+    };
     for g in 0..groups {
         let pairs = &pairs[pair_start[g]..pair_start[g + 1]];
         if pairs.is_empty() {
@@ -72,9 +76,9 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
             }
             continue;
         }
-        for (r, c) in solve_component(rows, cols, pairs, problem) {
-            result[r] = Some(c);
-        }
+        solve_component(rows, cols, pairs, problem, &mut scratch, |r, c| {
+            result[r] = Some(c)
+        });
     }
     result
 }
@@ -113,57 +117,87 @@ fn solve_component(
     cols: &[usize],
     pairs: &[(usize, usize, f64)],
     problem: &SparseProblem,
-) -> Vec<(usize, usize)> {
+    scratch: &mut ComponentScratch,
+    mut assign: impl FnMut(usize, usize),
+) {
     use std::cmp::Reverse;
-    use std::collections::{BinaryHeap, HashMap};
     let (k, l) = (rows.len(), cols.len());
-    let row_index: HashMap<usize, usize> = rows.iter().enumerate().map(|(i, &r)| (r, i)).collect();
-    let col_index: HashMap<usize, usize> = cols.iter().enumerate().map(|(j, &c)| (c, j)).collect();
-    // Edges per local row: (local column, cost); column l + i is row i's miss column.
-    let mut adj: Vec<Vec<(usize, f64)>> = vec![Vec::new(); k];
-    for &(r, c, v) in pairs {
-        let (i, j) = (row_index[&r], col_index[&c]);
-        adj[i].push((j, v - problem.col_miss[c]));
+    let nr = problem.row_miss.len();
+    let ComponentScratch {
+        local,
+        edge_start,
+        edges,
+        v,
+        u,
+        col_match,
+        row_match,
+        dist,
+        prev_row,
+        done,
+        touched,
+        finalized,
+        heap,
+    } = scratch;
+    // Local indices: `local[r]` for row r, `local[nr + c]` for column c.
+    for (i, &r) in rows.iter().enumerate() {
+        local[r] = i;
+    }
+    for (j, &c) in cols.iter().enumerate() {
+        local[nr + c] = j;
+    }
+    // Edges per local row (local column, cost), its pairs in the problem's order and then
+    // its miss column l + i, as offsets `edge_start[i]..edge_start[i + 1]` into `edges`.
+    edge_start.clear();
+    edge_start.resize(k + 2, 0);
+    for &(r, _, _) in pairs {
+        edge_start[local[r] + 2] += 1;
+    }
+    for i in 0..k {
+        edge_start[i + 2] += edge_start[i + 1] + 1;
+    }
+    edges.clear();
+    edges.resize(pairs.len() + k, (0, 0.0));
+    for &(r, c, cost) in pairs {
+        let i = local[r];
+        edges[edge_start[i + 1]] = (local[nr + c], cost - problem.col_miss[c]);
+        edge_start[i + 1] += 1;
     }
     for (i, &r) in rows.iter().enumerate() {
-        adj[i].push((l + i, problem.row_miss[r]));
-        let lo = adj[i].iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
-        for e in &mut adj[i] {
+        edges[edge_start[i + 1]] = (l + i, problem.row_miss[r]);
+        edge_start[i + 1] += 1;
+        let row = &mut edges[edge_start[i]..edge_start[i + 1]];
+        let lo = row.iter().map(|e| e.1).fold(f64::INFINITY, f64::min);
+        for e in row {
             e.1 -= lo;
         }
     }
+    let adj = |i: usize| &edges[edge_start[i]..edge_start[i + 1]];
     let m = l + k;
-    let mut v = vec![0.0f64; m];
-    let mut u = vec![0.0f64; k];
-    let mut col_match: Vec<Option<usize>> = vec![None; m];
-    let mut row_match: Vec<Option<usize>> = vec![None; k];
-    let mut dist = vec![f64::INFINITY; m];
-    let mut prev_row = vec![usize::MAX; m];
-    let mut done = vec![false; m];
-    let mut touched: Vec<usize> = Vec::new();
-    /// A heap key ordered by distance.
-    #[derive(PartialEq)]
-    struct Key(f64, usize);
-    impl Eq for Key {}
-    impl PartialOrd for Key {
-        fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-            Some(self.cmp(o))
-        }
-    }
-    impl Ord for Key {
-        fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-            self.0.total_cmp(&o.0).then(self.1.cmp(&o.1))
-        }
-    }
+    let reset = |vec: &mut Vec<_>, len, value| {
+        vec.clear();
+        vec.resize(len, value);
+    };
+    reset(v, m, 0.0);
+    reset(u, k, 0.0);
+    reset(dist, m, f64::INFINITY);
+    col_match.clear();
+    col_match.resize(m, None);
+    row_match.clear();
+    row_match.resize(k, None);
+    prev_row.clear();
+    prev_row.resize(m, usize::MAX);
+    done.clear();
+    done.resize(m, false);
+    touched.clear();
     for s in 0..k {
-        for &j in &touched {
+        for &j in touched.iter() {
             dist[j] = f64::INFINITY;
             done[j] = false;
             prev_row[j] = usize::MAX;
         }
         touched.clear();
-        let mut heap = BinaryHeap::new();
-        for &(j, c) in &adj[s] {
+        heap.clear();
+        for &(j, c) in adj(s) {
             let d = c - u[s] - v[j];
             if d < dist[j] {
                 if dist[j].is_infinite() {
@@ -171,12 +205,12 @@ fn solve_component(
                 }
                 dist[j] = d;
                 prev_row[j] = s;
-                heap.push(Reverse(Key(d, j)));
+                heap.push(Reverse(DistKey(d, j)));
             }
         }
-        let mut finalized: Vec<usize> = Vec::new();
+        finalized.clear();
         let mut end = None;
-        while let Some(Reverse(Key(d, j))) = heap.pop() {
+        while let Some(Reverse(DistKey(d, j))) = heap.pop() {
             if done[j] || d > dist[j] {
                 continue;
             }
@@ -188,7 +222,7 @@ fn solve_component(
                     break;
                 }
                 Some(i) => {
-                    for &(j2, c) in &adj[i] {
+                    for &(j2, c) in adj(i) {
                         if done[j2] {
                             continue;
                         }
@@ -199,7 +233,7 @@ fn solve_component(
                             }
                             dist[j2] = nd;
                             prev_row[j2] = i;
-                            heap.push(Reverse(Key(nd, j2)));
+                            heap.push(Reverse(DistKey(nd, j2)));
                         }
                     }
                 }
@@ -207,7 +241,7 @@ fn solve_component(
         }
         // Every row has its own miss column, so a free column is always reached.
         let Some((jend, dend)) = end else { continue };
-        for &j in &finalized {
+        for &j in finalized.iter() {
             let delta = dend - dist[j];
             if delta > 0.0 {
                 v[j] -= delta;
@@ -230,13 +264,49 @@ fn solve_component(
             }
         }
     }
-    let mut out = Vec::new();
     for (j, r) in col_match.iter().enumerate().take(l) {
         if let Some(i) = r {
-            out.push((rows[*i], cols[j]));
+            assign(rows[*i], cols[j]);
         }
     }
-    out
+}
+
+/// The buffers of [`solve_component`], reused from one component to the next.
+#[derive(Default)]
+struct ComponentScratch {
+    /// Each global row's (then column's) index within the component being solved.
+    local: Vec<usize>,
+    edge_start: Vec<usize>,
+    edges: Vec<(usize, f64)>,
+    v: Vec<f64>,
+    u: Vec<f64>,
+    col_match: Vec<Option<usize>>,
+    row_match: Vec<Option<usize>>,
+    dist: Vec<f64>,
+    prev_row: Vec<usize>,
+    done: Vec<bool>,
+    touched: Vec<usize>,
+    finalized: Vec<usize>,
+    heap: std::collections::BinaryHeap<std::cmp::Reverse<DistKey>>,
+}
+
+/// A heap key of [`solve_component`]'s Dijkstra search, a column's tentative distance and
+/// the column, ordered by distance (then column).
+#[derive(PartialEq)]
+struct DistKey(f64, usize);
+
+impl Eq for DistKey {}
+
+impl PartialOrd for DistKey {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+
+impl Ord for DistKey {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&o.0).then(self.1.cmp(&o.1))
+    }
 }
 
 /// Solves a dense `n x m` problem (`n <= m`, row-major costs); returns each row's column.

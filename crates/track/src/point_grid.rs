@@ -83,31 +83,51 @@ impl<'a> PointGrid<'a> {
     }
 
     /// Distance from `p` to the nearest point at a distance above zero, px; infinite when
-    /// there is none. Rings of cells are searched outward until no cell left can hold a
-    /// nearer point.
+    /// there is none. Rings of cells are searched outward until the nearest point found is
+    /// no farther than the edge of the block of cells searched (beyond which every point
+    /// left lies): with cells one mean spacing wide, usually after the first ring.
     pub(crate) fn nearest_other(&self, p: &[f64; 2]) -> f64 {
         let (cx, cy) = self.cell_of(p);
+        let [w, h] = self.dims;
         let mut best = f64::INFINITY;
-        for ring in 0..self.dims[0].max(self.dims[1]) {
-            // Points in this ring and beyond lie more than `ring - 1` cells away.
-            if ring > 0 && best <= ((ring - 1) as f64 * self.cell).powi(2) {
-                break;
+        let scan = |gx: usize, gy: usize, best: &mut f64| {
+            for &j in self.in_cell(gx, gy) {
+                let q = &self.points[j as usize];
+                let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                if d > 0.0 && d < *best {
+                    *best = d;
+                }
             }
-            let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(self.dims[0] - 1));
-            let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(self.dims[1] - 1));
+        };
+        for ring in 0..w.max(h) {
+            let (x0, x1) = (cx.saturating_sub(ring), (cx + ring).min(w - 1));
+            let (y0, y1) = (cy.saturating_sub(ring), (cy + ring).min(h - 1));
+            // The ring's cells: whole rows at its top and bottom, its two ends between.
             for gy in y0..=y1 {
-                for gx in x0..=x1 {
-                    if gx.abs_diff(cx).max(gy.abs_diff(cy)) != ring {
-                        continue;
+                if gy.abs_diff(cy) == ring {
+                    (x0..=x1).for_each(|gx| scan(gx, gy, &mut best));
+                } else {
+                    if cx >= ring {
+                        scan(cx - ring, gy, &mut best);
                     }
-                    for &j in self.in_cell(gx, gy) {
-                        let q = &self.points[j as usize];
-                        let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
-                        if d > 0.0 && d < best {
-                            best = d;
-                        }
+                    if cx + ring < w {
+                        scan(cx + ring, gy, &mut best);
                     }
                 }
+            }
+            // Every point not yet seen lies outside the block searched: at least as far from
+            // `p` as the block's nearest side that has cells beyond it.
+            let side = |inside: bool, d: f64| if inside { d } else { f64::INFINITY };
+            let margin = [
+                side(x0 > 0, p[0] - (self.lo[0] + x0 as f64 * self.cell)),
+                side(x1 + 1 < w, self.lo[0] + (x1 + 1) as f64 * self.cell - p[0]),
+                side(y0 > 0, p[1] - (self.lo[1] + y0 as f64 * self.cell)),
+                side(y1 + 1 < h, self.lo[1] + (y1 + 1) as f64 * self.cell - p[1]),
+            ]
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+            if margin == f64::INFINITY || (margin > 0.0 && best <= margin * margin) {
+                break;
             }
         }
         best.sqrt()
@@ -150,7 +170,8 @@ pub(crate) fn nearest_other(points: &[[f64; 2]]) -> Vec<f64> {
 mod tests {
     use super::*;
 
-    /// Clustered, spread and collinear point sets (the first with a duplicate point).
+    /// Spread, clustered and collinear point sets, a pair, and a cluster with an outlier (the
+    /// first set with a duplicate point).
     fn point_sets() -> Vec<Vec<[f64; 2]>> {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12345);
@@ -161,7 +182,12 @@ mod tests {
                 .map(|i| [(i % 3) as f64 * 400.0 + 5.0 * next(), 3.0 * next()])
                 .collect(),
             (0..50).map(|i| [i as f64 * 1.5, 7.0]).collect(),
+            vec![[3.0, 4.0], [500.0, 9.0]],
         ];
+        // A dense cluster with one far outlier: cells much smaller than the outlier's gap.
+        let mut cluster: Vec<[f64; 2]> = (0..200).map(|_| [20.0 * next(), 20.0 * next()]).collect();
+        cluster.push([480.0, 300.0]);
+        sets.push(cluster);
         let dup = sets[0][3];
         sets[0].push(dup);
         sets
@@ -190,7 +216,13 @@ mod tests {
     fn within_matches_brute_force() {
         for pts in &point_sets() {
             let grid = PointGrid::new(pts);
-            let queries = [pts[0], pts[7], [-30.0, -30.0], [600.0, 1.0], [250.0, 250.0]];
+            let queries = [
+                pts[0],
+                pts[pts.len() - 1],
+                [-30.0, -30.0],
+                [600.0, 1.0],
+                [250.0, 250.0],
+            ];
             for q in queries {
                 for radius in [0.0, 0.7, 3.0, 25.0, 2000.0] {
                     let mut got: Vec<(usize, f64)> = Vec::new();
