@@ -315,7 +315,23 @@ pub fn find_blobs_with_scratch(
     let cap = ((FLOOD_CAP_AREAS * params.radius * params.radius).ceil() as usize).max(64);
     let mut seeds_per: Vec<u32> = Vec::with_capacity(kept.len());
     let mut in_region: Vec<usize> = Vec::with_capacity(kept.len());
-    for peak in kept.iter() {
+    // Candidates come strongest first, scattered over the frame, and a frame's smoothed
+    // signal and region map outgrow the second-level cache: the rows a blob a few candidates
+    // ahead will grow over are fetched while this one grows.
+    let reach = params.radius.ceil() as usize + 2;
+    let fetch_rows = |peak: &Peak, owner: &[u32]| {
+        let (x, y) = (peak.x as usize, peak.y as usize);
+        for yy in y.saturating_sub(reach)..=(y + reach).min(height - 1) {
+            for xx in [x.saturating_sub(reach), (x + reach).min(width - 1)] {
+                prefetch(small, yy * width + xx);
+                prefetch(owner, yy * width + xx);
+            }
+        }
+    };
+    for (k, peak) in kept.iter().enumerate() {
+        if let Some(ahead) = kept.get(k + PREFETCH_AHEAD) {
+            fetch_rows(ahead, &regions.owner);
+        }
         let (x, y) = (peak.x as usize, peak.y as usize);
         let i = y * width + x;
         let region = match regions.region_at(i) {
@@ -379,6 +395,28 @@ pub fn find_blobs_with_scratch(
 
 /// Pixels tested together by the quick rejections of background.
 const CHUNK: usize = 16;
+
+/// How many candidates ahead of the one growing its blob the next blob's pixels are fetched
+/// into the cache.
+const PREFETCH_AHEAD: usize = 2;
+
+/// Asks the CPU to start loading `values[at]` into the cache, so that a later read does not
+/// wait for memory (nothing out of bounds or off x86_64).
+#[inline(always)]
+fn prefetch<T>(values: &[T], at: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(v) = values.get(at) {
+        // SAFETY: SSE is part of the x86_64 baseline, and a prefetch of an address inside a
+        // live slice reads nothing the program sees.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                (v as *const T).cast::<i8>(),
+            );
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (values, at);
+}
 
 /// A local maximum of the band-pass response: where, and how strong.
 #[derive(Clone, Copy, Debug)]
