@@ -190,7 +190,13 @@ pub fn find_blobs_with_scratch(
     let mut scan = |y: usize, band: &[f32], large: &[f32], small: &[f32]| {
         let row = |yy: usize| &band[ring(yy)];
         let (brow, srow) = (row(y), &small[y * width..(y + 1) * width]);
-        let fy = mask_fy[y];
+        let row_test = RowTest {
+            band: brow,
+            small: srow,
+            mask: &mask_x,
+            fy: mask_fy[y],
+            peak_min,
+        };
         for x0 in (0..width).step_by(CHUNK) {
             let x1 = (x0 + CHUNK).min(width);
             // Most of a frame is background: a whole chunk is ruled out at once (branch-free,
@@ -198,16 +204,13 @@ pub fn find_blobs_with_scratch(
             if !any_above(&brow[x0..x1], peak_min) {
                 continue;
             }
-            for x in x0..x1 {
+            // Most pixels above the threshold sit on a particle's flank: their row neighbours
+            // rule them out before the full test, all the chunk's pixels at once.
+            let mut bits = row_test.candidates(x0, x1);
+            while bits != 0 {
+                let x = x0 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
                 let v = brow[x];
-                if v <= peak_min || srow[x] <= mask_x[x] * fy {
-                    continue;
-                }
-                // Most pixels above the threshold sit on a particle's flank: their row
-                // neighbours rule them out before the full test.
-                if (x > 0 && brow[x - 1] >= v) || (x + 1 < width && brow[x + 1] > v) {
-                    continue;
-                }
                 let at_edge = x < margin || y < margin || x + margin >= width || y + margin >= height;
                 if at_edge && f64::from(v) <= PEAK_SIGMAS * band_sigma_at(x, y) {
                     continue;
@@ -429,6 +432,87 @@ struct Peak {
     x: u32,
     /// Row, px.
     y: u32,
+}
+
+/// The tests a pixel of a band-pass row must pass before the full local-maximum test: above
+/// the peak threshold, its smoothed signal above the noise mask, and not below either row
+/// neighbour (strictly above the left one, at least the right one).
+struct RowTest<'a> {
+    /// The row's band-pass response, grey levels.
+    band: &'a [f32],
+    /// The row's small box mean, grey levels.
+    small: &'a [f32],
+    /// The mask threshold of each column, grey levels, before the row's factor `fy`.
+    mask: &'a [f32],
+    fy: f32,
+    /// The interior peak threshold, grey levels.
+    peak_min: f32,
+}
+
+impl RowTest<'_> {
+    /// Bit `x - x0` set for each pixel `x` of `x0..x1` (at most 32 of them) that passes.
+    fn candidates(&self, x0: usize, x1: usize) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        if x1 == x0 + CHUNK && x0 > 0 && x1 < self.band.len() {
+            // SAFETY: SSE2 is part of the x86_64 baseline; the chunk and both its neighbours
+            // lie inside the row, as checked.
+            return unsafe { self.candidates_sse2(x0) };
+        }
+        self.candidates_portable(x0, x1)
+    }
+
+    /// [`RowTest::candidates`] pixel by pixel.
+    fn candidates_portable(&self, x0: usize, x1: usize) -> u32 {
+        let (band, width) = (self.band, self.band.len());
+        (x0..x1).fold(0u32, |bits, x| {
+            let v = band[x];
+            let fails = v <= self.peak_min
+                || self.small[x] <= self.mask[x] * self.fy
+                || (x > 0 && band[x - 1] >= v)
+                || (x + 1 < width && band[x + 1] > v);
+            let pass = !fails;
+            bits | (u32::from(pass) << (x - x0))
+        })
+    }
+
+    /// [`RowTest::candidates`] for the [`CHUNK`] pixels from `x0`, four at a time, with the
+    /// same comparisons (each as its negation, so a NaN fails as it does pixel by pixel).
+    ///
+    /// # Safety
+    /// The CPU must have SSE2, `x0 > 0` and `x0 + CHUNK < band.len()`, and `small` and `mask`
+    /// as long as `band`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "sse2")]
+    unsafe fn candidates_sse2(&self, x0: usize) -> u32 {
+        use std::arch::x86_64::{
+            _mm_and_ps, _mm_cmpnge_ps, _mm_cmpngt_ps, _mm_cmpnle_ps, _mm_loadu_ps, _mm_movemask_ps,
+            _mm_mul_ps, _mm_set1_ps,
+        };
+        let n = self.band.len().min(self.small.len()).min(self.mask.len());
+        assert!(x0 > 0 && x0 + CHUNK < n, "chunk at {x0} of {n}");
+        let mut bits = 0u32;
+        // SAFETY: the loads read band[x - 1 ..= x + 4] and small, mask[x .. x + 4] for
+        // x0 <= x < x0 + CHUNK, inside the slices by the assertion.
+        unsafe {
+            let (peak_min, fy) = (_mm_set1_ps(self.peak_min), _mm_set1_ps(self.fy));
+            for k in (0..CHUNK).step_by(4) {
+                let at = x0 + k;
+                let v = _mm_loadu_ps(self.band.as_ptr().add(at));
+                let left = _mm_loadu_ps(self.band.as_ptr().add(at - 1));
+                let right = _mm_loadu_ps(self.band.as_ptr().add(at + 1));
+                let mask = _mm_mul_ps(_mm_loadu_ps(self.mask.as_ptr().add(at)), fy);
+                let pass = _mm_and_ps(
+                    _mm_and_ps(
+                        _mm_cmpnle_ps(v, peak_min),
+                        _mm_cmpnle_ps(_mm_loadu_ps(self.small.as_ptr().add(at)), mask),
+                    ),
+                    _mm_and_ps(_mm_cmpnge_ps(left, v), _mm_cmpngt_ps(right, v)),
+                );
+                bits |= (_mm_movemask_ps(pass) as u32) << k;
+            }
+        }
+        bits
+    }
 }
 
 /// Returns true if and only if some value of `line` exceeds `t`.
@@ -1062,6 +1146,43 @@ mod tests {
                         above_bits_portable(l, t),
                         "width {width} at {x0}"
                     );
+                }
+            }
+        }
+    }
+
+    /// The row pre-test of a chunk, four pixels at a time, passes exactly the pixels the
+    /// pixel-by-pixel test passes: plateaus (equal neighbours), values equal to the peak
+    /// threshold or to the mask, at every chunk of rows shorter and longer than a chunk.
+    #[test]
+    fn row_candidates_match_the_pixel_test() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for width in [1usize, 16, 17, 33, 100, 512] {
+            for _ in 0..20 {
+                // Few distinct levels, so that neighbours are often equal.
+                let band: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(0u8..6))).collect();
+                let small: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(0u8..4))).collect();
+                let mask: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(1u8..3))).collect();
+                let test = RowTest {
+                    band: &band,
+                    small: &small,
+                    mask: &mask,
+                    fy: 1.0 + f32::from(rng.gen_range(0u8..2)),
+                    peak_min: 2.0,
+                };
+                for x0 in (0..width).step_by(CHUNK) {
+                    let x1 = (x0 + CHUNK).min(width);
+                    let want = test.candidates_portable(x0, x1);
+                    assert_eq!(test.candidates(x0, x1), want, "width {width} at {x0}");
+                    for x in x0..x1 {
+                        let v = band[x];
+                        let pass = v > 2.0
+                            && small[x] > mask[x] * test.fy
+                            && (x == 0 || band[x - 1] < v)
+                            && (x + 1 == width || band[x + 1] <= v);
+                        assert_eq!(want >> (x - x0) & 1 == 1, pass, "width {width} at {x}");
+                    }
                 }
             }
         }
