@@ -166,6 +166,9 @@ fn track_seconds(dir: &Path, threads: usize) -> anyhow::Result<(f64, usize)> {
     Ok((start.elapsed().as_secs_f64(), out.table.points.len()))
 }
 
+/// Timed runs per figure of the speed table (the fastest counts).
+const REPEATS: usize = 3;
+
 /// Runs the tracking benchmark and returns Markdown tables: frames/s for 10, 100 and 1000
 /// particles (decode only, end to end on one and two threads) and RMS error per axis at
 /// noise 0, 5 and 20, each beside trackpy 0.7's figure. `quick` uses few frames.
@@ -175,16 +178,22 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
     out.push_str(&format!(
         "### Tracker: {SIZE}x{SIZE} 8-bit PNG frames, discs of radius 4 px, amplitude 200 over 30, random walks up to 3 px/frame, noise sigma 5\n\n"
     ));
+    out.push_str(&format!("Each time is the best of {REPEATS} runs.\n\n"));
     out.push_str("| particles | frames | decode only (frames/s, 1 thread) | physfit end to end, 1 thread | physfit, 2 threads | trackpy 0.7 | physfit / trackpy (1 thread) | decode share (1 thread) |\n");
     out.push_str("|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (count, trackpy) in TRACKPY_FPS {
         let dir = Scratch::new(&format!("n{count}"))?;
         render(&scattered(count, frames), 5.0, &dir.0)?;
-        let decode = decode_seconds(&dir.0)?;
-        // One untimed run warms the file cache, then the timed runs.
+        // One untimed run warms the file cache, then the timed runs, each the best of
+        // REPEATS: on a shared machine a run is only ever slowed by the others' work, so the
+        // fastest of a few is the closest to the code's own speed.
         track_seconds(&dir.0, 1)?;
-        let (one, _) = track_seconds(&dir.0, 1)?;
-        let (two, _) = track_seconds(&dir.0, 2)?;
+        let best = |seconds: &dyn Fn() -> anyhow::Result<f64>| -> anyhow::Result<f64> {
+            (0..REPEATS).try_fold(f64::INFINITY, |b, _| Ok(b.min(seconds()?)))
+        };
+        let decode = best(&|| decode_seconds(&dir.0))?;
+        let one = best(&|| Ok(track_seconds(&dir.0, 1)?.0))?;
+        let two = best(&|| Ok(track_seconds(&dir.0, 2)?.0))?;
         let fps = |s: f64| frames as f64 / s.max(1e-9);
         out.push_str(&format!(
             "| {count} | {frames} | {:.0} | {:.0} | {:.0} | {trackpy:.0} | {:.1}x | {:.0} % |\n",
