@@ -146,7 +146,6 @@ pub fn refine_centroids_with_scratch(
         width,
         height,
     };
-    let mut converged = false;
     for _ in 0..MAX_ITERATIONS {
         wake.clear();
         for i in 0..n {
@@ -189,7 +188,6 @@ pub fn refine_centroids_with_scratch(
         }
         active.fill(false);
         if wake.is_empty() {
-            converged = true;
             break;
         }
         for &i in &wake {
@@ -205,10 +203,12 @@ pub fn refine_centroids_with_scratch(
         if !alive[i] {
             continue;
         }
-        // Once converged, an estimate's last window was centred within the tolerance of it,
-        // and its neighbours then stood within the tolerance of where they are now: its
-        // statistics stand. Otherwise measure once more.
-        let st = if converged {
+        // An estimate the next sweep would not measure (neither it nor a neighbour still
+        // moving) has converged: its last window was centred within the tolerance of it, and
+        // its neighbours then stood within the tolerance of where they are now, so its
+        // statistics stand. The others, still moving when the sweeps ran out, are measured
+        // once more where they stopped.
+        let st = if !active[i] {
             stats[i]
         } else {
             collect_splits(splits, i, &pos, &alive, &neighbours[offsets[i]..offsets[i + 1]]);
