@@ -133,6 +133,27 @@ impl<'a> PointGrid<'a> {
         best.sqrt()
     }
 
+    /// Returns true if and only if some point lies closer to `p` than `radius` px and at a
+    /// distance above zero: whether [`PointGrid::nearest_other`] would be below `radius`
+    /// (the same distances, compared alike), found by looking only as far as `radius` and
+    /// stopping at the first such point.
+    pub(crate) fn any_other_within(&self, p: &[f64; 2], radius: f64) -> bool {
+        if self.points.is_empty() || radius.is_nan() || radius <= 0.0 {
+            return false;
+        }
+        let (x0, y0) = self.cell_of(&[p[0] - radius, p[1] - radius]);
+        let (x1, y1) = self.cell_of(&[p[0] + radius, p[1] + radius]);
+        (y0..=y1).any(|gy| {
+            (x0..=x1).any(|gx| {
+                self.in_cell(gx, gy).iter().any(|&j| {
+                    let q = &self.points[j as usize];
+                    let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
+                    d > 0.0 && d.sqrt() < radius
+                })
+            })
+        })
+    }
+
     /// Calls `f(index, squared distance)` for every point within `radius` px of `p`
     /// (boundary included), in cell order.
     pub(crate) fn within(&self, p: &[f64; 2], radius: f64, mut f: impl FnMut(usize, f64)) {
@@ -208,6 +229,25 @@ mod tests {
             }
         }
         assert_eq!(nearest_other(&[[1.0, 2.0]]), [f64::INFINITY]);
+    }
+
+    /// `any_other_within` says whether `nearest_other` is below the radius, for radii about
+    /// each point's own nearest distance (just under, equal, just over) and far beyond.
+    #[test]
+    fn any_other_within_agrees_with_nearest_other() {
+        for pts in &point_sets() {
+            let grid = PointGrid::new(pts);
+            for p in pts {
+                let nn = grid.nearest_other(p);
+                for radius in [nn * 0.999, nn, nn * 1.001, 0.0, 1e4] {
+                    assert_eq!(
+                        grid.any_other_within(p, radius),
+                        nn < radius,
+                        "{p:?} radius {radius}"
+                    );
+                }
+            }
+        }
     }
 
     /// `within` finds exactly the points a brute-force search finds, for query points

@@ -442,17 +442,21 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         // Appearance tells a particle from untracked objects (a hand, a reflection). Among
         // tracked particles that come close, images merge and share light, so there motion
         // alone decides: only a track whose prediction has no other within reach uses it.
-        let pred_nn = nearest_other(&preds.iter().map(|p| p.0).collect::<Vec<_>>());
+        let pred_points: Vec<[f64; 2]> = preds.iter().map(|p| p.0).collect();
+        let pred_grid = PointGrid::new(&pred_points);
+        // Lone: no other prediction within reach, allowing two scales of this track's own
+        // prediction error.
+        let lone: Vec<bool> = preds
+            .iter()
+            .map(|(p, s)| !pred_grid.any_other_within(p, crowd + 2.0 * s))
+            .collect();
         // The appearance cost of giving track `k` detection `j` (sum of the squared
         // standardised changes of log mass and size), or `None` when its square root
         // exceeds `gate`: the image is that of another object. A lone track's blob holds no
         // other tracked particle, so it is compared whole with the track's own (a blob cut by
         // the image border on its mass alone, one-sidedly: see [`TrackAppearance::z`]).
         let look_cost = |k: usize, j: usize, gate: f64| -> Option<f64> {
-            // Lone: no other prediction within reach, allowing two scales of this
-            // track's own prediction error.
-            let lone = pred_nn[k] >= crowd + 2.0 * preds[k].1;
-            if !lone {
+            if !lone[k] {
                 return Some(0.0);
             }
             let (Some(look), Some(a)) = (look_of(k), Appearance::of(&dets[j], 1)) else {
@@ -576,12 +580,11 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             .filter(|&j| !det_tracks[j].is_empty())
             .map(|j| (j, points[j]))
             .collect();
+        let taken_points: Vec<[f64; 2]> = taken_pts.iter().map(|p| p.1).collect();
+        let taken_grid = PointGrid::new(&taken_points);
         let mut clean = vec![true; dets.len()];
-        for ((j, _), d) in taken_pts
-            .iter()
-            .zip(nearest_other(&taken_pts.iter().map(|p| p.1).collect::<Vec<_>>()))
-        {
-            clean[*j] = d >= crowd;
+        for (j, p) in &taken_pts {
+            clean[*j] = !taken_grid.any_other_within(p, crowd);
         }
         // Write this frame's points.
         for (j, group) in det_tracks.iter().enumerate() {
@@ -966,18 +969,28 @@ fn start_tracks(
     o: &LinkOptions,
     crowd: f64,
 ) {
+    // Most frames start no track (every detection is taken): the neighbour search is only
+    // built for the others.
+    if taken.iter().all(|&t| t) {
+        return;
+    }
     let pts: Vec<[f64; 2]> = fd.detections.iter().map(|d| [d.x, d.y]).collect();
-    let nn = nearest_other(&pts);
+    let grid = PointGrid::new(&pts);
     for (j, d) in fd.detections.iter().enumerate() {
         if taken[j] {
             continue;
         }
-        let init = (0.5 * nn[j]).min(diagonal(o)) / GATE_SIGMAS;
+        let nn = if pts.len() < 2 {
+            f64::INFINITY
+        } else {
+            grid.nearest_other(&pts[j])
+        };
+        let init = (0.5 * nn).min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
         let mut track = Track::new(
             name,
             fd.frame,
-            point_from(d, PointFlag::Detected, nn[j] < crowd),
+            point_from(d, PointFlag::Detected, nn < crowd),
             init.max(floor),
         );
         if !d.clipped {
