@@ -423,12 +423,22 @@ impl Background {
     /// centroid window in proportion to its area (and make the measured size grow with the
     /// window).
     pub fn remove_gain(&self, frame: &Frame, signal: &mut [f32]) {
-        let g = self.frame_gain(frame) / self.reference_gain;
-        // A gain whose effect stays below a tenth of the noise on the brightest background
-        // is left alone: it is the estimate's own scatter.
-        if ((g - 1.0) * self.brightest).abs() < 0.1 * self.noise_sigma {
-            return;
+        if let Some(g) = self.gain_to_remove(frame) {
+            self.apply_gain(g, signal);
         }
+    }
+
+    /// The gain [`Background::remove_gain`] would remove from `frame`'s signal (its
+    /// [`Background::frame_gain`] relative to the samples' [`Background::reference_gain`]),
+    /// or `None` when it leaves the signal as it is: a gain whose effect stays below a tenth
+    /// of the noise on the brightest background is the estimate's own scatter.
+    pub fn gain_to_remove(&self, frame: &Frame) -> Option<f64> {
+        let g = self.frame_gain(frame) / self.reference_gain;
+        (((g - 1.0) * self.brightest).abs() >= 0.1 * self.noise_sigma).then_some(g)
+    }
+
+    /// Removes the gain `g` (from [`Background::gain_to_remove`]) from `signal`, in place.
+    pub fn apply_gain(&self, g: f64, signal: &mut [f32]) {
         let g = g as f32;
         for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
             // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b

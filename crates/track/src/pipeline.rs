@@ -661,15 +661,25 @@ impl Sizes {
 /// ([`Background::remove_gain`]), where centroids and sizes are measured.
 struct SampleSignals {
     plain: Vec<f32>,
-    levelled: Vec<f32>,
+    /// The gain-corrected signal, when the correction changes it (under a steady light the
+    /// two are one, and a frame-sized copy is not made).
+    corrected: Option<Vec<f32>>,
 }
 
 impl SampleSignals {
     fn of(background: &Background, frame: &Frame) -> SampleSignals {
         let plain = background.signal(frame);
-        let mut levelled = plain.clone();
-        background.remove_gain(frame, &mut levelled);
-        SampleSignals { plain, levelled }
+        let corrected = background.gain_to_remove(frame).map(|g| {
+            let mut corrected = plain.clone();
+            background.apply_gain(g, &mut corrected);
+            corrected
+        });
+        SampleSignals { plain, corrected }
+    }
+
+    /// The gain-corrected signal.
+    fn levelled(&self) -> &[f32] {
+        self.corrected.as_deref().unwrap_or(&self.plain)
     }
 }
 
@@ -768,7 +778,7 @@ fn locate_unfiltered(
     let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
     let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
     refine_centroids_with_scratch(
-        &frame.levelled,
+        frame.levelled(),
         width,
         height,
         &seeds,
