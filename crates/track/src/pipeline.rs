@@ -540,9 +540,13 @@ fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<(Vec<usize>, 
         v.dedup();
         v
     };
+    // One decoder per job, its buffers reused from frame to frame.
     let frames = picks
         .par_iter()
-        .map(|&i| load_frame(&paths[i].1))
+        .map_init(FrameDecoder::default, |decoder, &i| {
+            let mut frame = Frame::default();
+            decoder.load_into(&paths[i].1, &mut frame).map(|()| frame)
+        })
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
 }
