@@ -496,7 +496,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             });
         }
         let assign = solve_sparse(&problem);
-        let mut det_tracks: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
+        let mut det_tracks: Vec<Claimants> = vec![Claimants::default(); dets.len()];
         let mut unassigned: Vec<usize> = Vec::new();
         for (k, a) in assign.iter().enumerate() {
             match a {
@@ -615,7 +615,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             let mean = group.iter().fold([0.0, 0.0], |m, &k| {
                 [m[0] + preds[k].0[0] / n, m[1] + preds[k].0[1] / n]
             });
-            for &k in group {
+            for &k in group.iter() {
                 let (p, s) = preds[k];
                 let ti = live[k];
                 let x = d.x + p[0] - mean[0];
@@ -837,7 +837,7 @@ fn reacquire(
     live: &[usize],
     missing: &[usize],
     dets: &[Detection],
-    det_tracks: &mut [Vec<usize>],
+    det_tracks: &mut [Claimants],
     r: f64,
 ) -> Vec<usize> {
     let free: Vec<usize> = (0..dets.len())
@@ -959,6 +959,42 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
     let mid = v.len() / 2;
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The tracks (indices into the frame's live tracks) that claim one detection: almost always
+/// none or one, which are held without allocating; more spill to a vector.
+#[derive(Clone, Debug, Default)]
+struct Claimants {
+    /// The first claimant, while there is exactly one.
+    one: [usize; 1],
+    /// How many claimants there are.
+    count: usize,
+    /// Every claimant, once there are two or more.
+    many: Vec<usize>,
+}
+
+impl Claimants {
+    /// Adds track `k`.
+    fn push(&mut self, k: usize) {
+        match self.count {
+            0 => self.one[0] = k,
+            1 => self.many.extend([self.one[0], k]),
+            _ => self.many.push(k),
+        }
+        self.count += 1;
+    }
+}
+
+impl std::ops::Deref for Claimants {
+    type Target = [usize];
+
+    fn deref(&self) -> &[usize] {
+        match self.count {
+            0 => &[],
+            1 => &self.one,
+            _ => &self.many,
+        }
+    }
 }
 
 fn start_tracks(
@@ -1092,4 +1128,22 @@ fn collect_runs(events: &[(usize, AmbiguityKind, Vec<usize>)], tracks: &[Track])
     }
     out.sort_by(|a, b| (a.first_frame, a.kind, &a.particles).cmp(&(b.first_frame, b.kind, &b.particles)));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Claimants;
+
+    /// Claimants read back as the tracks pushed, in order, whether none, one or several.
+    #[test]
+    fn claimants_hold_what_was_pushed() {
+        let mut c = Claimants::default();
+        assert!(c.is_empty());
+        let mut want = Vec::new();
+        for k in [7, 3, 9, 3] {
+            c.push(k);
+            want.push(k);
+            assert_eq!(&c[..], &want[..]);
+        }
+    }
 }
