@@ -8,6 +8,7 @@
 //! a thousand 1x1 problems.
 
 use crate::disjoint_sets::DisjointSets;
+use crate::group_by_key::group_by_key;
 
 /// A gated, sparse assignment problem: `pairs` are the allowed (row, column, cost) triples;
 /// leaving row `r` unmatched costs `row_miss[r]`, column `c` costs `col_miss[c]`.
@@ -36,22 +37,22 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
     // on the component (rows and columns ascending, pairs in the problem's order): a crowded
     // frame has a thousand components, mostly one track and one blob, and a map of vectors
     // allocated two thousand of them a frame.
-    let mut component = vec![u32::MAX; nr + nc];
-    let mut count = 0u32;
-    let of: Vec<u32> = (0..nr + nc)
+    let mut component = vec![usize::MAX; nr + nc];
+    let mut count = 0;
+    let of: Vec<usize> = (0..nr + nc)
         .map(|v| {
             let root = sets.root(v);
-            if component[root] == u32::MAX {
+            if component[root] == usize::MAX {
                 component[root] = count;
                 count += 1;
             }
             component[root]
         })
         .collect();
-    let groups = count as usize;
-    let (row_start, rows) = by_component((0..nr).map(|r| (of[r], r)), groups);
-    let (col_start, cols) = by_component((0..nc).map(|c| (of[nr + c], c)), groups);
-    let (pair_start, pair_index) = by_component(
+    let groups = count;
+    let (row_start, rows) = group_by_key((0..nr).map(|r| (of[r], r)), groups);
+    let (col_start, cols) = group_by_key((0..nc).map(|c| (of[nr + c], c)), groups);
+    let (pair_start, pair_index) = group_by_key(
         problem.pairs.iter().enumerate().map(|(k, &(r, _, _))| (of[r], k)),
         groups,
     );
@@ -81,26 +82,6 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
         });
     }
     result
-}
-
-/// `items` (component, item) sorted by component, stably (a counting sort over `groups`
-/// components): the items, and where each component's start (`groups + 1` offsets).
-fn by_component(items: impl Iterator<Item = (u32, usize)>, groups: usize) -> (Vec<usize>, Vec<usize>) {
-    let items: Vec<(u32, usize)> = items.collect();
-    let mut start = vec![0usize; groups + 1];
-    for &(g, _) in &items {
-        start[g as usize + 1] += 1;
-    }
-    for g in 0..groups {
-        start[g + 1] += start[g];
-    }
-    let mut fill = start.clone();
-    let mut list = vec![0usize; items.len()];
-    for (g, item) in items {
-        list[fill[g as usize]] = item;
-        fill[g as usize] += 1;
-    }
-    (start, list)
 }
 
 /// Solves one connected component by successive shortest augmenting paths on the sparse

@@ -103,8 +103,8 @@ pub fn find_blobs(signal: &[f32], width: usize, height: usize, params: &DetectPa
 }
 
 /// Reusable buffers of [`find_blobs_with_scratch`]: the small box mean of the frame, the
-/// band-pass response of three rows, the filters' running sums and the labelling's runs. Holding one per worker thread means no frame
-/// allocates.
+/// band-pass response of three rows, the filters' running sums and the labelling's runs.
+/// Holding one per worker thread means no frame allocates.
 #[derive(Default, Debug)]
 pub struct Scratch {
     small: Vec<f32>,
@@ -155,11 +155,14 @@ pub fn find_blobs_with_scratch(
     // Mask thresholds per column and factors per row: sqrt(full count / count) of the small
     // box.
     let full = (2 * h + 1) as f64;
-    let mask_x: Vec<f32> = count_small_x
-        .iter()
-        .map(|&c| mask_t * (full / c).sqrt() as f32)
-        .collect();
-    let mask_fy: Vec<f32> = count_small_y.iter().map(|&c| (full / c).sqrt() as f32).collect();
+    let mask = MaskThresholds {
+        x: count_small_x
+            .iter()
+            .map(|&c| mask_t * (full / c).sqrt() as f32)
+            .collect(),
+        fy: count_small_y.iter().map(|&c| (full / c).sqrt() as f32).collect(),
+        h,
+    };
     // Pixels farther than this from every edge see full boxes (their thresholds are the
     // interior ones, already applied).
     let margin = big;
@@ -187,14 +190,14 @@ pub fn find_blobs_with_scratch(
     // Local maxima of the band-pass response in row `y` (strict against earlier neighbours in
     // raster order, non-strict against later ones, so a plateau yields one maximum per row
     // run).
+    let mut scan_mask: Vec<f32> = Vec::with_capacity(width);
     let mut scan = |y: usize, band: &[f32], large: &[f32], small: &[f32]| {
         let row = |yy: usize| &band[ring(yy)];
         let (brow, srow) = (row(y), &small[y * width..(y + 1) * width]);
         let row_test = RowTest {
             band: brow,
             small: srow,
-            mask: &mask_x,
-            fy: mask_fy[y],
+            mask: mask.row(y, &mut scan_mask),
             peak_min,
         };
         for x0 in (0..width).step_by(CHUNK) {
@@ -226,23 +229,14 @@ pub fn find_blobs_with_scratch(
             }
         }
     };
-    let mut edge_mask: Vec<f32> = Vec::with_capacity(width);
+    let mut row_mask: Vec<f32> = Vec::with_capacity(width);
     box_rows(signal, width, height, [h, big], filter, |y, s_row, l_row| {
         small[y * width..(y + 1) * width].copy_from_slice(s_row);
         for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
             *b = s - l;
         }
         large[ring(y)].copy_from_slice(l_row);
-        // The row's mask thresholds: the columns' own where the small box holds whole
-        // columns (`mask_fy` is 1 there), scaled in the rows near the top and bottom edges.
-        let thresholds = if y >= h && y + h < height {
-            &mask_x[..]
-        } else {
-            edge_mask.clear();
-            edge_mask.extend(mask_x.iter().map(|m| m * mask_fy[y]));
-            &edge_mask[..]
-        };
-        comps.push_row(y, s_row, thresholds);
+        comps.push_row(y, s_row, mask.row(y, &mut row_mask));
         if y > 0 {
             scan(y - 1, band, large, small);
         }
@@ -340,7 +334,7 @@ pub fn find_blobs_with_scratch(
         let region = match regions.region_at(i) {
             Some(r) => r,
             None => {
-                let floor = mask_x[x] * mask_fy[y];
+                let floor = mask.at(x, y);
                 let level = (peak.large + 0.5 * peak.band).max(floor);
                 regions.grow(small, width, height, i, level, cap)
             }
@@ -421,6 +415,36 @@ fn prefetch<T>(values: &[T], at: usize) {
     let _ = (values, at);
 }
 
+/// The noise-mask thresholds on the small box mean, grey levels: one per column (the box's
+/// column count), scaled in the rows near the top and bottom edges (its row count), where the
+/// box holds fewer pixels and its mean is noisier.
+struct MaskThresholds {
+    /// Each column's threshold in a row whose box holds whole columns.
+    x: Vec<f32>,
+    /// Each row's factor on them (1 away from the top and bottom edges).
+    fy: Vec<f32>,
+    /// Half-width of the small box, px.
+    h: usize,
+}
+
+impl MaskThresholds {
+    /// The threshold at pixel `(x, y)`.
+    fn at(&self, x: usize, y: usize) -> f32 {
+        self.x[x] * self.fy[y]
+    }
+
+    /// Row `y`'s thresholds: the columns' own where the row factor is 1, else written into
+    /// `buf`.
+    fn row<'a>(&'a self, y: usize, buf: &'a mut Vec<f32>) -> &'a [f32] {
+        if y >= self.h && y + self.h < self.fy.len() {
+            return &self.x;
+        }
+        buf.clear();
+        buf.extend(self.x.iter().map(|m| m * self.fy[y]));
+        buf
+    }
+}
+
 /// A local maximum of the band-pass response: where, and how strong.
 #[derive(Clone, Copy, Debug)]
 struct Peak {
@@ -442,9 +466,8 @@ struct RowTest<'a> {
     band: &'a [f32],
     /// The row's small box mean, grey levels.
     small: &'a [f32],
-    /// The mask threshold of each column, grey levels, before the row's factor `fy`.
+    /// The row's noise-mask threshold of each column, grey levels.
     mask: &'a [f32],
-    fy: f32,
     /// The interior peak threshold, grey levels.
     peak_min: f32,
 }
@@ -467,7 +490,7 @@ impl RowTest<'_> {
         (x0..x1).fold(0u32, |bits, x| {
             let v = band[x];
             let fails = v <= self.peak_min
-                || self.small[x] <= self.mask[x] * self.fy
+                || self.small[x] <= self.mask[x]
                 || (x > 0 && band[x - 1] >= v)
                 || (x + 1 < width && band[x + 1] > v);
             let pass = !fails;
@@ -486,7 +509,7 @@ impl RowTest<'_> {
     unsafe fn candidates_sse2(&self, x0: usize) -> u32 {
         use std::arch::x86_64::{
             _mm_and_ps, _mm_cmpnge_ps, _mm_cmpngt_ps, _mm_cmpnle_ps, _mm_loadu_ps, _mm_movemask_ps,
-            _mm_mul_ps, _mm_set1_ps,
+            _mm_set1_ps,
         };
         let n = self.band.len().min(self.small.len()).min(self.mask.len());
         assert!(x0 > 0 && x0 + CHUNK < n, "chunk at {x0} of {n}");
@@ -494,13 +517,13 @@ impl RowTest<'_> {
         // SAFETY: the loads read band[x - 1 ..= x + 4] and small, mask[x .. x + 4] for
         // x0 <= x < x0 + CHUNK, inside the slices by the assertion.
         unsafe {
-            let (peak_min, fy) = (_mm_set1_ps(self.peak_min), _mm_set1_ps(self.fy));
+            let peak_min = _mm_set1_ps(self.peak_min);
             for k in (0..CHUNK).step_by(4) {
                 let at = x0 + k;
                 let v = _mm_loadu_ps(self.band.as_ptr().add(at));
                 let left = _mm_loadu_ps(self.band.as_ptr().add(at - 1));
                 let right = _mm_loadu_ps(self.band.as_ptr().add(at + 1));
-                let mask = _mm_mul_ps(_mm_loadu_ps(self.mask.as_ptr().add(at)), fy);
+                let mask = _mm_loadu_ps(self.mask.as_ptr().add(at));
                 let pass = _mm_and_ps(
                     _mm_and_ps(
                         _mm_cmpnle_ps(v, peak_min),
@@ -1163,12 +1186,14 @@ mod tests {
                 // Few distinct levels, so that neighbours are often equal.
                 let band: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(0u8..6))).collect();
                 let small: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(0u8..4))).collect();
-                let mask: Vec<f32> = (0..width).map(|_| f32::from(rng.gen_range(1u8..3))).collect();
+                let fy = 1.0 + f32::from(rng.gen_range(0u8..2));
+                let mask: Vec<f32> = (0..width)
+                    .map(|_| f32::from(rng.gen_range(1u8..3)) * fy)
+                    .collect();
                 let test = RowTest {
                     band: &band,
                     small: &small,
                     mask: &mask,
-                    fy: 1.0 + f32::from(rng.gen_range(0u8..2)),
                     peak_min: 2.0,
                 };
                 for x0 in (0..width).step_by(CHUNK) {
@@ -1178,7 +1203,7 @@ mod tests {
                     for x in x0..x1 {
                         let v = band[x];
                         let pass = v > 2.0
-                            && small[x] > mask[x] * test.fy
+                            && small[x] > mask[x]
                             && (x == 0 || band[x - 1] < v)
                             && (x + 1 == width || band[x + 1] <= v);
                         assert_eq!(want >> (x - x0) & 1 == 1, pass, "width {width} at {x}");

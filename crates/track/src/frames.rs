@@ -150,9 +150,7 @@ pub fn frame_number(path: &Path) -> Option<u64> {
 /// Decodes one frame file (PNG 8/16-bit grey, grey+alpha, RGB, RGBA; JPEG) to a [`Frame`].
 /// Errors name the file: unreadable, empty, corrupt or truncated.
 pub fn load_frame(path: &Path) -> Result<Frame, TrackError> {
-    let mut frame = Frame::default();
-    FrameDecoder::default().load_into(path, &mut frame)?;
-    Ok(frame)
+    FrameDecoder::default().load(path)
 }
 
 /// Decodes frame files one after another into reused buffers (the file's bytes and its
@@ -166,6 +164,13 @@ pub struct FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// Decodes the frame file `path` (see [`load_frame`]) into a new frame.
+    pub fn load(&mut self, path: &Path) -> Result<Frame, TrackError> {
+        let mut frame = Frame::default();
+        self.load_into(path, &mut frame)?;
+        Ok(frame)
+    }
+
     /// Decodes the frame file `path` (see [`load_frame`]) into `frame`, reusing its buffer.
     pub fn load_into(&mut self, path: &Path, frame: &mut Frame) -> Result<(), TrackError> {
         use image::ImageDecoder;

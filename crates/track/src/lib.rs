@@ -9,6 +9,7 @@ mod detect;
 mod disjoint_sets;
 mod error;
 mod frames;
+mod group_by_key;
 mod link;
 mod locate;
 mod pipeline;

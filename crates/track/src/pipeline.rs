@@ -391,13 +391,16 @@ fn track_paths(
     // again from the image, jointly, and the motion judges once more which is which (see
     // `crate::shared`).
     if let Some(named) = options.named_start.as_deref() {
+        // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
+        // paged its buffers in again).
         let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-            let mut loaded = Frame::default();
-            let frame = frames.get(k - first, &mut FrameDecoder::default(), &mut loaded)?;
-            let mut signal = Vec::new();
-            background.signal_into(frame, &mut signal);
-            background.remove_gain(frame, &mut signal);
-            Ok(signal)
+            workers.with(|w| {
+                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                let mut signal = Vec::new();
+                background.signal_into(frame, &mut signal);
+                background.remove_gain(frame, &mut signal);
+                Ok(signal)
+            })
         };
         relocated = relocate_shared(
             &mut table.points,
@@ -543,10 +546,7 @@ fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<(Vec<usize>, 
     // One decoder per job, its buffers reused from frame to frame.
     let frames = picks
         .par_iter()
-        .map_init(FrameDecoder::default, |decoder, &i| {
-            let mut frame = Frame::default();
-            decoder.load_into(&paths[i].1, &mut frame).map(|()| frame)
-        })
+        .map_init(FrameDecoder::default, |decoder, &i| decoder.load(&paths[i].1))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
 }

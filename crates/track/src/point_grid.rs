@@ -2,6 +2,8 @@
 //! neighbour queries of linking (nearest other point, points within a radius) at a few cells
 //! a query and no allocation per query.
 
+use crate::group_by_key::group_by_key;
+
 /// Points (px) bucketed by cell, cells about one mean spacing wide.
 pub(crate) struct PointGrid<'a> {
     points: &'a [[f64; 2]],
@@ -12,9 +14,9 @@ pub(crate) struct PointGrid<'a> {
     /// Cells along x and y.
     dims: [usize; 2],
     /// Indices of the points sorted by cell (row-major cells).
-    sorted: Vec<u32>,
+    sorted: Vec<usize>,
     /// `sorted[start[c]..start[c + 1]]` are the points of cell `c`.
-    start: Vec<u32>,
+    start: Vec<usize>,
 }
 
 impl<'a> PointGrid<'a> {
@@ -43,23 +45,14 @@ impl<'a> PointGrid<'a> {
             lo,
             cell,
             dims,
-            sorted: vec![0; n],
-            start: vec![0; dims[0] * dims[1] + 1],
+            sorted: Vec::new(),
+            start: Vec::new(),
         };
-        for p in points {
+        let cells = points.iter().enumerate().map(|(i, p)| {
             let (cx, cy) = grid.cell_of(p);
-            grid.start[cy * dims[0] + cx + 1] += 1;
-        }
-        for i in 0..dims[0] * dims[1] {
-            grid.start[i + 1] += grid.start[i];
-        }
-        let mut fill = grid.start.clone();
-        for (i, p) in points.iter().enumerate() {
-            let (cx, cy) = grid.cell_of(p);
-            let c = cy * dims[0] + cx;
-            grid.sorted[fill[c] as usize] = i as u32;
-            fill[c] += 1;
-        }
+            (cy * dims[0] + cx, i)
+        });
+        (grid.start, grid.sorted) = group_by_key(cells, dims[0] * dims[1]);
         grid
     }
 
@@ -77,9 +70,9 @@ impl<'a> PointGrid<'a> {
     }
 
     /// The points of cell `(gx, gy)`.
-    fn in_cell(&self, gx: usize, gy: usize) -> &[u32] {
+    fn in_cell(&self, gx: usize, gy: usize) -> &[usize] {
         let c = gy * self.dims[0] + gx;
-        &self.sorted[self.start[c] as usize..self.start[c + 1] as usize]
+        &self.sorted[self.start[c]..self.start[c + 1]]
     }
 
     /// Distance from `p` to the nearest point at a distance above zero, px; infinite when
@@ -92,7 +85,7 @@ impl<'a> PointGrid<'a> {
         let mut best = f64::INFINITY;
         let scan = |gx: usize, gy: usize, best: &mut f64| {
             for &j in self.in_cell(gx, gy) {
-                let q = &self.points[j as usize];
+                let q = &self.points[j];
                 let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
                 if d > 0.0 && d < *best {
                     *best = d;
@@ -146,7 +139,7 @@ impl<'a> PointGrid<'a> {
         (y0..=y1).any(|gy| {
             (x0..=x1).any(|gx| {
                 self.in_cell(gx, gy).iter().any(|&j| {
-                    let q = &self.points[j as usize];
+                    let q = &self.points[j];
                     let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
                     d > 0.0 && d.sqrt() < radius
                 })
@@ -166,10 +159,10 @@ impl<'a> PointGrid<'a> {
         for gy in y0..=y1 {
             for gx in x0..=x1 {
                 for &j in self.in_cell(gx, gy) {
-                    let q = &self.points[j as usize];
+                    let q = &self.points[j];
                     let d = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);
                     if d <= r2 {
-                        f(j as usize, d);
+                        f(j, d);
                     }
                 }
             }

@@ -1016,11 +1016,7 @@ fn start_tracks(
         if taken[j] {
             continue;
         }
-        let nn = if pts.len() < 2 {
-            f64::INFINITY
-        } else {
-            grid.nearest_other(&pts[j])
-        };
+        let nn = grid.nearest_other(&pts[j]);
         let init = (0.5 * nn).min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
         let mut track = Track::new(
