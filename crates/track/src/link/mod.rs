@@ -148,6 +148,34 @@ struct Point {
     clean: bool,
 }
 
+/// The indices into a track's points that its motion is extrapolated from (see
+/// [`Track::anchors`]): the first `len` of `at`, newest first.
+#[derive(Clone, Copy, Debug, Default)]
+struct Anchors {
+    at: [usize; 3],
+    len: usize,
+}
+
+/// A track's extrapolations to the next frame (see [`Track::extrapolations`]).
+#[derive(Clone, Copy, Debug)]
+struct Extrapolations {
+    /// The newest anchor, an index into the track's points.
+    newest: Option<usize>,
+    /// Constant position, velocity and acceleration, px (`None` without enough anchors).
+    orders: [Option<[f64; 2]>; 3],
+}
+
+/// Where a track's particle is expected in the next frame.
+#[derive(Clone, Copy, Debug)]
+struct Prediction {
+    /// The predicted position, px.
+    at: [f64; 2],
+    /// The prediction's scale (one standard deviation of its error), px.
+    scale: f64,
+    /// The extrapolations it was chosen from, which the observation then grades.
+    ahead: Extrapolations,
+}
+
 #[derive(Clone, Debug)]
 struct Track {
     name: String,
@@ -199,22 +227,27 @@ impl Track {
     /// blob (split and bridged points are placed from predictions and carry no news),
     /// preferring those no other detection was near enough to share light with, as long as
     /// the newest of them is recent. Indices into `points`, newest first, at most three.
-    fn anchors(&self) -> Vec<usize> {
+    fn anchors(&self) -> Anchors {
         let detected = |p: &Point| p.flag == PointFlag::Detected;
         let newest = self.points.iter().rposition(detected);
-        let clean: Vec<usize> = (0..self.points.len())
-            .rev()
-            .filter(|&i| detected(&self.points[i]) && self.points[i].clean)
-            .take(3)
-            .collect();
+        let latest = |keep: &dyn Fn(&Point) -> bool| {
+            let mut found = Anchors::default();
+            for i in (0..self.points.len()).rev() {
+                if found.len == found.at.len() {
+                    break;
+                }
+                if keep(&self.points[i]) {
+                    found.at[found.len] = i;
+                    found.len += 1;
+                }
+            }
+            found
+        };
+        let clean = latest(&|p| detected(p) && p.clean);
         match newest {
-            Some(n) if clean.len() >= 2 && clean[0] + CLEAN_ANCHOR_AGE >= n => clean,
-            Some(_) => (0..self.points.len())
-                .rev()
-                .filter(|&i| detected(&self.points[i]))
-                .take(3)
-                .collect(),
-            None => Vec::new(),
+            Some(n) if clean.len >= 2 && clean.at[0] + CLEAN_ANCHOR_AGE >= n => clean,
+            Some(_) => latest(&detected),
+            None => Anchors::default(),
         }
     }
 
@@ -223,14 +256,19 @@ impl Track {
         [p.x, p.y]
     }
 
-    /// Polynomial extrapolation (Lagrange) through the first `k` of `anchors` (from
-    /// [`Track::anchors`]) to the next frame: constant position for 1, constant velocity
-    /// for 2, constant acceleration for 3.
-    fn extrapolate(&self, anchors: &[usize], k: usize) -> Option<[f64; 2]> {
-        (anchors.len() >= k).then(|| {
-            let knots: Vec<(f64, [f64; 2])> = anchors[..k].iter().map(|&i| (i as f64, self.at(i))).collect();
-            lagrange(&knots, self.points.len() as f64)
-        })
+    /// Polynomial extrapolations (Lagrange) through the first 1, 2 and 3 of the track's
+    /// [`Track::anchors`] to the next frame: constant position, constant velocity and
+    /// constant acceleration (`None` where there are too few anchors), px.
+    fn extrapolations(&self) -> Extrapolations {
+        let anchors = self.anchors();
+        let knots = anchors
+            .at
+            .map(|i| (i as f64, self.points.get(i).map_or([0.0; 2], |p| [p.x, p.y])));
+        let next = self.points.len() as f64;
+        Extrapolations {
+            newest: (anchors.len > 0).then_some(anchors.at[0]),
+            orders: [1, 2, 3].map(|k| (anchors.len >= k).then(|| lagrange(&knots[..k], next))),
+        }
     }
 
     /// Predicted position and prediction scale (px) for the next frame. With a bound on
@@ -238,11 +276,11 @@ impl Track {
     /// farther than the particle can have gone since its newest anchor, twice over (its
     /// velocity may have reversed), plus a particle diameter: a track whose residuals grew
     /// from a wrong link, or over a long merge, cannot reach across the frame.
-    fn predict(&self, floor: f64, step: Option<f64>, radius: f64) -> ([f64; 2], f64) {
+    fn predict(&self, floor: f64, step: Option<f64>, radius: f64) -> Prediction {
         let grow = 1.0 + (self.misses + self.merged) as f64;
-        let anchors = self.anchors();
+        let ahead = self.extrapolations();
         let n = self.points.len();
-        let newest = anchors.first().copied().unwrap_or(n - 1);
+        let newest = ahead.newest.unwrap_or(n - 1);
         // The errors were learned one frame ahead. Extrapolated `h` frames, the noise of
         // the quadratic term grows by about `h²` more than that of the line, so constant
         // acceleration is used across a gap only if it was that much better. Constant
@@ -264,24 +302,23 @@ impl Track {
             _ => 2,
         };
         let err = [self.err_cp, self.err_cv, self.err_ca][order - 1];
-        let (p, scale) = match (self.extrapolate(&anchors, order), err) {
+        let (p, scale) = match (ahead.orders[order - 1], err) {
             (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
             (Some(p), None) => (p, self.init_scale.max(floor) * grow),
             _ => (self.at(newest), self.init_scale.max(floor) * grow),
         };
-        match step {
-            Some(step) => (
-                p,
-                scale
-                    .min((2.0 * h * step + 2.0 * radius) / GATE_SIGMAS)
-                    .max(floor),
-            ),
-            None => (p, scale),
-        }
+        let scale = match step {
+            Some(step) => scale
+                .min((2.0 * h * step + 2.0 * radius) / GATE_SIGMAS)
+                .max(floor),
+            None => scale,
+        };
+        Prediction { at: p, scale, ahead }
     }
 
-    /// Updates the running prediction errors with an observation for the next frame.
-    fn learn(&mut self, obs: [f64; 2]) {
+    /// Updates the running prediction errors with an observation for the next frame, given
+    /// the extrapolations to that frame (from its [`Track::predict`]).
+    fn learn(&mut self, obs: [f64; 2], ahead: &Extrapolations) {
         let upd = |e: &mut Option<f64>, p: Option<[f64; 2]>| {
             if let Some(p) = p {
                 let r2 = (obs[0] - p[0]).powi(2) + (obs[1] - p[1]).powi(2);
@@ -291,12 +328,7 @@ impl Track {
                 });
             }
         };
-        let anchors = self.anchors();
-        let (cp, cv, ca) = (
-            self.extrapolate(&anchors, 1),
-            self.extrapolate(&anchors, 2),
-            self.extrapolate(&anchors, 3),
-        );
+        let [cp, cv, ca] = ahead.orders;
         upd(&mut self.err_cp, cp);
         upd(&mut self.err_cv, cv);
         upd(&mut self.err_ca, ca);
@@ -429,7 +461,8 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let dets = &fd.detections;
         let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
         let step = steps.bound();
-        let preds: Vec<([f64; 2], f64)> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
+        let predictions: Vec<Prediction> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
+        let preds: Vec<([f64; 2], f64)> = predictions.iter().map(|p| (p.at, p.scale)).collect();
         // Each track's appearance, computed when first asked for (only lone tracks with a
         // candidate in their gate use it).
         let looks: Vec<std::cell::OnceCell<Option<TrackAppearance>>> =
@@ -599,7 +632,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                         steps.push((d.x - last.x).hypot(d.y - last.y));
                     }
                 }
-                tracks[ti].learn([d.x, d.y]);
+                tracks[ti].learn([d.x, d.y], &predictions[group[0]].ahead);
                 tracks[ti].misses = 0;
                 tracks[ti].merged = 0;
                 tracks[ti].seen += 1;
