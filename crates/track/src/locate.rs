@@ -92,7 +92,8 @@ pub struct LocateScratch {
 struct RowBuffers {
     dx: Vec<f32>,
     s: Vec<f32>,
-    split: Vec<f32>,
+    /// The splits that cut the current row, as [`Row::splits`] holds them.
+    splits: Vec<[f32; 2]>,
 }
 
 /// [`refine_centroids`] with reusable buffers.
@@ -363,7 +364,6 @@ fn window_stats(
     let dx0 = (xa as f64 - c[0]) as f32;
     rows.dx.clear();
     rows.dx.extend((0..padded).map(|k| dx0 + k as f32));
-    rows.split.resize(padded, 1.0);
     rows.s.resize(padded, 0.0);
     let reach32 = reach as f32;
     let (dx_first, dx_last) = (rows.dx[0], rows.dx[n - 1]);
@@ -386,30 +386,22 @@ fn window_stats(
             rows.s[n..].fill(0.0);
             &rows.s
         };
-        let mut split_here = false;
+        rows.splits.clear();
         for &(nv, half) in splits {
             let (n0, n1) = (nv[0] as f32, nv[1] as f32);
             let base = half as f32 + 0.5 - dy * n1;
             // The split is 1 along the whole row when the row's nearest pixel to the
             // neighbour is a pixel short of the bisector.
-            if base - (dx_first * n0).max(dx_last * n0) >= 1.0 {
-                continue;
-            }
-            if !split_here {
-                rows.split.fill(1.0);
-                split_here = true;
-            }
-            for (f, dx) in rows.split.iter_mut().zip(&rows.dx) {
-                *f *= unit_ramp(base - dx * n0);
+            if base - (dx_first * n0).max(dx_last * n0) < 1.0 {
+                rows.splits.push([n0, base]);
             }
         }
-        let split = split_here.then_some(&rows.split[..]);
         accumulate_row(
             &mut acc,
             &Row {
                 dx: &rows.dx,
                 s: srow,
-                split,
+                splits: &rows.splits,
                 dy,
                 reach: reach32,
             },
@@ -426,6 +418,7 @@ fn window_stats(
 
 /// `x` clamped to `[0, 1]` as two selects, which vectorise (`f32::clamp`'s NaN rules made
 /// the compiler test each lane with a branch).
+#[cfg(any(test, not(target_arch = "x86_64")))]
 #[inline(always)]
 fn unit_ramp(x: f32) -> f32 {
     let x = if x > 1.0 { 1.0 } else { x };
@@ -434,18 +427,19 @@ fn unit_ramp(x: f32) -> f32 {
 }
 
 /// One window row as [`window_stats`] sums it, lane-padded alike: each pixel's offset from
-/// the centre `dx` (px), its signal `s` (grey levels) and its split factor (`None`: 1), the
-/// row's offset `dy` (px) and the window's ramp end `reach` (px).
+/// the centre `dx` (px) and its signal `s` (grey levels), the splits that cut the row (each
+/// `[n0, base]`: a pixel's split factor is `unit_ramp(base − dx n0)`, the product over the
+/// row's splits), the row's offset `dy` (px) and the window's ramp end `reach` (px).
 struct Row<'a> {
     dx: &'a [f32],
     s: &'a [f32],
-    split: Option<&'a [f32]>,
+    splits: &'a [[f32; 2]],
     dy: f32,
     reach: f32,
 }
 
 /// Adds `row` to the lane-wise sums `acc` of [`window_stats`]: per pixel the weight
-/// `w = unit_ramp(reach − r)` (times the split), then `w s`, `w s dx`, `w s dy`, `w s r²` and
+/// `w = unit_ramp(reach − r)` (times the split factor, formed first), then `w s`, `w s dx`, `w s dy`, `w s r²` and
 /// `w² r²`, each lane summing every fourth pixel.
 #[inline(always)]
 fn accumulate_row(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
@@ -463,13 +457,15 @@ fn accumulate_row(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
 fn accumulate_row_portable(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
     let dy2 = row.dy * row.dy;
     let chunks = row.dx.len().min(row.s.len()) / LANES;
-    let chunks = row.split.map_or(chunks, |f| chunks.min(f.len() / LANES));
     for (at, (&dx, &signal)) in row.dx.iter().zip(row.s).enumerate().take(chunks * LANES) {
         let l = at % LANES;
         let r2 = dx * dx + dy2;
         let mut w = unit_ramp(row.reach - r2.sqrt());
-        if let Some(f) = row.split {
-            w *= f[at];
+        if let Some((&[n0, base], rest)) = row.splits.split_first() {
+            let f = rest.iter().fold(unit_ramp(base - dx * n0), |f, &[n0, base]| {
+                f * unit_ramp(base - dx * n0)
+            });
+            w *= f;
         }
         let ws = w * signal;
         acc[0][l] += ws;
@@ -498,12 +494,11 @@ unsafe fn accumulate_row_sse2(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
     let Row {
         dx,
         s,
-        split,
+        splits,
         dy,
         reach,
     } = *row;
     let chunks = dx.len().min(s.len()) / LANES;
-    let chunks = split.map_or(chunks, |f| chunks.min(f.len() / LANES));
     // SAFETY (all loads and stores): `acc`'s rows hold LANES values each, and chunk `c` reads
     // elements LANES c .. LANES (c + 1), within every slice by the bound on `chunks`.
     unsafe {
@@ -515,8 +510,15 @@ unsafe fn accumulate_row_sse2(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
             let d = _mm_loadu_ps(dx.as_ptr().add(at));
             let r2 = _mm_add_ps(_mm_mul_ps(d, d), dy2);
             let mut w = _mm_max_ps(_mm_min_ps(_mm_sub_ps(reachv, _mm_sqrt_ps(r2)), one), zero);
-            if let Some(f) = split {
-                w = _mm_mul_ps(w, _mm_loadu_ps(f.as_ptr().add(at)));
+            if let Some((&[n0, base], rest)) = splits.split_first() {
+                let ramp = |n0: f32, base: f32| {
+                    let x = _mm_sub_ps(_mm_set1_ps(base), _mm_mul_ps(d, _mm_set1_ps(n0)));
+                    _mm_max_ps(_mm_min_ps(x, one), zero)
+                };
+                let f = rest
+                    .iter()
+                    .fold(ramp(n0, base), |f, &[n0, base]| _mm_mul_ps(f, ramp(n0, base)));
+                w = _mm_mul_ps(w, f);
             }
             let ws = _mm_mul_ps(w, _mm_loadu_ps(s.as_ptr().add(at)));
             sums[0] = _mm_add_ps(sums[0], ws);
@@ -569,8 +571,9 @@ fn neighbour_lists(points: &[[f64; 2]], reach: f64, neighbours: &mut Vec<u32>, o
 mod tests {
     use super::*;
 
-    /// The SSE2 row sums equal the portable loop's to the bit, with and without splits, on
-    /// rows that reach past the window and rows wholly inside it.
+    /// The SSE2 row sums equal the portable loop's to the bit, with none, one and three
+    /// splits (cutting the row or not), on rows that reach past the window and rows wholly
+    /// inside it.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn sse2_row_sums_equal_the_portable_loop() {
@@ -581,13 +584,19 @@ mod tests {
             let dx0 = -(n as f32) / 2.0 + rng.gen::<f32>();
             let dx: Vec<f32> = (0..n).map(|k| dx0 + k as f32).collect();
             let s: Vec<f32> = (0..n).map(|_| rng.gen_range(-20.0..230.0)).collect();
-            let split: Vec<f32> = (0..n).map(|_| rng.gen::<f32>()).collect();
+            // Bisectors at random angles and offsets, cutting the row or not.
+            let cuts: Vec<[f32; 2]> = (0..3)
+                .map(|_| {
+                    let angle = rng.gen_range(0.0..std::f32::consts::TAU);
+                    [angle.cos(), rng.gen_range(-3.0..6.0)]
+                })
+                .collect();
             let (dy, reach) = (rng.gen_range(-3.0..3.0), rng.gen_range(2.0..6.0));
-            for with_split in [None, Some(&split[..])] {
+            for splits in [&cuts[..0], &cuts[..1], &cuts[..]] {
                 let row = Row {
                     dx: &dx,
                     s: &s,
-                    split: with_split,
+                    splits,
                     dy,
                     reach,
                 };
@@ -597,7 +606,7 @@ mod tests {
                 // SAFETY: every x86_64 has SSE2.
                 unsafe { accumulate_row_sse2(&mut b, &row) };
                 let bits = |m: [[f32; LANES]; 5]| m.map(|r| r.map(f32::to_bits));
-                assert_eq!(bits(a), bits(b), "case {case}, split {}", with_split.is_some());
+                assert_eq!(bits(a), bits(b), "case {case}, {} splits", splits.len());
             }
         }
     }
