@@ -336,7 +336,14 @@ pub fn find_blobs_with_scratch(
             None => {
                 let floor = mask.at(x, y);
                 let level = (peak.large + 0.5 * peak.band).max(floor);
-                regions.grow(small, width, height, i, level, cap)
+                let fill = Fill {
+                    image: small,
+                    width,
+                    height,
+                    level,
+                    cap,
+                };
+                regions.grow(&fill, i)
             }
         };
         if region >= seeds_per.len() {
@@ -801,126 +808,104 @@ impl Regions {
         (r != u32::MAX).then_some(r as usize)
     }
 
-    /// Grows a new region from `seed` over the 8-connected unclaimed pixels where `image` is
-    /// at least `level`, stopping after `cap` pixels; returns its index.
+    /// Whether pixel `q` is free for `fill` to take: unclaimed and at least its level.
+    fn open(&self, fill: &Fill<'_>, q: usize) -> bool {
+        self.owner[q] == u32::MAX && fill.image[q] >= fill.level
+    }
+
+    /// Gives pixel `q` to region `id`.
+    fn claim(&mut self, q: usize, id: u32) {
+        self.owner[q] = id;
+        self.claimed.push(q as u32);
+    }
+
+    /// Grows a new region from `seed` over the 8-connected pixels open to `fill`, stopping
+    /// after its cap; returns the region's index.
     ///
     /// Span by span: a row's run of such pixels is claimed whole, then the rows above and
     /// below are searched under it (one pixel wider each side, for the diagonals) for runs
     /// to claim next. Each pixel is tested about three times, not nine as when each claimed
-    /// pixel tests its eight neighbours. A region that reaches `cap` (a large object) is
+    /// pixel tests its eight neighbours. A region that reaches the cap (a large object) is
     /// grown again pixel by pixel ([`Regions::grow_pixels`]): which of its pixels a capped
     /// region holds depends on the order of the fill, and the other candidates inside the
     /// object share it or grow their own accordingly.
-    fn grow(
-        &mut self,
-        image: &[f32],
-        width: usize,
-        height: usize,
-        seed: usize,
-        level: f32,
-        cap: usize,
-    ) -> usize {
+    fn grow(&mut self, fill: &Fill<'_>, seed: usize) -> usize {
         let first_claim = self.claimed.len();
-        if let Some(id) = self.grow_spans(image, width, height, seed, level, cap) {
+        if let Some(id) = self.grow_spans(fill, seed) {
             return id;
         }
         for &p in &self.claimed[first_claim..] {
             self.owner[p as usize] = u32::MAX;
         }
         self.claimed.truncate(first_claim);
-        self.grow_pixels(image, width, height, seed, level, cap)
+        self.grow_pixels(fill, seed)
     }
 
     /// [`Regions::grow`] span by span, or `None` (its pixels left claimed) when the region
-    /// reaches `cap` pixels.
-    fn grow_spans(
-        &mut self,
-        image: &[f32],
-        width: usize,
-        height: usize,
-        seed: usize,
-        level: f32,
-        cap: usize,
-    ) -> Option<usize> {
+    /// reaches the cap.
+    fn grow_spans(&mut self, fill: &Fill<'_>, seed: usize) -> Option<usize> {
+        let (width, height) = (fill.width, fill.height);
         let id = self.area.len() as u32;
         let (sx, sy) = (seed % width, seed / width);
         // The seed is the region's first pixel whatever its value; its row's run extends
         // from it both ways.
-        self.owner[seed] = id;
-        self.claimed.push(seed as u32);
-        let run = self.claim_run(image, width, sy, sx, sx, level, id);
-        let mut area = run.1 - run.0 + 1;
+        self.claim(seed, id);
+        let (a, b) = self.claim_run(fill, sy, sx, id);
+        let mut area = b - a + 1;
         let mut border = false;
         self.spans.clear();
-        self.spans.push((run.0 as u32, run.1 as u32, sy as u32));
+        self.spans.push((a as u32, b as u32, sy as u32));
+        // Every claimed run is pushed, so the cap is checked after each growth.
         while let Some((x0, x1, y)) = self.spans.pop() {
-            let (x0, x1, y) = (x0 as usize, x1 as usize, y as usize);
-            border |= x0 == 0 || y == 0 || x1 + 1 == width || y + 1 == height;
-            if area >= cap {
+            if area >= fill.cap {
                 return None;
             }
-            for yy in [y.wrapping_sub(1), y + 1] {
-                if yy >= height {
-                    continue;
-                }
-                let row = yy * width;
+            let (x0, x1, y) = (x0 as usize, x1 as usize, y as usize);
+            border |= x0 == 0 || y == 0 || x1 + 1 == width || y + 1 == height;
+            for yy in [y.wrapping_sub(1), y + 1].into_iter().filter(|&yy| yy < height) {
                 let mut x = x0.saturating_sub(1);
-                let end = (x1 + 1).min(width - 1);
-                while x <= end {
-                    let q = row + x;
-                    if self.owner[q] == u32::MAX && image[q] >= level {
-                        self.owner[q] = id;
-                        self.claimed.push(q as u32);
-                        let (a, b) = self.claim_run(image, width, yy, x, x, level, id);
-                        area += b - a + 1;
-                        self.spans.push((a as u32, b as u32, yy as u32));
-                        x = b + 2;
-                    } else {
+                while x <= (x1 + 1).min(width - 1) {
+                    let q = yy * width + x;
+                    if !self.open(fill, q) {
                         x += 1;
+                        continue;
                     }
+                    self.claim(q, id);
+                    let (a, b) = self.claim_run(fill, yy, x, id);
+                    area += b - a + 1;
+                    self.spans.push((a as u32, b as u32, yy as u32));
+                    x = b + 2;
                 }
             }
-        }
-        if area >= cap {
-            return None;
         }
         self.area.push(area);
         self.border.push(border);
         Some(id as usize)
     }
 
-    /// [`Regions::grow`] pixel by pixel: each claimed pixel claims its unclaimed 8-neighbours
-    /// at least `level`, until the region holds `cap` pixels.
-    fn grow_pixels(
-        &mut self,
-        image: &[f32],
-        width: usize,
-        height: usize,
-        seed: usize,
-        level: f32,
-        cap: usize,
-    ) -> usize {
-        let id = self.area.len();
+    /// [`Regions::grow`] pixel by pixel: each claimed pixel claims its 8-neighbours open to
+    /// `fill`, until the region holds its cap.
+    fn grow_pixels(&mut self, fill: &Fill<'_>, seed: usize) -> usize {
+        let (width, height) = (fill.width, fill.height);
+        let id = self.area.len() as u32;
         let mut area = 0;
         let mut border = false;
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
         stack.push(((seed % width) as u32, (seed / width) as u32));
-        self.owner[seed] = id as u32;
-        self.claimed.push(seed as u32);
+        self.claim(seed, id);
         while let Some((x, y)) = stack.pop() {
             let (x, y) = (x as usize, y as usize);
             area += 1;
             border |= x == 0 || y == 0 || x + 1 == width || y + 1 == height;
-            if area + stack.len() >= cap {
+            if area + stack.len() >= fill.cap {
                 continue;
             }
             for yy in y.saturating_sub(1)..=(y + 1).min(height - 1) {
                 for xx in x.saturating_sub(1)..=(x + 1).min(width - 1) {
                     let q = yy * width + xx;
-                    if self.owner[q] == u32::MAX && image[q] >= level {
-                        self.owner[q] = id as u32;
-                        self.claimed.push(q as u32);
+                    if self.open(fill, q) {
+                        self.claim(q, id);
                         stack.push((xx as u32, yy as u32));
                     }
                 }
@@ -929,35 +914,34 @@ impl Regions {
         self.stack = stack;
         self.area.push(area);
         self.border.push(border);
-        id
+        id as usize
     }
 
-    /// Extends the claimed run `[x0, x1]` of row `y` left and right over unclaimed pixels at
-    /// least `level`, claiming them for region `id`; returns the run's ends (inclusive).
-    #[allow(clippy::too_many_arguments)]
-    fn claim_run(
-        &mut self,
-        image: &[f32],
-        width: usize,
-        y: usize,
-        mut x0: usize,
-        mut x1: usize,
-        level: f32,
-        id: u32,
-    ) -> (usize, usize) {
-        let row = y * width;
-        while x0 > 0 && self.owner[row + x0 - 1] == u32::MAX && image[row + x0 - 1] >= level {
+    /// Extends the claimed pixel `x` of row `y` left and right over the pixels open to
+    /// `fill`, claiming them for region `id`; returns the run's ends (inclusive).
+    fn claim_run(&mut self, fill: &Fill<'_>, y: usize, x: usize, id: u32) -> (usize, usize) {
+        let row = y * fill.width;
+        let (mut x0, mut x1) = (x, x);
+        while x0 > 0 && self.open(fill, row + x0 - 1) {
             x0 -= 1;
-            self.owner[row + x0] = id;
-            self.claimed.push((row + x0) as u32);
+            self.claim(row + x0, id);
         }
-        while x1 + 1 < width && self.owner[row + x1 + 1] == u32::MAX && image[row + x1 + 1] >= level {
+        while x1 + 1 < fill.width && self.open(fill, row + x1 + 1) {
             x1 += 1;
-            self.owner[row + x1] = id;
-            self.claimed.push((row + x1) as u32);
+            self.claim(row + x1, id);
         }
         (x0, x1)
     }
+}
+
+/// What a blob's flood fill spreads over: the pixels of `image` (`width` x `height`, the
+/// small box mean, grey levels) at least `level`, until the region holds `cap` pixels.
+struct Fill<'a> {
+    image: &'a [f32],
+    width: usize,
+    height: usize,
+    level: f32,
+    cap: usize,
 }
 
 /// Pixels in a box of half-width `h` about each position along an axis of `len` pixels
@@ -1272,8 +1256,15 @@ mod tests {
                         );
                         continue;
                     }
-                    let r = spans.grow(&image, w, h, seed, 0.5, cap);
-                    let want = pixels.grow_pixels(&image, w, h, seed, 0.5, cap);
+                    let fill = Fill {
+                        image: &image,
+                        width: w,
+                        height: h,
+                        level: 0.5,
+                        cap,
+                    };
+                    let r = spans.grow(&fill, seed);
+                    let want = pixels.grow_pixels(&fill, seed);
                     let of = |regions: &Regions, r: usize| -> Vec<usize> {
                         (0..w * h).filter(|&q| regions.region_at(q) == Some(r)).collect()
                     };

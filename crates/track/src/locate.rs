@@ -439,8 +439,8 @@ struct Row<'a> {
 }
 
 /// Adds `row` to the lane-wise sums `acc` of [`window_stats`]: per pixel the weight
-/// `w = unit_ramp(reach − r)` (times the split factor, formed first), then `w s`, `w s dx`, `w s dy`, `w s r²` and
-/// `w² r²`, each lane summing every fourth pixel.
+/// `w = unit_ramp(reach − r)` (times the split factor, formed first), then `w s`, `w s dx`,
+/// `w s dy`, `w s r²` and `w² r²`, each lane summing every fourth pixel.
 #[inline(always)]
 fn accumulate_row(acc: &mut [[f32; LANES]; 5], row: &Row<'_>) {
     #[cfg(target_arch = "x86_64")]

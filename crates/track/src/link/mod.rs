@@ -461,8 +461,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         let dets = &fd.detections;
         let live: Vec<usize> = (0..tracks.len()).filter(|&i| !tracks[i].ended).collect();
         let step = steps.bound();
-        let predictions: Vec<Prediction> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
-        let preds: Vec<([f64; 2], f64)> = predictions.iter().map(|p| (p.at, p.scale)).collect();
+        let preds: Vec<Prediction> = live.iter().map(|&i| tracks[i].predict(floor, step, r)).collect();
         // Each track's appearance, computed when first asked for (only lone tracks with a
         // candidate in their gate use it).
         let looks: Vec<std::cell::OnceCell<Option<TrackAppearance>>> =
@@ -475,13 +474,13 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
         // Appearance tells a particle from untracked objects (a hand, a reflection). Among
         // tracked particles that come close, images merge and share light, so there motion
         // alone decides: only a track whose prediction has no other within reach uses it.
-        let pred_points: Vec<[f64; 2]> = preds.iter().map(|p| p.0).collect();
+        let pred_points: Vec<[f64; 2]> = preds.iter().map(|p| p.at).collect();
         let pred_grid = PointGrid::new(&pred_points);
         // Lone: no other prediction within reach, allowing two scales of this track's own
         // prediction error.
         let lone: Vec<bool> = preds
             .iter()
-            .map(|(p, s)| !pred_grid.any_other_within(p, crowd + 2.0 * s))
+            .map(|p| !pred_grid.any_other_within(&p.at, crowd + 2.0 * p.scale))
             .collect();
         // The appearance cost of giving track `k` detection `j` (sum of the squared
         // standardised changes of log mass and size), or `None` when its square root
@@ -521,7 +520,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             row_miss: vec![2.0 * GATE_SIGMAS * GATE_SIGMAS; live.len()],
             col_miss: vec![0.0; cols.count()],
         };
-        for (k, &(p, s)) in preds.iter().enumerate() {
+        for (k, &Prediction { at: p, scale: s, .. }) in preds.iter().enumerate() {
             grid.within(&p, GATE_SIGMAS * s, |j, d2| {
                 if let Some(look) = look_cost(k, j, APPEARANCE_GATE_SIGMAS) {
                     cols.push_pairs(&mut problem, k, j, d2 / (s * s) + look);
@@ -549,7 +548,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                 still.push(k);
                 continue;
             }
-            let p = preds[k].0;
+            let p = preds[k].at;
             // Only a blob whose light says it holds more particles than it was given:
             // otherwise two tracks would glue onto one particle, and the other particle, left
             // unclaimed nearby, would be lost for good.
@@ -583,7 +582,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             if !named && tracks[live[k]].seen < 2 {
                 continue;
             }
-            let (p, s) = preds[k];
+            let Prediction { at: p, scale: s, .. } = preds[k];
             let g = (GATE_SIGMAS * s * 2.0).max(2.0 * r + speed(&tracks[live[k]]));
             for (b, &j) in free.iter().enumerate() {
                 let d2 = (points[j][0] - p[0]).powi(2) + (points[j][1] - p[1]).powi(2);
@@ -632,7 +631,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                         steps.push((d.x - last.x).hypot(d.y - last.y));
                     }
                 }
-                tracks[ti].learn([d.x, d.y], &predictions[group[0]].ahead);
+                tracks[ti].learn([d.x, d.y], &preds[group[0]].ahead);
                 tracks[ti].misses = 0;
                 tracks[ti].merged = 0;
                 tracks[ti].seen += 1;
@@ -646,10 +645,10 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             }
             let n = group.len() as f64;
             let mean = group.iter().fold([0.0, 0.0], |m, &k| {
-                [m[0] + preds[k].0[0] / n, m[1] + preds[k].0[1] / n]
+                [m[0] + preds[k].at[0] / n, m[1] + preds[k].at[1] / n]
             });
             for &k in group.iter() {
-                let (p, s) = preds[k];
+                let Prediction { at: p, scale: s, .. } = preds[k];
                 let ti = live[k];
                 let x = d.x + p[0] - mean[0];
                 let y = d.y + p[1] - mean[1];
@@ -673,7 +672,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             events.push((t, AmbiguityKind::Merged, group.iter().map(|&k| live[k]).collect()));
         }
         for &k in &missing {
-            let (p, s) = preds[k];
+            let Prediction { at: p, scale: s, .. } = preds[k];
             let ti = live[k];
             let tr = &mut tracks[ti];
             tr.misses += 1;
