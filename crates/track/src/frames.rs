@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use image::DynamicImage;
 
+use crate::png_reader::{read_png, PngImage, PngScratch};
 use crate::TrackError;
 
 /// One decoded frame: `channels` interleaved `f32` samples per pixel, row-major, on the
@@ -161,6 +162,8 @@ pub struct FrameDecoder {
     file: Vec<u8>,
     /// The last image's samples as decoded (the file's own channel layout and depth).
     samples: Vec<u8>,
+    /// The 8-bit PNG reader's buffers.
+    png: PngScratch,
 }
 
 impl FrameDecoder {
@@ -189,6 +192,18 @@ impl FrameDecoder {
         };
         if self.file.is_empty() {
             return Err(decode_err("the file is empty".into()));
+        }
+        // 8-bit PNG, the commonest frame file, through the tracker's own reader; every other
+        // file through the general decoders.
+        let png = read_png(&self.file, &mut self.samples, &mut self.png)
+            .map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
+        if let Some(PngImage {
+            colour,
+            width,
+            height,
+        }) = png
+        {
+            return samples_to_frame(&self.samples, colour, (width, height), frame).map_err(decode_err);
         }
         let decoder = image::ImageReader::new(Cursor::new(&self.file))
             .with_guessed_format()

@@ -13,6 +13,7 @@ mod group_by_key;
 mod link;
 mod locate;
 mod pipeline;
+mod png_reader;
 mod point_grid;
 mod score;
 mod shared;

@@ -1,0 +1,309 @@
+//! Reading the commonest frame files, non-interlaced 8-bit PNG (grey, grey + alpha, RGB,
+//! RGBA), without the general decoder's row-at-a-time unfiltering (see [`unfilter`]).
+//!
+//! The file's chunks are walked and their checksums verified, the image data inflated in one
+//! call (fdeflate, the PNG crate's own inflater) and unfiltered sixteen rows at a time. Every
+//! other PNG (palette, 16-bit, interlaced, an unknown critical chunk) is left to the general
+//! decoder.
+
+mod unfilter;
+
+use image::ColorType;
+
+/// The eight bytes every PNG file starts with.
+const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+
+/// Largest decoded image this reader takes on, bytes; a larger one is left to the general
+/// decoder, whose limits then apply.
+const MAX_BYTES: usize = 1 << 30;
+
+/// Reusable buffers of [`read_png`]: the image data as stored and as inflated, and the
+/// unfiltering's.
+#[derive(Debug, Default)]
+pub(crate) struct PngScratch {
+    compressed: Vec<u8>,
+    filtered: Vec<u8>,
+    unfilter: unfilter::Scratch,
+}
+
+/// An image [`read_png`] decoded: its samples' layout and size (px).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct PngImage {
+    pub colour: ColorType,
+    pub width: usize,
+    pub height: usize,
+}
+
+/// Decodes `file` into `samples` (8-bit samples, the file's channels interleaved, rows back to
+/// back) if it is a PNG this reader handles: `Ok(None)` when it is not (not a PNG, or one
+/// for the general decoder), an error message when it is corrupt or truncated.
+pub(crate) fn read_png(
+    file: &[u8],
+    samples: &mut Vec<u8>,
+    scratch: &mut PngScratch,
+) -> Result<Option<PngImage>, String> {
+    if !file.starts_with(&SIGNATURE) {
+        return Ok(None);
+    }
+    let mut header: Option<Header> = None;
+    scratch.compressed.clear();
+    let mut at = SIGNATURE.len();
+    let mut ended = false;
+    while at < file.len() {
+        let chunk = Chunk::at(file, at)?;
+        at = chunk.end;
+        match &chunk.kind {
+            b"IHDR" => match Header::parse(chunk.data)? {
+                Some(h) => header = Some(h),
+                None => return Ok(None),
+            },
+            b"IDAT" if header.is_none() => return Err("image data before the header".into()),
+            b"IDAT" => scratch.compressed.extend_from_slice(chunk.data),
+            b"IEND" => {
+                ended = true;
+                break;
+            }
+            b"PLTE" => {}
+            // An unknown critical chunk (upper-case first letter): the general decoder decides.
+            kind if kind[0].is_ascii_uppercase() => return Ok(None),
+            _ => {}
+        }
+    }
+    let header = header.ok_or("no image header (IHDR chunk)")?;
+    let row = header.width * header.bpp;
+    let Some(bytes) = row.checked_mul(header.height).filter(|&b| b <= MAX_BYTES) else {
+        return Ok(None);
+    };
+    let filtered_len = bytes + header.height;
+    scratch.filtered.clear();
+    scratch.filtered.resize(filtered_len, 0);
+    let mut inflater = fdeflate::Decompressor::new();
+    // Every byte of the compressed stream is covered by its chunk's CRC, already checked.
+    inflater.ignore_adler32();
+    let ends_early = if ended { "" } else { " (the file ends early)" };
+    let written = match inflater.read(&scratch.compressed, &mut scratch.filtered, 0, true) {
+        Ok((_, written)) => written,
+        Err(fdeflate::DecompressionError::InsufficientInput) => {
+            return Err(format!(
+                "truncated image data: the compressed stream stops short{ends_early}"
+            ))
+        }
+        Err(e) => return Err(format!("corrupt image data: {e:?}")),
+    };
+    if written < filtered_len {
+        return Err(format!(
+            "truncated image data: {written} of {filtered_len} bytes{ends_early}"
+        ));
+    }
+    samples.clear();
+    samples.resize(bytes, 0);
+    unfilter::unfilter(&scratch.filtered, row, header.bpp, samples, &mut scratch.unfilter)
+        .map_err(|bad| format!("unknown filter type {} in row {}", bad.kind, bad.row))?;
+    Ok(Some(PngImage {
+        colour: header.colour,
+        width: header.width,
+        height: header.height,
+    }))
+}
+
+/// One chunk of a PNG file: its type, its data and where the next chunk starts.
+struct Chunk<'a> {
+    kind: [u8; 4],
+    data: &'a [u8],
+    end: usize,
+}
+
+impl<'a> Chunk<'a> {
+    /// The chunk starting at byte `at` of `file`, its CRC checked.
+    fn at(file: &'a [u8], at: usize) -> Result<Chunk<'a>, String> {
+        let word = |i: usize| -> Option<u32> {
+            let b = file.get(i..i + 4)?;
+            Some(u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
+        };
+        let truncated = || format!("truncated: the chunk at byte {at} runs past the end of the file");
+        let len = word(at).ok_or_else(truncated)? as usize;
+        let kind: [u8; 4] = file
+            .get(at + 4..at + 8)
+            .ok_or_else(truncated)?
+            .try_into()
+            .expect("four bytes");
+        let end = at + 12 + len;
+        let crc = word(at + 8 + len).ok_or_else(truncated)?;
+        let name = String::from_utf8_lossy(&kind).into_owned();
+        if !kind.iter().all(u8::is_ascii_alphabetic) {
+            return Err(format!("not a chunk type at byte {at}: {name:?}"));
+        }
+        if crc32fast::hash(&file[at + 4..at + 8 + len]) != crc {
+            return Err(format!("the {name} chunk at byte {at} fails its checksum (CRC)"));
+        }
+        Ok(Chunk {
+            kind,
+            data: &file[at + 8..at + 8 + len],
+            end,
+        })
+    }
+}
+
+/// What the header says of an image this reader decodes.
+struct Header {
+    width: usize,
+    height: usize,
+    colour: ColorType,
+    /// Bytes per pixel.
+    bpp: usize,
+}
+
+impl Header {
+    /// The image header chunk's `data`: `None` for an image left to the general decoder.
+    fn parse(data: &[u8]) -> Result<Option<Header>, String> {
+        if data.len() != 13 {
+            return Err(format!("an image header of {} bytes instead of 13", data.len()));
+        }
+        let width = u32::from_be_bytes([data[0], data[1], data[2], data[3]]) as usize;
+        let height = u32::from_be_bytes([data[4], data[5], data[6], data[7]]) as usize;
+        let (depth, colour_type, compression, filter, interlace) =
+            (data[8], data[9], data[10], data[11], data[12]);
+        if width == 0 || height == 0 {
+            return Err(format!("an image of {width}x{height} pixels"));
+        }
+        let (colour, bpp) = match colour_type {
+            0 => (ColorType::L8, 1),
+            4 => (ColorType::La8, 2),
+            2 => (ColorType::Rgb8, 3),
+            6 => (ColorType::Rgba8, 4),
+            _ => return Ok(None),
+        };
+        if depth != 8 || compression != 0 || filter != 0 || interlace != 0 {
+            return Ok(None);
+        }
+        Ok(Some(Header {
+            width,
+            height,
+            colour,
+            bpp,
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    use image::{DynamicImage, ImageEncoder};
+    use rand::{Rng, SeedableRng};
+
+    /// `img` as a PNG file, each row filtered with `filter`.
+    fn encode(img: &DynamicImage, filter: FilterType) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        PngEncoder::new_with_quality(&mut bytes, CompressionType::Fast, filter)
+            .write_image(img.as_bytes(), img.width(), img.height(), img.color().into())
+            .unwrap();
+        bytes
+    }
+
+    /// A noisy image with a smooth gradient, of every 8-bit layout.
+    fn noisy(colour: ColorType, w: u32, h: u32, seed: u64) -> DynamicImage {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let channels = u32::from(colour.channel_count());
+        let data: Vec<u8> = (0..w * h * channels)
+            .map(|i| {
+                let x = (i / channels) % w;
+                (30 + x * 100 / w + rng.gen_range(0..20)) as u8
+            })
+            .collect();
+        match colour {
+            ColorType::L8 => DynamicImage::ImageLuma8(image::GrayImage::from_raw(w, h, data).unwrap()),
+            ColorType::La8 => DynamicImage::ImageLumaA8(image::GrayAlphaImage::from_raw(w, h, data).unwrap()),
+            ColorType::Rgb8 => DynamicImage::ImageRgb8(image::RgbImage::from_raw(w, h, data).unwrap()),
+            _ => DynamicImage::ImageRgba8(image::RgbaImage::from_raw(w, h, data).unwrap()),
+        }
+    }
+
+    /// Every 8-bit layout, every filter choice and sizes on both sides of the wavefront's
+    /// group decode to the general decoder's samples.
+    #[test]
+    fn decodes_as_the_general_decoder() {
+        let mut scratch = PngScratch::default();
+        let mut samples = Vec::new();
+        let layouts = [ColorType::L8, ColorType::La8, ColorType::Rgb8, ColorType::Rgba8];
+        let filters = [
+            FilterType::NoFilter,
+            FilterType::Sub,
+            FilterType::Up,
+            FilterType::Avg,
+            FilterType::Paeth,
+            FilterType::Adaptive,
+        ];
+        for (k, &colour) in layouts.iter().enumerate() {
+            for &filter in &filters {
+                for (w, h) in [(1, 1), (7, 3), (33, 17), (64, 48)] {
+                    let img = noisy(colour, w, h, k as u64 * 100 + u64::from(w));
+                    let file = encode(&img, filter);
+                    let got = read_png(&file, &mut samples, &mut scratch).unwrap().unwrap();
+                    assert_eq!(
+                        got,
+                        PngImage {
+                            colour,
+                            width: w as usize,
+                            height: h as usize
+                        }
+                    );
+                    let want = image::load_from_memory(&file).unwrap();
+                    assert!(samples == want.as_bytes(), "{colour:?} {filter:?} {w}x{h}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn other_pngs_and_other_files_are_left_to_the_general_decoder() {
+        let mut scratch = PngScratch::default();
+        let mut samples = Vec::new();
+        let deep = DynamicImage::ImageLuma16(image::ImageBuffer::from_raw(4, 4, vec![1000u16; 16]).unwrap());
+        let file = encode(&deep, FilterType::Sub);
+        assert_eq!(read_png(&file, &mut samples, &mut scratch), Ok(None));
+        assert_eq!(read_png(b"GIF89a....", &mut samples, &mut scratch), Ok(None));
+    }
+
+    #[test]
+    fn corrupt_and_truncated_files_are_refused_with_the_reason() {
+        let mut scratch = PngScratch::default();
+        let mut samples = Vec::new();
+        let file = encode(&noisy(ColorType::L8, 40, 30, 1), FilterType::Avg);
+        // Cut inside the image data.
+        let e = read_png(&file[..file.len() / 2], &mut samples, &mut scratch).unwrap_err();
+        assert!(e.contains("truncated"), "{e}");
+        // One flipped bit in the image data.
+        let mut flipped = file.clone();
+        let idat = flipped.windows(4).position(|w| w == b"IDAT").unwrap();
+        flipped[idat + 20] ^= 0x10;
+        let e = read_png(&flipped, &mut samples, &mut scratch).unwrap_err();
+        assert!(e.contains("IDAT") && e.contains("checksum"), "{e}");
+        // Whole chunks missing: the image data stops short of the image.
+        let e = read_png(&file[..idat - 4], &mut samples, &mut scratch).unwrap_err();
+        assert!(
+            e.contains("truncated image data") && e.contains("ends early"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn an_unknown_filter_type_is_refused() {
+        // A 2x2 grey image whose second row claims filter type 9.
+        let raw = [0u8, 1, 2, 9, 3, 4];
+        let compressed = fdeflate::compress_to_vec(&raw);
+        let mut file = SIGNATURE.to_vec();
+        let mut chunk = |kind: &[u8; 4], data: &[u8]| {
+            file.extend_from_slice(&(data.len() as u32).to_be_bytes());
+            let mut body = kind.to_vec();
+            body.extend_from_slice(data);
+            file.extend_from_slice(&body);
+            file.extend_from_slice(&crc32fast::hash(&body).to_be_bytes());
+        };
+        chunk(b"IHDR", &[0, 0, 0, 2, 0, 0, 0, 2, 8, 0, 0, 0, 0]);
+        chunk(b"IDAT", &compressed);
+        chunk(b"IEND", &[]);
+        let e = read_png(&file, &mut Vec::new(), &mut PngScratch::default()).unwrap_err();
+        assert_eq!(e, "unknown filter type 9 in row 1");
+    }
+}
