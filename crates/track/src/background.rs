@@ -404,10 +404,22 @@ impl Background {
         let mut ratios: Vec<f32> = Vec::with_capacity(n / stride + 1);
         // Sample `j` is value `j * stride` (a plain loop: the iterator chain cost three times
         // as much, on every frame).
-        for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
-            if image[i] >= 16.0 {
-                ratios.push((data[i] + dither(j)) / image[i]);
+        let mut sample = |background: &dyn Fn(usize) -> f32| {
+            for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
+                let b = background(i);
+                if b >= 16.0 {
+                    ratios.push((data[i] + dither(j)) / b);
+                }
             }
+        };
+        // A constant grey background is its level at every pixel, to the bit: the samples
+        // then read the frame alone, not a second frame-sized image scattered over memory.
+        match (self.model, self.channels) {
+            (BackgroundModel::Constant, 1) => {
+                let level = self.level[0];
+                sample(&|_| level);
+            }
+            _ => sample(&|i| image[i]),
         }
         if ratios.len() < 16 {
             return 1.0;

@@ -47,6 +47,9 @@ pub(crate) fn read_png(
     }
     let mut header: Option<Header> = None;
     scratch.compressed.clear();
+    // The image data of the first IDAT chunk, and whether more followed it (then all of it
+    // is gathered in `scratch.compressed`).
+    let mut first_data: Option<&[u8]> = None;
     let mut at = SIGNATURE.len();
     let mut ended = false;
     while at < file.len() {
@@ -58,7 +61,15 @@ pub(crate) fn read_png(
                 None => return Ok(None),
             },
             b"IDAT" if header.is_none() => return Err("image data before the header".into()),
-            b"IDAT" => scratch.compressed.extend_from_slice(chunk.data),
+            b"IDAT" => match first_data {
+                None => first_data = Some(chunk.data),
+                Some(first) => {
+                    if scratch.compressed.is_empty() {
+                        scratch.compressed.extend_from_slice(first);
+                    }
+                    scratch.compressed.extend_from_slice(chunk.data);
+                }
+            },
             b"IEND" => {
                 ended = true;
                 break;
@@ -81,7 +92,13 @@ pub(crate) fn read_png(
     // Every byte of the compressed stream is covered by its chunk's CRC, already checked.
     inflater.ignore_adler32();
     let ends_early = if ended { "" } else { " (the file ends early)" };
-    let written = match inflater.read(&scratch.compressed, &mut scratch.filtered, 0, true) {
+    // Most files hold their image data in one chunk, inflated where it lies.
+    let compressed = if scratch.compressed.is_empty() {
+        first_data.unwrap_or_default()
+    } else {
+        &scratch.compressed
+    };
+    let written = match inflater.read(compressed, &mut scratch.filtered, 0, true) {
         Ok((_, written)) => written,
         Err(fdeflate::DecompressionError::InsufficientInput) => {
             return Err(format!(
@@ -253,6 +270,43 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `file` with its one image data chunk cut into chunks of at most `size` bytes (and an
+    /// empty one second, which the format allows).
+    fn split_image_data(file: &[u8], size: usize) -> Vec<u8> {
+        let at = file.windows(4).position(|w| w == b"IDAT").unwrap() - 4;
+        let len = u32::from_be_bytes(file[at..at + 4].try_into().unwrap()) as usize;
+        let data = &file[at + 8..at + 8 + len];
+        let mut out = file[..at].to_vec();
+        let mut parts: Vec<&[u8]> = data.chunks(size).collect();
+        parts.insert(1, &data[..0]);
+        for part in parts {
+            out.extend_from_slice(&(part.len() as u32).to_be_bytes());
+            let mut body = b"IDAT".to_vec();
+            body.extend_from_slice(part);
+            out.extend_from_slice(&body);
+            out.extend_from_slice(&crc32fast::hash(&body).to_be_bytes());
+        }
+        out.extend_from_slice(&file[at + 12 + len..]);
+        out
+    }
+
+    #[test]
+    fn image_data_split_over_chunks_decodes_the_same() {
+        let mut scratch = PngScratch::default();
+        let (mut whole, mut split) = (Vec::new(), Vec::new());
+        let file = encode(&noisy(ColorType::Rgb8, 50, 40, 3), FilterType::Adaptive);
+        read_png(&file, &mut whole, &mut scratch).unwrap().unwrap();
+        for size in [1, 7, 1000] {
+            read_png(&split_image_data(&file, size), &mut split, &mut scratch)
+                .unwrap()
+                .unwrap();
+            assert!(split == whole, "chunks of {size} bytes");
+        }
+        // A file of one chunk after one of several: the gathered data is not reused.
+        read_png(&file, &mut split, &mut scratch).unwrap().unwrap();
+        assert!(split == whole);
     }
 
     #[test]
