@@ -1067,8 +1067,9 @@ fn prefix_sums(col: &[i32], pre: &mut [i32]) {
     }
 }
 
-/// [`prefix_sums`] four lanes at a time: within a vector by two shifted additions, across
-/// vectors by the carried last sum (a serial chain of one addition per four pixels).
+/// [`prefix_sums`] eight lanes at a time: within each vector of four by two shifted
+/// additions, the second vector raised by the first's total, and across pairs by the carried
+/// last sum (a serial chain of one addition and one shuffle per eight pixels).
 ///
 /// # Safety
 /// The CPU must have SSE2 (every x86_64 does), and `pre.len() > col.len()`.
@@ -1080,20 +1081,32 @@ unsafe fn prefix_sums_sse2(col: &[i32], pre: &mut [i32]) {
         _mm_slli_si128, _mm_storeu_si128,
     };
     let n = col.len();
-    let chunks = n / 4;
+    let pairs = n / 8;
+    let local = |v: __m128i| {
+        let v = _mm_add_epi32(v, _mm_slli_si128::<4>(v));
+        _mm_add_epi32(v, _mm_slli_si128::<8>(v))
+    };
     let mut carry = _mm_setzero_si128();
-    for c in 0..chunks {
-        // SAFETY: lanes 4c..4c+4 of `col` and 4c+1..4c+5 of `pre` lie within their slices
-        // (4c + 4 <= n < pre.len()).
-        let mut v = unsafe { _mm_loadu_si128(col.as_ptr().add(4 * c).cast::<__m128i>()) };
-        v = _mm_add_epi32(v, _mm_slli_si128::<4>(v));
-        v = _mm_add_epi32(v, _mm_slli_si128::<8>(v));
-        v = _mm_add_epi32(v, carry);
-        unsafe { _mm_storeu_si128(pre.as_mut_ptr().add(1 + 4 * c).cast::<__m128i>(), v) };
-        carry = _mm_shuffle_epi32::<0xFF>(v);
+    for c in 0..pairs {
+        // SAFETY: lanes 8c..8c+8 of `col` and 8c+1..8c+9 of `pre` lie within their slices
+        // (8c + 8 <= n < pre.len()).
+        let (lo, hi) = unsafe {
+            (
+                _mm_loadu_si128(col.as_ptr().add(8 * c).cast::<__m128i>()),
+                _mm_loadu_si128(col.as_ptr().add(8 * c + 4).cast::<__m128i>()),
+            )
+        };
+        let lo = local(lo);
+        let hi = _mm_add_epi32(local(hi), _mm_shuffle_epi32::<0xFF>(lo));
+        let (lo, hi) = (_mm_add_epi32(lo, carry), _mm_add_epi32(hi, carry));
+        unsafe {
+            _mm_storeu_si128(pre.as_mut_ptr().add(1 + 8 * c).cast::<__m128i>(), lo);
+            _mm_storeu_si128(pre.as_mut_ptr().add(5 + 8 * c).cast::<__m128i>(), hi);
+        }
+        carry = _mm_shuffle_epi32::<0xFF>(hi);
     }
     let mut s = _mm_cvtsi128_si32(carry);
-    for x in 4 * chunks..n {
+    for x in 8 * pairs..n {
         s = s.wrapping_add(col[x]);
         pre[x + 1] = s;
     }
@@ -1367,7 +1380,7 @@ mod tests {
 
     #[test]
     fn prefix_sums_match_a_running_sum_and_wrap() {
-        for n in [0usize, 1, 3, 4, 5, 17, 512] {
+        for n in [0usize, 1, 3, 4, 5, 8, 9, 12, 17, 512] {
             let col: Vec<i32> = (0..n)
                 .map(|i| ((i as i64 * 7_919 % 2_001) - 1_000) as i32 * 1_000_003)
                 .collect();

@@ -215,7 +215,8 @@ fn track_paths(
 
     // Background and noise from an even sample of the window.
     // The sampled frames are kept and reused by the locate pass: each file is decoded once.
-    let (picks, mut sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES)?;
+    let workers = Workers::default();
+    let (picks, mut sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES, &workers)?;
     let size = (sample_frames[0].width, sample_frames[0].height);
     let reference = &paths[picks[0]].1;
     for (&i, frame) in picks.iter().zip(&sample_frames) {
@@ -226,7 +227,6 @@ fn track_paths(
         sample_of[i] = Some(j);
     }
     let mut background = estimate_background(&sample_frames, options.background);
-    let workers = Workers::default();
     // With named particles, their frame-A blobs are the particles: the sizes are measured on
     // them alone, so that texture or clutter, however plentiful, cannot set the scale.
     let starts: Option<Vec<[f64; 2]>> = options
@@ -532,9 +532,13 @@ fn locate_window(radius: f64) -> f64 {
     radius + 1.0
 }
 
-/// Loads up to `count` frames spread evenly over `paths`; returns their indices into `paths`
-/// and the decoded frames.
-fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<(Vec<usize>, Vec<Frame>), TrackError> {
+/// Loads up to `count` frames spread evenly over `paths`, with the `workers`' decoders;
+/// returns their indices into `paths` and the decoded frames.
+fn load_sample(
+    paths: &[(usize, PathBuf)],
+    count: usize,
+    workers: &Workers,
+) -> Result<(Vec<usize>, Vec<Frame>), TrackError> {
     let n = paths.len();
     let picks: Vec<usize> = if n <= count {
         (0..n).collect()
@@ -543,10 +547,11 @@ fn load_sample(paths: &[(usize, PathBuf)], count: usize) -> Result<(Vec<usize>, 
         v.dedup();
         v
     };
-    // One decoder per job, its buffers reused from frame to frame.
+    // The decoders' buffers are reused from frame to frame (a fresh decoder per rayon job
+    // paged its buffers in again for every few frames).
     let frames = picks
         .par_iter()
-        .map_init(FrameDecoder::default, |decoder, &i| decoder.load(&paths[i].1))
+        .map(|&i| workers.with(|w| w.decoder.load(&paths[i].1)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
 }
