@@ -33,7 +33,7 @@
 //! while it is in the image. Without them, every unmatched detection starts a track named
 //! by an integer, and tracks unseen for more than `memory` frames end.
 
-use crate::appearance::{Appearance, AppearanceSpread, TrackAppearance};
+use crate::appearance::{Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::point_grid::{nearest_other, PointGrid};
@@ -196,7 +196,7 @@ struct Track {
     init_scale: f64,
     ended: bool,
     /// Appearance of each located point, with its frame.
-    apps: Vec<(usize, Appearance)>,
+    apps: AppearanceHistory,
 }
 
 impl Track {
@@ -214,7 +214,7 @@ impl Track {
             err_ca: None,
             init_scale,
             ended: false,
-            apps: Vec::new(),
+            apps: AppearanceHistory::default(),
         }
     }
 
@@ -436,9 +436,9 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             if split {
                 track.merged = 1;
             } else if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
-                track
-                    .apps
-                    .extend(Appearance::of(&dets[j], 1).map(|a| (first.frame, a)));
+                if let Some(a) = Appearance::of(&dets[j], 1) {
+                    track.apps.push(first.frame, a);
+                }
             }
             tracks.push(track);
         }
@@ -468,7 +468,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
             (0..live.len()).map(|_| std::cell::OnceCell::new()).collect();
         let look_of = |k: usize| {
             looks[k]
-                .get_or_init(|| TrackAppearance::from_history(&tracks[live[k]].apps, t, pooled, r + 1.0))
+                .get_or_init(|| tracks[live[k]].apps.appearance(t, pooled, r + 1.0))
                 .as_ref()
         };
         // Appearance tells a particle from untracked objects (a hand, a reflection). Among
@@ -639,7 +639,7 @@ pub fn link_detections(frames: &[FrameDetections], options: &LinkOptions) -> Lin
                     .points
                     .push(point_from(d, PointFlag::Detected, !clean[j]));
                 if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
-                    tracks[ti].apps.push((t, a));
+                    tracks[ti].apps.push(t, a);
                 }
                 continue;
             }
@@ -887,7 +887,14 @@ fn reacquire(
         let tr = &tracks[live[k]];
         // The track's recent log mass (median of its last located points) and its last
         // located position.
-        let recent: Vec<f64> = tr.apps.iter().rev().take(5).map(|(_, a)| a.ln_mass).collect();
+        let recent: Vec<f64> = tr
+            .apps
+            .points()
+            .iter()
+            .rev()
+            .take(5)
+            .map(|(_, a)| a.ln_mass)
+            .collect();
         if recent.is_empty() {
             continue;
         }
@@ -1057,8 +1064,8 @@ fn start_tracks(
             point_from(d, PointFlag::Detected, nn < crowd),
             init.max(floor),
         );
-        if !d.clipped {
-            track.apps.extend(Appearance::of(d, 1).map(|a| (fd.frame, a)));
+        if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
+            track.apps.push(fd.frame, a);
         }
         tracks.push(track);
     }
