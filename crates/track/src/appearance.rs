@@ -224,14 +224,14 @@ impl TrackAppearance {
 pub struct AppearanceHistory {
     points: Vec<(usize, Appearance)>,
     /// Over the latest [`HISTORY`] points: log masses, finite sizes and finite position
-    /// errors, each sorted (by `f64::total_cmp`).
-    ln_mass: Vec<f64>,
-    size: Vec<f64>,
-    ep: Vec<f64>,
+    /// errors.
+    ln_mass: SortedWindow,
+    size: SortedWindow,
+    ep: SortedWindow,
     /// Over the changes between successive points among them: log-mass changes and finite
-    /// size changes, each per square root of the frames between the two points, sorted.
-    d_ln_mass: Vec<f64>,
-    d_size: Vec<f64>,
+    /// size changes, each per square root of the frames between the two points.
+    d_ln_mass: SortedWindow,
+    d_size: SortedWindow,
 }
 
 impl AppearanceHistory {
@@ -245,23 +245,24 @@ impl AppearanceHistory {
         self.points.push((frame, a));
         // The window moves from points n - HISTORY ..= n - 1 to n - HISTORY + 1 ..= n: point n
         // and the change into it come in; point n - HISTORY and the change out of it leave.
+        // (Leaving first, so that no window ever holds more than HISTORY values.)
         let n = self.points.len() - 1;
-        self.count_point(n, true);
-        if n >= 1 {
-            self.count_change_into(n, true);
-        }
         if let Some(k) = n.checked_sub(HISTORY) {
             self.count_point(k, false);
             self.count_change_into(k + 1, false);
+        }
+        self.count_point(n, true);
+        if n >= 1 {
+            self.count_change_into(n, true);
         }
     }
 
     /// Adds (`add`) or removes the features of point `k` in the sorted windows.
     fn count_point(&mut self, k: usize, add: bool) {
         let (_, p) = self.points[k];
-        update(&mut self.ln_mass, p.ln_mass, add);
-        update(&mut self.size, p.size, add);
-        update(&mut self.ep, p.ep, add);
+        self.ln_mass.update(p.ln_mass, add);
+        self.size.update(p.size, add);
+        self.ep.update(p.ep, add);
     }
 
     /// Adds (`add`) or removes the change from point `k - 1` to point `k` (`k >= 1`).
@@ -269,8 +270,8 @@ impl AppearanceHistory {
         let ((f0, a0), (f1, a1)) = (self.points[k - 1], self.points[k]);
         // A change over several frames counts as that many frames' worth of change.
         let root = ((f1 - f0).max(1) as f64).sqrt();
-        update(&mut self.d_ln_mass, (a1.ln_mass - a0.ln_mass) / root, add);
-        update(&mut self.d_size, (a1.size - a0.size) / root, add);
+        self.d_ln_mass.update((a1.ln_mass - a0.ln_mass) / root, add);
+        self.d_size.update((a1.size - a0.size) / root, add);
     }
 
     /// The track's appearance for linking frame `frame`, with centroid window radius
@@ -297,18 +298,18 @@ impl AppearanceHistory {
             }
         };
         let own = AppearanceSpread {
-            ln_mass: own(&self.d_ln_mass, pooled.map(|p| p.ln_mass)),
-            size: own(&self.d_size, pooled.map(|p| p.size)),
+            ln_mass: own(self.d_ln_mass.values(), pooled.map(|p| p.ln_mass)),
+            size: own(self.d_size.values(), pooled.map(|p| p.size)),
         };
         if !own.ln_mass.is_finite() {
             return None;
         }
-        let ln_mass = sorted_median(&self.ln_mass);
+        let ln_mass = sorted_median(self.ln_mass.values());
         let usual = Appearance {
             ln_mass,
             ln_mass_upper: ln_mass,
-            size: sorted_median(&self.size),
-            ep: sorted_median(&self.ep),
+            size: sorted_median(self.size.values()),
+            ep: sorted_median(self.ep.values()),
         };
         let ep = usual.ep;
         let spread = AppearanceSpread {
@@ -331,18 +332,51 @@ impl AppearanceHistory {
     }
 }
 
-/// Inserts (`add`) or removes one copy of `x` in the sorted `values`; non-finite values are
-/// not kept.
-fn update(values: &mut Vec<f64>, x: f64, add: bool) {
-    if !x.is_finite() {
-        return;
+/// Up to [`HISTORY`] finite values, sorted (by `f64::total_cmp`), held in place.
+#[derive(Clone, Debug)]
+struct SortedWindow {
+    values: [f64; HISTORY],
+    len: usize,
+}
+
+impl Default for SortedWindow {
+    fn default() -> Self {
+        SortedWindow {
+            values: [0.0; HISTORY],
+            len: 0,
+        }
     }
-    let at = values.partition_point(|v| v.total_cmp(&x).is_lt());
-    if add {
-        values.insert(at, x);
-    } else {
-        debug_assert!(values.get(at).is_some_and(|v| v.to_bits() == x.to_bits()));
-        values.remove(at);
+}
+
+impl SortedWindow {
+    fn values(&self) -> &[f64] {
+        &self.values[..self.len]
+    }
+
+    /// Inserts (`add`) or removes one copy of `x` (one that was inserted); a non-finite `x`
+    /// is not kept. Shifting the few values past it in a plain loop, not by a call to move
+    /// memory.
+    fn update(&mut self, x: f64, add: bool) {
+        if !x.is_finite() {
+            return;
+        }
+        if add {
+            assert!(self.len < HISTORY, "a window holds at most HISTORY values");
+            let mut i = self.len;
+            while i > 0 && self.values[i - 1].total_cmp(&x).is_gt() {
+                self.values[i] = self.values[i - 1];
+                i -= 1;
+            }
+            self.values[i] = x;
+            self.len += 1;
+        } else {
+            let at = self.values().partition_point(|v| v.total_cmp(&x).is_lt());
+            debug_assert!(self.values().get(at).is_some_and(|v| v.to_bits() == x.to_bits()));
+            for i in at..self.len - 1 {
+                self.values[i] = self.values[i + 1];
+            }
+            self.len -= 1;
+        }
     }
 }
 
