@@ -230,17 +230,25 @@ pub fn find_blobs_with_scratch(
         }
     };
     let mut row_mask: Vec<f32> = Vec::with_capacity(width);
-    box_rows(signal, width, height, [h, big], filter, |y, s_row, l_row| {
-        small[y * width..(y + 1) * width].copy_from_slice(s_row);
-        for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
-            *b = s - l;
-        }
-        large[ring(y)].copy_from_slice(l_row);
-        comps.push_row(y, s_row, mask.row(y, &mut row_mask));
-        if y > 0 {
-            scan(y - 1, band, large, small);
-        }
-    });
+    box_rows(
+        signal,
+        width,
+        height,
+        [h, big],
+        filter,
+        small,
+        |y, small, l_row| {
+            let s_row = &small[y * width..(y + 1) * width];
+            for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
+                *b = s - l;
+            }
+            large[ring(y)].copy_from_slice(l_row);
+            comps.push_row(y, s_row, mask.row(y, &mut row_mask));
+            if y > 0 {
+                scan(y - 1, band, large, small);
+            }
+        },
+    );
     scan(height - 1, band, large, small);
     comps.finish(width, height);
 
@@ -984,8 +992,9 @@ pub(crate) struct FilterScratch {
     /// The rows of the image in fixed point (see [`box_rows`]) the boxes about the current
     /// row span, plus one: row `r` at `(r % ring) * width`.
     fixed: Vec<i32>,
-    /// The current output row of each filter.
-    rows: [Vec<f32>; 2],
+    /// The current output row of the second filter (the first writes into its caller's
+    /// image).
+    row_b: Vec<f32>,
     /// Column sums over each filter's rows (one row per filter, fixed point).
     cols: [Vec<i32>; 2],
     /// Prefix sums along the row of each filter's column sums (`width + 1`, fixed point,
@@ -1127,21 +1136,22 @@ pub(crate) fn box_means(
     for out in [&mut *out_a, &mut *out_b] {
         out.resize(width * height, 0.0);
     }
-    box_rows(image, width, height, halves, scratch, |y, a, b| {
-        out_a[y * width..(y + 1) * width].copy_from_slice(a);
+    box_rows(image, width, height, halves, scratch, out_a, |y, _, b| {
         out_b[y * width..(y + 1) * width].copy_from_slice(b);
     });
 }
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
-/// out of each mean), row after row: `emit(y, a, b)` is handed row `y` of each.
+/// out of each mean), row after row: the first written into `out_a` (`width * height`),
+/// the second handed over a row at a time, `emit(y, a, b)` with `a` the rows of `out_a`
+/// written so far (up to row `y`) and `b` row `y` of the second.
 ///
 /// Separable and streaming: each output row adds the entering image row to a running column
 /// sum and subtracts the leaving one (vectorised across the row), then takes differences of
 /// a prefix sum along the row. The sums are exact integers on the image rounded to fixed
 /// point ([`fixed_unit`]), so the running column sums never drift and the prefix sums may
 /// wrap (their differences, the box sums, fit); the prefix sums are formed four lanes at a
-/// time ([`prefix_sums`]). Only the rows the boxes span are held in fixed point, so the
+/// time, carried once per eight ([`prefix_sums`]). Only the rows the boxes span are held in fixed point, so the
 /// whole pass stays in cache.
 pub(crate) fn box_rows(
     image: &[f32],
@@ -1149,6 +1159,7 @@ pub(crate) fn box_rows(
     height: usize,
     halves: [usize; 2],
     scratch: &mut FilterScratch,
+    out_a: &mut [f32],
     mut emit: impl FnMut(usize, &[f32], &[f32]),
 ) {
     let reach = halves[0].max(halves[1]);
@@ -1157,13 +1168,12 @@ pub(crate) fn box_rows(
     let ring = 2 * reach + 2;
     let FilterScratch {
         fixed,
-        rows: [row_a, row_b],
+        row_b,
         cols: [col_a, col_b],
         prefix: [pre_a, pre_b],
     } = scratch;
     // Every element is written before it is read: the buffers are only sized.
     fixed.resize(ring * width, 0);
-    row_a.resize(width, 0.0);
     row_b.resize(width, 0.0);
     let convert = |fixed: &mut [i32], r: usize| {
         let slot = (r % ring) * width;
@@ -1219,9 +1229,17 @@ pub(crate) fn box_rows(
         prefix_sums(col_a, pre_a);
         prefix_sums(col_b, pre_b);
         let unit = f64::from(unit);
-        box_row(row_a, pre_a, &inv_x[0], halves[0], y, height, unit);
+        box_row(
+            &mut out_a[y * width..(y + 1) * width],
+            pre_a,
+            &inv_x[0],
+            halves[0],
+            y,
+            height,
+            unit,
+        );
         box_row(row_b, pre_b, &inv_x[1], halves[1], y, height, unit);
-        emit(y, row_a, row_b);
+        emit(y, &out_a[..(y + 1) * width], row_b);
     }
 }
 
