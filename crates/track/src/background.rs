@@ -19,7 +19,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::frames::Frame;
+use crate::frames::{Frame, FrameView};
 
 /// Which background model a recording uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -397,10 +397,18 @@ impl Background {
     /// the background left out. Most pixels are background, so this follows a camera's
     /// automatic exposure or a flicker of the light and ignores the particles; 1 when no
     /// pixel qualifies.
-    pub fn frame_gain(&self, frame: &Frame) -> f64 {
-        let n = frame.data.len().min(self.image.len());
+    pub fn frame_gain<'a>(&self, frame: impl Into<FrameView<'a>>) -> f64 {
+        match frame.into() {
+            FrameView::Frame(f) => self.gain_of(&f.data, |v| v),
+            FrameView::Grey8 { samples, .. } => self.gain_of(samples, f32::from),
+        }
+    }
+
+    /// [`Background::frame_gain`] of the samples `data`, read as grey levels by `level`.
+    fn gain_of<T: Copy>(&self, data: &[T], level: impl Fn(T) -> f32) -> f64 {
+        let n = data.len().min(self.image.len());
         let stride = (n / GAIN_SAMPLES).max(1) | 1;
-        let (data, image) = (&frame.data[..n], &self.image[..n]);
+        let (data, image) = (&data[..n], &self.image[..n]);
         let mut ratios: Vec<f32> = Vec::with_capacity(n / stride + 1);
         // Sample `j` is value `j * stride` (a plain loop: the iterator chain cost three times
         // as much, on every frame).
@@ -408,7 +416,7 @@ impl Background {
             for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
                 let b = background(i);
                 if b >= 16.0 {
-                    ratios.push((data[i] + dither(j)) / b);
+                    ratios.push((level(data[i]) + dither(j)) / b);
                 }
             }
         };
@@ -434,7 +442,7 @@ impl Background {
     /// proportional to the background's brightness, that would otherwise add light to every
     /// centroid window in proportion to its area (and make the measured size grow with the
     /// window).
-    pub fn remove_gain(&self, frame: &Frame, signal: &mut [f32]) {
+    pub fn remove_gain<'a>(&self, frame: impl Into<FrameView<'a>>, signal: &mut [f32]) {
         if let Some(g) = self.gain_to_remove(frame) {
             self.apply_gain(g, signal);
         }
@@ -444,7 +452,7 @@ impl Background {
     /// [`Background::frame_gain`] relative to the samples' [`Background::reference_gain`]),
     /// or `None` when it leaves the signal as it is: a gain whose effect stays below a tenth
     /// of the noise on the brightest background is the estimate's own scatter.
-    pub fn gain_to_remove(&self, frame: &Frame) -> Option<f64> {
+    pub fn gain_to_remove<'a>(&self, frame: impl Into<FrameView<'a>>) -> Option<f64> {
         let g = self.frame_gain(frame) / self.reference_gain;
         (((g - 1.0) * self.brightest).abs() >= 0.1 * self.noise_sigma).then_some(g)
     }
@@ -467,27 +475,39 @@ impl Background {
         out
     }
 
-    /// [`Background::signal`] into a reused buffer.
-    pub fn signal_into(&self, frame: &Frame, out: &mut Vec<f32>) {
+    /// [`Background::signal`] into a reused buffer, of a frame or of a file's 8-bit grey
+    /// samples (read as their levels, the same signal to the bit).
+    pub fn signal_into<'a>(&self, frame: impl Into<FrameView<'a>>, out: &mut Vec<f32>) {
         out.clear();
-        match (self.channels, self.model) {
-            (1, BackgroundModel::Constant) => {
-                let (u, l) = (self.direction[0], self.level[0]);
-                out.extend(frame.data.iter().map(|&v| u * (v - l)));
+        let frame = match frame.into() {
+            FrameView::Grey8 { samples, .. } if self.channels == 1 => {
+                return self.grey_signal(samples, f32::from, out);
             }
-            (1, BackgroundModel::PerPixel) => {
-                let u = self.direction[0];
-                out.extend(frame.data.iter().zip(&self.image).map(|(&v, &b)| u * (v - b)));
+            FrameView::Frame(f) if self.channels == 1 => return self.grey_signal(&f.data, |v| v, out),
+            FrameView::Frame(f) => std::borrow::Cow::Borrowed(f),
+            // A grey file among colour ones.
+            grey => std::borrow::Cow::Owned(grey.to_frame()),
+        };
+        let c = self.channels;
+        out.extend(
+            frame
+                .data
+                .chunks_exact(c)
+                .zip(self.image.chunks_exact(c))
+                .map(|(p, b)| colour_signal(p, b, &self.direction)),
+        );
+    }
+
+    /// [`Background::signal_into`] of grey samples `data`, read as grey levels by `level`.
+    fn grey_signal<T: Copy>(&self, data: &[T], level: impl Fn(T) -> f32, out: &mut Vec<f32>) {
+        let u = self.direction[0];
+        match self.model {
+            BackgroundModel::Constant => {
+                let l = self.level[0];
+                out.extend(data.iter().map(|&v| u * (level(v) - l)));
             }
-            _ => {
-                let c = self.channels;
-                out.extend(
-                    frame
-                        .data
-                        .chunks_exact(c)
-                        .zip(self.image.chunks_exact(c))
-                        .map(|(p, b)| colour_signal(p, b, &self.direction)),
-                );
+            BackgroundModel::PerPixel => {
+                out.extend(data.iter().zip(&self.image).map(|(&v, &b)| u * (level(v) - b)));
             }
         }
     }
@@ -731,6 +751,56 @@ mod tests {
             }
         }
         f
+    }
+
+    /// An 8-bit grey file's samples, handed over as they are, give the signal and the frame
+    /// gain of the same frame converted to floating point, to the bit, against constant and
+    /// per-pixel backgrounds (and the gain moves with the exposure); other layouts come as
+    /// frames.
+    #[test]
+    fn grey_samples_give_the_frame_signal_and_gain_to_the_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let dir = std::env::temp_dir().join(format!("physfit-view-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (w, h) = (48u32, 40u32);
+        let frames: Vec<Frame> = (0..5)
+            .map(|k| {
+                let img = image::GrayImage::from_fn(w, h, |x, _| {
+                    image::Luma([(40 + x + k * 3 + rng.gen_range(0..9)) as u8])
+                });
+                let path = dir.join(format!("grey_{k}.png"));
+                img.save(&path).unwrap();
+                crate::load_frame(&path).unwrap()
+            })
+            .collect();
+        let mut decoder = crate::FrameDecoder::default();
+        let mut buf = Frame::default();
+        for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+            let bg = estimate_background(&frames, choice);
+            for (k, frame) in frames.iter().enumerate() {
+                let view = decoder
+                    .load_view(&dir.join(format!("grey_{k}.png")), &mut buf)
+                    .unwrap();
+                assert!(matches!(view, FrameView::Grey8 { .. }), "{view:?}");
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                bg.signal_into(view, &mut a);
+                bg.signal_into(frame, &mut b);
+                assert!(a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+                assert_eq!(bg.frame_gain(view).to_bits(), bg.frame_gain(frame).to_bits());
+                assert!(
+                    (bg.frame_gain(view) - bg.reference_gain).abs() < 0.2,
+                    "{choice:?}"
+                );
+            }
+        }
+        let rgb = dir.join("rgb.png");
+        image::RgbImage::from_pixel(w, h, image::Rgb([10, 20, 30]))
+            .save(&rgb)
+            .unwrap();
+        let view = decoder.load_view(&rgb, &mut buf).unwrap();
+        assert!(matches!(view, FrameView::Frame(f) if f.channels == 3 && f.data[..3] == [10.0, 20.0, 30.0]));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// `signal_at` gives `signal_into`'s value to the bit, for grey and colour frames

@@ -176,6 +176,33 @@ impl FrameDecoder {
 
     /// Decodes the frame file `path` (see [`load_frame`]) into `frame`, reusing its buffer.
     pub fn load_into(&mut self, path: &Path, frame: &mut Frame) -> Result<(), TrackError> {
+        if let Some(size) = self.decode(path, frame)? {
+            grey8_to_frame(&self.samples, size, frame);
+        }
+        Ok(())
+    }
+
+    /// Decodes the frame file `path` (see [`load_frame`]): an 8-bit grey file's samples as
+    /// they are (the commonest frames: their signal is formed from the bytes, without a
+    /// frame-sized floating-point copy), every other file into `frame`, reusing its buffer.
+    pub fn load_view<'a>(
+        &'a mut self,
+        path: &Path,
+        frame: &'a mut Frame,
+    ) -> Result<FrameView<'a>, TrackError> {
+        Ok(match self.decode(path, frame)? {
+            Some((width, height)) => FrameView::Grey8 {
+                samples: &self.samples,
+                width,
+                height,
+            },
+            None => FrameView::Frame(frame),
+        })
+    }
+
+    /// Decodes `path`: 8-bit grey samples are left in `self.samples` (their size returned),
+    /// every other layout is converted into `frame` (`None` returned).
+    fn decode(&mut self, path: &Path, frame: &mut Frame) -> Result<Option<(usize, usize)>, TrackError> {
         use image::ImageDecoder;
         use std::io::Read;
         let io_err = |source| TrackError::Io {
@@ -203,7 +230,11 @@ impl FrameDecoder {
             height,
         }) = png
         {
-            return samples_to_frame(&self.samples, colour, (width, height), frame).map_err(decode_err);
+            if colour == image::ColorType::L8 {
+                return Ok(Some((width, height)));
+            }
+            samples_to_frame(&self.samples, colour, (width, height), frame).map_err(decode_err)?;
+            return Ok(None);
         }
         let decoder = image::ImageReader::new(Cursor::new(&self.file))
             .with_guessed_format()
@@ -218,8 +249,63 @@ impl FrameDecoder {
         decoder
             .read_image(&mut self.samples)
             .map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
-        samples_to_frame(&self.samples, colour, (width as usize, height as usize), frame).map_err(decode_err)
+        samples_to_frame(&self.samples, colour, (width as usize, height as usize), frame)
+            .map_err(decode_err)?;
+        Ok(None)
     }
+}
+
+/// A decoded frame as [`FrameDecoder::load_view`] hands it over.
+#[derive(Clone, Copy, Debug)]
+pub enum FrameView<'a> {
+    /// 8-bit grey.
+    Grey8 {
+        /// One byte per pixel, grey levels, rows back to back (`width * height`).
+        samples: &'a [u8],
+        /// Width, px.
+        width: usize,
+        /// Height, px.
+        height: usize,
+    },
+    /// Any other layout, as a [`Frame`].
+    Frame(&'a Frame),
+}
+
+impl FrameView<'_> {
+    /// Width and height, px.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            FrameView::Grey8 { width, height, .. } => (*width, *height),
+            FrameView::Frame(f) => (f.width, f.height),
+        }
+    }
+
+    /// The same pixels as a [`Frame`] (a copy for 8-bit grey samples).
+    pub fn to_frame(&self) -> Frame {
+        match self {
+            FrameView::Grey8 {
+                samples,
+                width,
+                height,
+            } => {
+                let mut frame = Frame::default();
+                grey8_to_frame(samples, (*width, *height), &mut frame);
+                frame
+            }
+            FrameView::Frame(f) => (*f).clone(),
+        }
+    }
+}
+
+impl<'a> From<&'a Frame> for FrameView<'a> {
+    fn from(frame: &'a Frame) -> FrameView<'a> {
+        FrameView::Frame(frame)
+    }
+}
+
+/// Fills `frame` (`size` = width, height, px) with 8-bit grey `samples`.
+fn grey8_to_frame(samples: &[u8], size: (usize, usize), frame: &mut Frame) {
+    samples_to_frame(samples, image::ColorType::L8, size, frame).expect("8-bit grey is a known layout");
 }
 
 /// Converts a decoded image to a [`Frame`] (8-bit scale, alpha dropped).

@@ -17,8 +17,8 @@ use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     estimate_background, find_blobs_with_scratch, link_detections, list_frames, load_frame,
     refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, LinkOptions,
-    LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, FrameView,
+    LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -474,16 +474,16 @@ impl WindowFrames<'_> {
     fn get<'b>(
         &'b self,
         i: usize,
-        decoder: &mut FrameDecoder,
+        decoder: &'b mut FrameDecoder,
         buf: &'b mut Frame,
-    ) -> Result<&'b Frame, TrackError> {
+    ) -> Result<FrameView<'b>, TrackError> {
         if let Some(j) = self.sample_of[i] {
-            return Ok(&self.samples[j]);
+            return Ok(FrameView::Frame(&self.samples[j]));
         }
         let path = &self.paths[i].1;
-        decoder.load_into(path, buf)?;
-        check_size(path, buf, self.reference, self.size)?;
-        Ok(buf)
+        let view = decoder.load_view(path, buf)?;
+        check_size(path, view, self.reference, self.size)?;
+        Ok(view)
     }
 }
 
@@ -556,8 +556,14 @@ fn load_sample(
     Ok((picks, frames))
 }
 
-fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)) -> Result<(), TrackError> {
-    if (frame.width, frame.height) == size {
+fn check_size<'a>(
+    path: &Path,
+    frame: impl Into<FrameView<'a>>,
+    reference: &Path,
+    size: (usize, usize),
+) -> Result<(), TrackError> {
+    let (found_width, found_height) = frame.into().size();
+    if (found_width, found_height) == size {
         return Ok(());
     }
     Err(TrackError::FrameSize {
@@ -568,8 +574,8 @@ fn check_size(path: &Path, frame: &Frame, reference: &Path, size: (usize, usize)
             .unwrap_or_default(),
         width: size.0,
         height: size.1,
-        found_width: frame.width,
-        found_height: frame.height,
+        found_width,
+        found_height,
     })
 }
 
