@@ -476,38 +476,75 @@ impl Background {
     }
 
     /// [`Background::signal`] into a reused buffer, of a frame or of a file's 8-bit grey
-    /// samples (read as their levels, the same signal to the bit).
+    /// samples (read as their levels, the same signal to the bit). A frame with another
+    /// channel count than the background's is converted first (grey repeated into red, green
+    /// and blue; colour averaged into grey).
     pub fn signal_into<'a>(&self, frame: impl Into<FrameView<'a>>, out: &mut Vec<f32>) {
-        out.clear();
-        let frame = match frame.into() {
-            FrameView::Grey8 { samples, .. } if self.channels == 1 => {
-                return self.grey_signal(samples, f32::from, out);
-            }
-            FrameView::Frame(f) if self.channels == 1 => return self.grey_signal(&f.data, |v| v, out),
-            FrameView::Frame(f) => std::borrow::Cow::Borrowed(f),
-            // A grey file among colour ones.
-            grey => std::borrow::Cow::Owned(grey.to_frame()),
+        let view = frame.into();
+        let converted;
+        let view = if self.takes(view) {
+            view
+        } else {
+            converted = view.to_frame().with_channels(self.channels);
+            FrameView::Frame(&converted)
         };
-        let c = self.channels;
-        out.extend(
-            frame
-                .data
-                .chunks_exact(c)
-                .zip(self.image.chunks_exact(c))
-                .map(|(p, b)| colour_signal(p, b, &self.direction)),
-        );
+        let (width, height) = view.size();
+        // Every value is written below: a reused buffer of the right length is not cleared.
+        if out.len() != width * height {
+            out.clear();
+            out.resize(width * height, 0.0);
+        }
+        self.signal_range(view, 0..width * height, out);
     }
 
-    /// [`Background::signal_into`] of grey samples `data`, read as grey levels by `level`.
-    fn grey_signal<T: Copy>(&self, data: &[T], level: impl Fn(T) -> f32, out: &mut Vec<f32>) {
+    /// Whether `frame` has the background's channel count, as [`Background::signal_range`]
+    /// needs.
+    pub fn takes(&self, frame: FrameView<'_>) -> bool {
+        match frame {
+            FrameView::Grey8 { .. } => self.channels == 1,
+            FrameView::Frame(f) => f.channels == self.channels,
+        }
+    }
+
+    /// The particle signal of the pixels `pixels` (row-major indices) of `frame`, into `out`
+    /// (as long as the range): [`Background::signal_into`] for part of a frame, the same
+    /// values to the bit. `frame` must have the background's channel count
+    /// ([`Background::takes`]).
+    pub fn signal_range(&self, frame: FrameView<'_>, pixels: std::ops::Range<usize>, out: &mut [f32]) {
+        debug_assert!(self.takes(frame));
+        let c = self.channels;
+        let image = &self.image[pixels.start * c..pixels.end * c];
+        match frame {
+            FrameView::Grey8 { samples, .. } => self.grey_signal(&samples[pixels], image, f32::from, out),
+            FrameView::Frame(f) if c == 1 => self.grey_signal(&f.data[pixels], image, |v| v, out),
+            FrameView::Frame(f) => {
+                let data = &f.data[pixels.start * c..pixels.end * c];
+                for ((o, p), b) in out
+                    .iter_mut()
+                    .zip(data.chunks_exact(c))
+                    .zip(image.chunks_exact(c))
+                {
+                    *o = colour_signal(p, b, &self.direction);
+                }
+            }
+        }
+    }
+
+    /// [`Background::signal_range`] of grey samples `data` (read as grey levels by `level`)
+    /// against the background pixels `image`.
+    fn grey_signal<T: Copy>(&self, data: &[T], image: &[f32], level: impl Fn(T) -> f32, out: &mut [f32]) {
         let u = self.direction[0];
         match self.model {
             BackgroundModel::Constant => {
                 let l = self.level[0];
-                out.extend(data.iter().map(|&v| u * (level(v) - l)));
+                for (o, &v) in out.iter_mut().zip(data) {
+                    *o = u * (level(v) - l);
+                }
             }
             BackgroundModel::PerPixel => {
-                out.extend(data.iter().zip(&self.image).map(|(&v, &b)| u * (level(v) - b)));
+                for ((o, &v), &b) in out.iter_mut().zip(data).zip(image) {
+                    *o = u * (level(v) - b);
+                }
             }
         }
     }
@@ -787,6 +824,12 @@ mod tests {
                 bg.signal_into(view, &mut a);
                 bg.signal_into(frame, &mut b);
                 assert!(a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+                // Row by row, as the detector forms it.
+                let mut rows = vec![f32::NAN; a.len()];
+                for (y, out) in rows.chunks_exact_mut(w as usize).enumerate() {
+                    bg.signal_range(view, y * w as usize..(y + 1) * w as usize, out);
+                }
+                assert!(rows.iter().zip(&a).all(|(x, y)| x.to_bits() == y.to_bits()));
                 assert_eq!(bg.frame_gain(view).to_bits(), bg.frame_gain(frame).to_bits());
                 assert!(
                     (bg.frame_gain(view) - bg.reference_gain).abs() < 0.2,

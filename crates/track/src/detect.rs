@@ -130,7 +130,74 @@ pub fn find_blobs_with_scratch(
     params: &DetectParameters,
     scratch: &mut Scratch,
 ) -> BlobSet {
-    if width == 0 || height == 0 || signal.len() < width * height {
+    if signal.len() < width * height {
+        return BlobSet::default();
+    }
+    find_blobs_in_rows(&mut Formed { signal, width }, width, height, params, scratch)
+}
+
+/// [`find_blobs_with_scratch`] of the signal `form` writes into `signal` (`width * height`),
+/// row by row as the filters reach it: `form(pixels, out)` writes the signal of the pixels
+/// `pixels` (one row, row-major indices) into `out`. Each row is then filtered while it is
+/// still in cache, instead of the whole image being written first and read back; on
+/// return `signal` holds every row.
+pub fn find_blobs_forming(
+    signal: &mut [f32],
+    width: usize,
+    height: usize,
+    params: &DetectParameters,
+    scratch: &mut Scratch,
+    form: impl FnMut(std::ops::Range<usize>, &mut [f32]),
+) -> BlobSet {
+    if signal.len() < width * height {
+        return BlobSet::default();
+    }
+    let mut rows = Forming { signal, width, form };
+    find_blobs_in_rows(&mut rows, width, height, params, scratch)
+}
+
+/// The rows of a signal image as the filters read them: each row once, in order.
+trait SignalRows {
+    /// Row `y` (the image's width of values).
+    fn row(&mut self, y: usize) -> &[f32];
+}
+
+/// A signal image already formed.
+struct Formed<'a> {
+    signal: &'a [f32],
+    width: usize,
+}
+
+impl SignalRows for Formed<'_> {
+    fn row(&mut self, y: usize) -> &[f32] {
+        &self.signal[y * self.width..(y + 1) * self.width]
+    }
+}
+
+/// A signal image formed a row at a time, when the filters ask for the row.
+struct Forming<'a, F> {
+    signal: &'a mut [f32],
+    width: usize,
+    form: F,
+}
+
+impl<F: FnMut(std::ops::Range<usize>, &mut [f32])> SignalRows for Forming<'_, F> {
+    fn row(&mut self, y: usize) -> &[f32] {
+        let pixels = y * self.width..(y + 1) * self.width;
+        (self.form)(pixels.clone(), &mut self.signal[pixels.clone()]);
+        &self.signal[pixels]
+    }
+}
+
+/// [`find_blobs_with_scratch`] of the signal rows `signal` hands over.
+fn find_blobs_in_rows(
+    signal: &mut impl SignalRows,
+    width: usize,
+    height: usize,
+    params: &DetectParameters,
+    scratch: &mut Scratch,
+) -> BlobSet {
+    if width == 0 || height == 0 {
         return BlobSet::default();
     }
     let h = box_half_width(params.radius);
@@ -1124,7 +1191,7 @@ unsafe fn prefix_sums_sse2(col: &[i32], pre: &mut [i32]) {
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
 /// out of each mean), into `outs`.
 #[cfg(test)]
-pub(crate) fn box_means(
+fn box_means(
     image: &[f32],
     width: usize,
     height: usize,
@@ -1136,7 +1203,8 @@ pub(crate) fn box_means(
     for out in [&mut *out_a, &mut *out_b] {
         out.resize(width * height, 0.0);
     }
-    box_rows(image, width, height, halves, scratch, out_a, |y, _, b| {
+    let mut rows = Formed { signal: image, width };
+    box_rows(&mut rows, width, height, halves, scratch, out_a, |y, _, b| {
         out_b[y * width..(y + 1) * width].copy_from_slice(b);
     });
 }
@@ -1151,10 +1219,11 @@ pub(crate) fn box_means(
 /// a prefix sum along the row. The sums are exact integers on the image rounded to fixed
 /// point ([`fixed_unit`]), so the running column sums never drift and the prefix sums may
 /// wrap (their differences, the box sums, fit); the prefix sums are formed four lanes at a
-/// time, carried once per eight ([`prefix_sums`]). Only the rows the boxes span are held in fixed point, so the
-/// whole pass stays in cache.
-pub(crate) fn box_rows(
-    image: &[f32],
+/// time, carried once per eight ([`prefix_sums`]). Only the rows the boxes span are held in
+/// fixed point, so the whole pass stays in cache; the image's rows are asked of `image` as
+/// the boxes reach them.
+fn box_rows(
+    image: &mut impl SignalRows,
     width: usize,
     height: usize,
     halves: [usize; 2],
@@ -1175,13 +1244,9 @@ pub(crate) fn box_rows(
     // Every element is written before it is read: the buffers are only sized.
     fixed.resize(ring * width, 0);
     row_b.resize(width, 0.0);
-    let convert = |fixed: &mut [i32], r: usize| {
+    let mut convert = |fixed: &mut [i32], r: usize| {
         let slot = (r % ring) * width;
-        to_fixed(
-            &image[r * width..(r + 1) * width],
-            unit,
-            &mut fixed[slot..slot + width],
-        );
+        to_fixed(image.row(r), unit, &mut fixed[slot..slot + width]);
     };
     for r in 0..reach.min(height) {
         convert(fixed, r);
@@ -1478,6 +1543,39 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Formed row by row as the filters ask, the signal gives the blobs of the whole image
+    /// formed first, and ends up whole; each row is asked for once, in order.
+    #[test]
+    fn a_signal_formed_row_by_row_gives_the_same_blobs() {
+        let (w, h) = (97, 61);
+        let mut img = disc_image(
+            w,
+            h,
+            &[(20.0, 20.0), (27.5, 21.0), (60.5, 50.25), (3.0, 58.0)],
+            4.0,
+            120.0,
+        );
+        for (i, v) in img.iter_mut().enumerate() {
+            *v += ((i * 7_919) % 13) as f32 - 6.0;
+        }
+        let p = DetectParameters {
+            radius: 4.0,
+            noise_sigma: 3.7,
+            expected: None,
+        };
+        let want = find_blobs(&img, w, h, &p);
+        assert!(want.blobs.len() >= 3, "{want:?}");
+        let mut signal = vec![f32::NAN; w * h];
+        let mut asked = Vec::new();
+        let got = find_blobs_forming(&mut signal, w, h, &p, &mut Scratch::default(), |pixels, out| {
+            asked.push(pixels.start / w);
+            out.copy_from_slice(&img[pixels]);
+        });
+        assert_eq!(format!("{got:?}"), format!("{want:?}"));
+        assert_eq!(asked, (0..h).collect::<Vec<_>>());
+        assert!(signal == img);
     }
 
     #[test]

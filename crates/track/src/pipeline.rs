@@ -15,10 +15,10 @@ use rayon::prelude::*;
 use crate::background::STRUCTURED_LIMIT;
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    estimate_background, find_blobs_with_scratch, link_detections, list_frames, load_frame,
-    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, FrameView,
-    LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections, list_frames,
+    load_frame, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
+    BackgroundModel, Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
+    FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -324,9 +324,22 @@ fn track_paths(
                 // Blobs are found in the plain signal (the band-pass ignores a flat change of
                 // brightness, and a gain is not uniform enough over a real frame to correct the
                 // component labelling with); centroids are measured in the gain-corrected one,
-                // since a centroid window integrates any offset left in it.
-                background.signal_into(frame, &mut w.signal);
-                let blobs = find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect);
+                // since a centroid window integrates any offset left in it. The signal is
+                // formed row by row as the detector's filters reach it.
+                let blobs = if background.takes(frame) {
+                    w.signal.resize(size.0 * size.1, 0.0);
+                    find_blobs_forming(
+                        &mut w.signal,
+                        size.0,
+                        size.1,
+                        &params,
+                        &mut w.detect,
+                        |pixels, out| background.signal_range(frame, pixels, out),
+                    )
+                } else {
+                    background.signal_into(frame, &mut w.signal);
+                    find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect)
+                };
                 background.remove_gain(frame, &mut w.signal);
                 let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
                 let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
