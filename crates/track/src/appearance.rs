@@ -217,21 +217,76 @@ impl TrackAppearance {
 }
 
 /// A track's located appearances (each with its frame index, oldest first), with the
-/// features of its recent history kept sorted as points come and go, so that the medians and
-/// spreads linking asks of every track in every frame cost a few dozen comparisons instead
-/// of a selection over each feature.
+/// features of its recent history kept sorted, so that the medians and spreads linking asks
+/// of a track cost a few dozen comparisons instead of a selection over each feature. The
+/// sorted windows are brought up to date when an appearance is asked for: most tracks of a
+/// crowd are never asked (only lone ones are), and their points cost nothing more.
 #[derive(Clone, Debug, Default)]
 pub struct AppearanceHistory {
     points: Vec<(usize, Appearance)>,
-    /// Over the latest [`HISTORY`] points: log masses, finite sizes and finite position
-    /// errors.
+    windows: std::cell::RefCell<Windows>,
+}
+
+/// The sorted features of an [`AppearanceHistory`]'s latest points, counted up to `synced`.
+#[derive(Clone, Debug, Default)]
+struct Windows {
+    /// The first point counted since the windows were last emptied.
+    first: usize,
+    /// Points counted: the windows hold the latest [`HISTORY`] of the first `synced` points
+    /// (from `first` on).
+    synced: usize,
+    /// Log masses, finite sizes and finite position errors of those points.
     ln_mass: SortedWindow,
     size: SortedWindow,
     ep: SortedWindow,
-    /// Over the changes between successive points among them: log-mass changes and finite
-    /// size changes, each per square root of the frames between the two points.
+    /// The changes between successive points among them: log-mass changes and finite size
+    /// changes, each per square root of the frames between the two points.
     d_ln_mass: SortedWindow,
     d_size: SortedWindow,
+}
+
+impl Windows {
+    /// Counts `points` up to the last.
+    fn catch_up(&mut self, points: &[(usize, Appearance)]) {
+        if points.len() - self.synced > HISTORY {
+            // Further behind than the window reaches: start again from its first point.
+            *self = Windows {
+                first: points.len() - HISTORY,
+                synced: points.len() - HISTORY,
+                ..Windows::default()
+            };
+        }
+        for n in self.synced..points.len() {
+            // The window moves from points n - HISTORY ..= n - 1 to n - HISTORY + 1 ..= n:
+            // point n and the change into it come in; point n - HISTORY and the change out
+            // of it leave (first, so that no window ever holds more than HISTORY values).
+            if n >= self.first + HISTORY {
+                let k = n - HISTORY;
+                self.count_point(points[k].1, false);
+                self.count_change(points[k], points[k + 1], false);
+            }
+            self.count_point(points[n].1, true);
+            if n > self.first {
+                self.count_change(points[n - 1], points[n], true);
+            }
+        }
+        self.synced = points.len();
+    }
+
+    /// Adds (`add`) or removes the features of point `p`.
+    fn count_point(&mut self, p: Appearance, add: bool) {
+        self.ln_mass.update(p.ln_mass, add);
+        self.size.update(p.size, add);
+        self.ep.update(p.ep, add);
+    }
+
+    /// Adds (`add`) or removes the change from point `from` to the next, `to`.
+    fn count_change(&mut self, (f0, a0): (usize, Appearance), (f1, a1): (usize, Appearance), add: bool) {
+        // A change over several frames counts as that many frames' worth of change.
+        let root = ((f1 - f0).max(1) as f64).sqrt();
+        self.d_ln_mass.update((a1.ln_mass - a0.ln_mass) / root, add);
+        self.d_size.update((a1.size - a0.size) / root, add);
+    }
 }
 
 impl AppearanceHistory {
@@ -243,35 +298,6 @@ impl AppearanceHistory {
     /// Adds the appearance `a` located in frame `frame` (after every earlier one).
     pub fn push(&mut self, frame: usize, a: Appearance) {
         self.points.push((frame, a));
-        // The window moves from points n - HISTORY ..= n - 1 to n - HISTORY + 1 ..= n: point n
-        // and the change into it come in; point n - HISTORY and the change out of it leave.
-        // (Leaving first, so that no window ever holds more than HISTORY values.)
-        let n = self.points.len() - 1;
-        if let Some(k) = n.checked_sub(HISTORY) {
-            self.count_point(k, false);
-            self.count_change_into(k + 1, false);
-        }
-        self.count_point(n, true);
-        if n >= 1 {
-            self.count_change_into(n, true);
-        }
-    }
-
-    /// Adds (`add`) or removes the features of point `k` in the sorted windows.
-    fn count_point(&mut self, k: usize, add: bool) {
-        let (_, p) = self.points[k];
-        self.ln_mass.update(p.ln_mass, add);
-        self.size.update(p.size, add);
-        self.ep.update(p.ep, add);
-    }
-
-    /// Adds (`add`) or removes the change from point `k - 1` to point `k` (`k >= 1`).
-    fn count_change_into(&mut self, k: usize, add: bool) {
-        let ((f0, a0), (f1, a1)) = (self.points[k - 1], self.points[k]);
-        // A change over several frames counts as that many frames' worth of change.
-        let root = ((f1 - f0).max(1) as f64).sqrt();
-        self.d_ln_mass.update((a1.ln_mass - a0.ln_mass) / root, add);
-        self.d_size.update((a1.size - a0.size) / root, add);
     }
 
     /// The track's appearance for linking frame `frame`, with centroid window radius
@@ -290,6 +316,8 @@ impl AppearanceHistory {
     ) -> Option<TrackAppearance> {
         let &(last_frame, _) = self.points.last()?;
         let last = Appearance::median_of(&self.points[self.points.len().saturating_sub(3)..]);
+        let mut windows = self.windows.borrow_mut();
+        windows.catch_up(&self.points);
         let own = |changes: &[f64], pooled: Option<f64>| {
             if changes.len() >= OWN_SPREAD_MIN_CHANGES {
                 sorted_robust_spread(changes)
@@ -298,18 +326,18 @@ impl AppearanceHistory {
             }
         };
         let own = AppearanceSpread {
-            ln_mass: own(self.d_ln_mass.values(), pooled.map(|p| p.ln_mass)),
-            size: own(self.d_size.values(), pooled.map(|p| p.size)),
+            ln_mass: own(windows.d_ln_mass.values(), pooled.map(|p| p.ln_mass)),
+            size: own(windows.d_size.values(), pooled.map(|p| p.size)),
         };
         if !own.ln_mass.is_finite() {
             return None;
         }
-        let ln_mass = sorted_median(self.ln_mass.values());
+        let ln_mass = sorted_median(windows.ln_mass.values());
         let usual = Appearance {
             ln_mass,
             ln_mass_upper: ln_mass,
-            size: sorted_median(self.size.values()),
-            ep: sorted_median(self.ep.values()),
+            size: sorted_median(windows.size.values()),
+            ep: sorted_median(windows.ep.values()),
         };
         let ep = usual.ep;
         let spread = AppearanceSpread {
@@ -584,10 +612,11 @@ mod tests {
     }
 
     /// Kept point by point (and rebuilt from a slice), the history gives the appearance its
-    /// definition gives, to the bit, at every length: features repeating exactly, unknown
-    /// sizes, gaps of several frames, with and without a pooled spread.
+    /// definition gives, to the bit, asked after 1 to 31 new points (within and beyond the
+    /// window's reach): features repeating exactly, unknown sizes, gaps of several frames,
+    /// with and without a pooled spread.
     #[test]
-    fn kept_history_matches_the_definition_at_every_length() {
+    fn kept_history_matches_the_definition_however_often_asked() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         for pooled in [
             None,
@@ -597,8 +626,8 @@ mod tests {
             }),
         ] {
             let mut kept = AppearanceHistory::default();
-            let mut frame = 0;
-            for n in 0..120 {
+            let (mut frame, mut next_ask, mut asked) = (0, 0, 0);
+            for n in 0..400 {
                 frame += rng.gen_range(1..=3);
                 // Values on a coarse grid, so that equal ones come and go.
                 let ln_mass = 10.0 + f64::from(rng.gen_range(0..12)) * 0.01;
@@ -614,6 +643,12 @@ mod tests {
                     ep: 0.01 + f64::from(rng.gen_range(0..5)) * 0.002,
                 };
                 kept.push(frame, a);
+                // Asked after gaps within and beyond the window's reach.
+                if n != next_ask {
+                    continue;
+                }
+                next_ask += [1, 2, 5, 24, 25, 31, 3][asked % 7];
+                asked += 1;
                 let at = frame + 1 + n % 2;
                 let want = format!("{:?}", appearance_by_sorting(kept.points(), at, pooled, 5.0));
                 assert_eq!(
