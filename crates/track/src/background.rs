@@ -727,9 +727,18 @@ fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32, stride: 
     let mut cov = [[0.0f64; 3]; 3];
     let mut mean = [0.0f64; 3];
     let mut count = 0usize;
+    // A constant background is its level at every pixel, to the bit: the samples then read
+    // the frames alone, not a frame-sized image at scattered places too.
+    let constant = bg.model == BackgroundModel::Constant;
     for (s, f) in samples.iter().enumerate() {
-        let pixels = f.data.chunks_exact(c).zip(bg.image.chunks_exact(c));
-        for (p, b) in pixels.skip(s % stride).step_by(stride) {
+        let pixels = (f.data.len() / c).min(bg.image.len() / c);
+        for i in (s % stride..pixels).step_by(stride) {
+            let p = &f.data[i * c..(i + 1) * c];
+            let b = if constant {
+                &bg.level[..]
+            } else {
+                &bg.image[i * c..(i + 1) * c]
+            };
             let mut d = [0.0f64; 3];
             let mut big = false;
             for ch in 0..c {
