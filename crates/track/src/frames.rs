@@ -3,7 +3,8 @@
 //!
 //! Every frame is held as `f32` samples on the 8-bit scale (0 = black, 255 = white), one
 //! channel for grey images and three for colour ones (alpha is dropped). 16-bit images
-//! keep their precision as fractional levels.
+//! keep their precision as fractional levels. The locate pass also takes an 8-bit grey
+//! file's bytes as they are ([`FrameView::Grey8`]), read as the same levels.
 
 use std::cmp::Ordering;
 use std::io::Cursor;
