@@ -86,8 +86,7 @@ pub(crate) fn read_png(
         return Ok(None);
     };
     let filtered_len = bytes + header.height;
-    scratch.filtered.clear();
-    scratch.filtered.resize(filtered_len, 0);
+    sized(&mut scratch.filtered, filtered_len);
     let mut inflater = fdeflate::Decompressor::new();
     // Every byte of the compressed stream is covered by its chunk's CRC, already checked.
     inflater.ignore_adler32();
@@ -112,8 +111,7 @@ pub(crate) fn read_png(
             "truncated image data: {written} of {filtered_len} bytes{ends_early}"
         ));
     }
-    samples.clear();
-    samples.resize(bytes, 0);
+    sized(samples, bytes);
     unfilter::unfilter(&scratch.filtered, row, header.bpp, samples, &mut scratch.unfilter)
         .map_err(|bad| format!("unknown filter type {} in row {}", bad.kind, bad.row))?;
     Ok(Some(PngImage {
@@ -121,6 +119,15 @@ pub(crate) fn read_png(
         width: header.width,
         height: header.height,
     }))
+}
+
+/// Gives `buffer` the length `len`, without clearing it when it has that length already (the
+/// next frame's buffers, every byte of which is written before it is read).
+fn sized(buffer: &mut Vec<u8>, len: usize) {
+    if buffer.len() != len {
+        buffer.clear();
+        buffer.resize(len, 0);
+    }
 }
 
 /// One chunk of a PNG file: its type, its data and where the next chunk starts.
