@@ -58,13 +58,9 @@ impl Appearance {
     pub fn median_of(points: &[(usize, Appearance)]) -> Appearance {
         let recent = &points[points.len().saturating_sub(HISTORY)..];
         let feature = |f: fn(&Appearance) -> f64| {
-            let mut v = Sample::default();
-            recent
-                .iter()
-                .map(|(_, a)| f(a))
-                .filter(|x| x.is_finite())
-                .for_each(|x| v.push(x));
-            median(v.values())
+            let mut v = SortedWindow::default();
+            recent.iter().for_each(|(_, a)| v.update(f(a), true));
+            sorted_median(v.values())
         };
         let ln_mass = feature(|a| a.ln_mass);
         Appearance {
@@ -451,36 +447,6 @@ fn robust_spread(v: &mut [f64]) -> f64 {
     1.4826 * median(v)
 }
 
-/// Up to [`HISTORY`] values held on the stack: the features of a track's recent history,
-/// whose medians linking takes for every track in every frame.
-struct Sample {
-    values: [f64; HISTORY],
-    len: usize,
-}
-
-impl Default for Sample {
-    fn default() -> Self {
-        Sample {
-            values: [0.0; HISTORY],
-            len: 0,
-        }
-    }
-}
-
-impl Sample {
-    /// Adds `x` (ignored beyond [`HISTORY`] values).
-    fn push(&mut self, x: f64) {
-        if self.len < HISTORY {
-            self.values[self.len] = x;
-            self.len += 1;
-        }
-    }
-
-    fn values(&mut self) -> &mut [f64] {
-        &mut self.values[..self.len]
-    }
-}
-
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -495,16 +461,25 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     #[test]
-    fn robust_spread_ignores_an_outlier_and_the_stack_sample_matches_a_vector() {
+    fn robust_spread_ignores_an_outlier_and_the_sorted_window_matches_a_vector() {
         // |x - 3| = 2, 1, 0, 1, 97: median 1.
         let mut v = [1.0, 2.0, 3.0, 4.0, 100.0];
         assert!((robust_spread(&mut v) - 1.4826).abs() < 1e-12);
-        let history: Vec<f64> = (0..40).map(|k| ((k * 7919) % 31) as f64 * 0.1).collect();
-        let mut sample = Sample::default();
-        history.iter().for_each(|&x| sample.push(x));
-        assert_eq!(sample.values().len(), HISTORY, "holds at most HISTORY values");
-        let mut first: Vec<f64> = history[..HISTORY].to_vec();
-        assert_eq!(median(sample.values()).to_bits(), median(&mut first).to_bits());
+        let history: Vec<f64> = (0..HISTORY).map(|k| ((k * 7919) % 31) as f64 * 0.1).collect();
+        let mut window = SortedWindow::default();
+        history.iter().for_each(|&x| window.update(x, true));
+        window.update(f64::NAN, true);
+        assert_eq!(window.values().len(), HISTORY, "non-finite values are not kept");
+        let mut first = history.clone();
+        assert_eq!(
+            sorted_median(window.values()).to_bits(),
+            median(&mut first).to_bits()
+        );
+        let mut first = history.clone();
+        assert_eq!(
+            sorted_robust_spread(window.values()).to_bits(),
+            robust_spread(&mut first).to_bits()
+        );
     }
 
     fn det(x: f64, y: f64, mass: f64, size: f64) -> Detection {

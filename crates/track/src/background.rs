@@ -408,26 +408,16 @@ impl Background {
     fn gain_of<T: Copy>(&self, data: &[T], level: impl Fn(T) -> f32) -> f64 {
         let n = data.len().min(self.image.len());
         let stride = (n / GAIN_SAMPLES).max(1) | 1;
-        let (data, image) = (&data[..n], &self.image[..n]);
+        let data = &data[..n];
+        let c = self.channels;
         let mut ratios: Vec<f32> = Vec::with_capacity(n / stride + 1);
         // Sample `j` is value `j * stride` (a plain loop: the iterator chain cost three times
-        // as much, on every frame).
-        let mut sample = |background: &dyn Fn(usize) -> f32| {
-            for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
-                let b = background(i);
-                if b >= 16.0 {
-                    ratios.push((level(data[i]) + dither(j)) / b);
-                }
+        // as much, on every frame); a grey value is its pixel's.
+        for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
+            let b = if c == 1 { self.pixel(i)[0] } else { self.image[i] };
+            if b >= 16.0 {
+                ratios.push((level(data[i]) + dither(j)) / b);
             }
-        };
-        // A constant grey background is its level at every pixel, to the bit: the samples
-        // then read the frame alone, not a second frame-sized image scattered over memory.
-        match (self.model, self.channels) {
-            (BackgroundModel::Constant, 1) => {
-                let level = self.level[0];
-                sample(&|_| level);
-            }
-            _ => sample(&|i| image[i]),
         }
         if ratios.len() < 16 {
             return 1.0;
@@ -480,14 +470,8 @@ impl Background {
     /// channel count than the background's is converted first (grey repeated into red, green
     /// and blue; colour averaged into grey).
     pub fn signal_into<'a>(&self, frame: impl Into<FrameView<'a>>, out: &mut Vec<f32>) {
-        let view = frame.into();
-        let converted;
-        let view = if self.takes(view) {
-            view
-        } else {
-            converted = view.to_frame().with_channels(self.channels);
-            FrameView::Frame(&converted)
-        };
+        let mut converted = Frame::default();
+        let view = self.matching(frame.into(), &mut converted);
         let (width, height) = view.size();
         // Every value is written below: a reused buffer of the right length is not cleared.
         if out.len() != width * height {
@@ -497,21 +481,26 @@ impl Background {
         self.signal_range(view, 0..width * height, out);
     }
 
-    /// Whether `frame` has the background's channel count, as [`Background::signal_range`]
-    /// needs.
-    pub fn takes(&self, frame: FrameView<'_>) -> bool {
-        match frame {
-            FrameView::Grey8 { .. } => self.channels == 1,
-            FrameView::Frame(f) => f.channels == self.channels,
+    /// `frame` with the background's channel count: as it is, or converted into `converted`
+    /// (grey repeated into red, green and blue; colour averaged into grey) when a grey file
+    /// sits among colour ones or the reverse.
+    pub fn matching<'a>(&self, frame: FrameView<'a>, converted: &'a mut Frame) -> FrameView<'a> {
+        let channels = match frame {
+            FrameView::Grey8 { .. } => 1,
+            FrameView::Frame(f) => f.channels,
+        };
+        if channels == self.channels {
+            return frame;
         }
+        *converted = frame.to_frame().with_channels(self.channels);
+        FrameView::Frame(converted)
     }
 
     /// The particle signal of the pixels `pixels` (row-major indices) of `frame`, into `out`
     /// (as long as the range): [`Background::signal_into`] for part of a frame, the same
     /// values to the bit. `frame` must have the background's channel count
-    /// ([`Background::takes`]).
+    /// ([`Background::matching`]).
     pub fn signal_range(&self, frame: FrameView<'_>, pixels: std::ops::Range<usize>, out: &mut [f32]) {
-        debug_assert!(self.takes(frame));
         let c = self.channels;
         let image = &self.image[pixels.start * c..pixels.end * c];
         match frame {
@@ -546,6 +535,16 @@ impl Background {
                     *o = u * (level(v) - b);
                 }
             }
+        }
+    }
+
+    /// The background at pixel `p` (its channels, grey levels). A constant model's level
+    /// stands for its image, which holds that level at every pixel to the bit: scattered
+    /// samples then read the frames alone, not a frame-sized image as well.
+    fn pixel(&self, p: usize) -> &[f32] {
+        match self.model {
+            BackgroundModel::Constant => &self.level,
+            BackgroundModel::PerPixel => &self.image[p * self.channels..(p + 1) * self.channels],
         }
     }
 
@@ -727,18 +726,10 @@ fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32, stride: 
     let mut cov = [[0.0f64; 3]; 3];
     let mut mean = [0.0f64; 3];
     let mut count = 0usize;
-    // A constant background is its level at every pixel, to the bit: the samples then read
-    // the frames alone, not a frame-sized image at scattered places too.
-    let constant = bg.model == BackgroundModel::Constant;
     for (s, f) in samples.iter().enumerate() {
         let pixels = (f.data.len() / c).min(bg.image.len() / c);
         for i in (s % stride..pixels).step_by(stride) {
-            let p = &f.data[i * c..(i + 1) * c];
-            let b = if constant {
-                &bg.level[..]
-            } else {
-                &bg.image[i * c..(i + 1) * c]
-            };
+            let (p, b) = (&f.data[i * c..(i + 1) * c], bg.pixel(i));
             let mut d = [0.0f64; 3];
             let mut big = false;
             for ch in 0..c {
@@ -853,6 +844,41 @@ mod tests {
         let view = decoder.load_view(&rgb, &mut buf).unwrap();
         assert!(matches!(view, FrameView::Frame(f) if f.channels == 3 && f.data[..3] == [10.0, 20.0, 30.0]));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A frame of another channel count than the background's is read as converted: a grey
+    /// frame among colour ones as its grey repeated into red, green and blue, a colour frame
+    /// among grey ones as the mean of its channels.
+    #[test]
+    fn a_frame_of_another_channel_count_is_converted_first() {
+        let colour: Vec<Frame> = (0..3)
+            .map(|k| Frame {
+                width: 6,
+                height: 4,
+                channels: 3,
+                data: (0..72).map(|i| (40 + (i * 7 + k * 5) % 50) as f32).collect(),
+            })
+            .collect();
+        let grey = Frame {
+            width: 6,
+            height: 4,
+            channels: 1,
+            data: (0..24).map(|i| (60 + i * 3) as f32).collect(),
+        };
+        for (samples, odd) in [
+            (colour.clone(), grey.clone()),
+            (vec![grey.clone(); 3], colour[1].clone()),
+        ] {
+            let bg = estimate_background(&samples, BackgroundChoice::PerPixel);
+            let (mut got, mut want) = (Vec::new(), Vec::new());
+            bg.signal_into(&odd, &mut got);
+            bg.signal_into(&odd.clone().with_channels(bg.channels), &mut want);
+            assert_eq!(got.len(), 24);
+            assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
+            let mut converted = Frame::default();
+            let view = bg.matching(FrameView::Frame(&odd), &mut converted);
+            assert!(matches!(view, FrameView::Frame(f) if f.channels == bg.channels));
+        }
     }
 
     /// `signal_at` gives `signal_into`'s value to the bit, for grey and colour frames

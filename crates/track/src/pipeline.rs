@@ -321,25 +321,21 @@ fn track_paths(
         .map(|(i, (k, _))| {
             workers.with(|w| {
                 let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
+                let frame = background.matching(frame, &mut w.converted);
                 // Blobs are found in the plain signal (the band-pass ignores a flat change of
                 // brightness, and a gain is not uniform enough over a real frame to correct the
                 // component labelling with); centroids are measured in the gain-corrected one,
                 // since a centroid window integrates any offset left in it. The signal is
                 // formed row by row as the detector's filters reach it.
-                let blobs = if background.takes(frame) {
-                    w.signal.resize(size.0 * size.1, 0.0);
-                    find_blobs_forming(
-                        &mut w.signal,
-                        size.0,
-                        size.1,
-                        &params,
-                        &mut w.detect,
-                        |pixels, out| background.signal_range(frame, pixels, out),
-                    )
-                } else {
-                    background.signal_into(frame, &mut w.signal);
-                    find_blobs_with_scratch(&w.signal, size.0, size.1, &params, &mut w.detect)
-                };
+                w.signal.resize(size.0 * size.1, 0.0);
+                let blobs = find_blobs_forming(
+                    &mut w.signal,
+                    size.0,
+                    size.1,
+                    &params,
+                    &mut w.detect,
+                    |pixels, out| background.signal_range(frame, pixels, out),
+                );
                 background.remove_gain(frame, &mut w.signal);
                 let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
                 let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
@@ -507,6 +503,8 @@ impl WindowFrames<'_> {
 struct Worker {
     decoder: FrameDecoder,
     frame: Frame,
+    /// A frame converted to the background's channel count (a grey file among colour ones).
+    converted: Frame,
     signal: Vec<f32>,
     detect: Scratch,
     locate: LocateScratch,

@@ -47,9 +47,10 @@ pub(crate) fn read_png(
     }
     let mut header: Option<Header> = None;
     scratch.compressed.clear();
-    // The image data of the first IDAT chunk, and whether more followed it (then all of it
-    // is gathered in `scratch.compressed`).
+    // The image data of the first IDAT chunk; when more follow, all of it is gathered in
+    // `scratch.compressed`.
     let mut first_data: Option<&[u8]> = None;
+    let mut gathered = false;
     let mut at = SIGNATURE.len();
     let mut ended = false;
     while at < file.len() {
@@ -64,8 +65,9 @@ pub(crate) fn read_png(
             b"IDAT" => match first_data {
                 None => first_data = Some(chunk.data),
                 Some(first) => {
-                    if scratch.compressed.is_empty() {
+                    if !gathered {
                         scratch.compressed.extend_from_slice(first);
+                        gathered = true;
                     }
                     scratch.compressed.extend_from_slice(chunk.data);
                 }
@@ -92,10 +94,10 @@ pub(crate) fn read_png(
     inflater.ignore_adler32();
     let ends_early = if ended { "" } else { " (the file ends early)" };
     // Most files hold their image data in one chunk, inflated where it lies.
-    let compressed = if scratch.compressed.is_empty() {
-        first_data.unwrap_or_default()
-    } else {
+    let compressed = if gathered {
         &scratch.compressed
+    } else {
+        first_data.unwrap_or_default()
     };
     let written = match inflater.read(compressed, &mut scratch.filtered, 0, true) {
         Ok((_, written)) => written,
