@@ -116,9 +116,9 @@ const NOISE_SAMPLES: usize = 125_000;
 
 /// Estimates the background of a recording from sample frames (all the same size and
 /// channel count; at least one). See the module documentation for the method.
-pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Background {
+pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) -> Background {
     let first = &samples[0];
-    let (width, height, channels) = (first.width, first.height, first.channels);
+    let ((width, height), channels) = (first.size(), first.channels());
     let k = samples.len();
     // The model is chosen on the per-pixel median of an even sample of the pixels (every
     // `pixel_stride`-th, odd so that it walks across the columns); the whole median image is
@@ -133,16 +133,14 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
     // spread about the per-pixel median is biased low for few samples: with an odd count one
     // sample *is* the median at every pixel, so a third of three samples' deviations are 0.)
     let sigma_t = if k >= 2 {
-        let stride = ((k - 1) * first.data.len() / NOISE_SAMPLES).max(1) | 1;
-        let mut dev: Vec<f32> = Vec::with_capacity((k - 1) * first.data.len() / stride + 1);
+        let n = first.len();
+        let stride = ((k - 1) * n / NOISE_SAMPLES).max(1) | 1;
+        let mut dev: Vec<f32> = Vec::with_capacity((k - 1) * n / stride + 1);
         for pair in samples.windows(2) {
             dev.extend(
-                pair[0]
-                    .data
-                    .iter()
-                    .zip(&pair[1].data)
+                (0..n)
                     .step_by(stride)
-                    .map(|(a, b)| (a - b).abs()),
+                    .map(|i| (pair[0].value(i) - pair[1].value(i)).abs()),
             );
         }
         quantile(&mut dev, 0.5) as f64 * 1.4826 / std::f64::consts::SQRT_2
@@ -171,7 +169,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
                 .iter()
                 .zip(median.chunks_exact(channels))
                 .filter(|(&i, m)| {
-                    let p = &f.data[i * channels..(i + 1) * channels];
+                    let p = f.pixel(i);
                     p.iter().zip(*m).any(|(a, b)| (a - b).abs() > tau_frame)
                 })
                 .count()
@@ -232,10 +230,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
         // deterministic dither spread evenly over one level makes the distribution
         // continuous again: its spread is then that of the quantised noise itself.
         for i in (s % stride..width * height).step_by(stride) {
-            let (v, lo) = (
-                bg.signal_at(&f.data[i * channels..(i + 1) * channels], i),
-                bg.signal_at(&clip, i),
-            );
+            let (v, lo) = (bg.signal_at(&f.pixel(i)[..channels], i), bg.signal_at(&clip, i));
             let d = v + dither(i);
             if d < 0.0 {
                 negatives.push(-d);
@@ -268,7 +263,7 @@ pub fn estimate_background(samples: &[Frame], choice: BackgroundChoice) -> Backg
             }
         }
     }
-    bg.reference_gain = samples.iter().map(|f| bg.frame_gain(f)).sum::<f64>() / k as f64;
+    bg.reference_gain = samples.iter().map(|&f| bg.frame_gain(f)).sum::<f64>() / k as f64;
     bg.brightest = f64::from(bg.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     bg
 }
@@ -282,7 +277,7 @@ impl Background {
     /// hover cover the same pixels in many frames and leave part of themselves in a plain
     /// median (17 grey levels of a 120-level spot in the gaussian-blobs fixture), which then
     /// biases every centroid near there. A constant background is left as it is.
-    pub fn exclude_particles(&mut self, samples: &[Frame], particles: &[Vec<[f64; 2]>], reach: f64) {
+    pub fn exclude_particles(&mut self, samples: &[FrameView<'_>], particles: &[Vec<[f64; 2]>], reach: f64) {
         if self.model != BackgroundModel::PerPixel
             || samples.len() != particles.len()
             || samples.len() < CLEAR_SAMPLES
@@ -330,12 +325,12 @@ impl Background {
                     }
                     for (ch, v) in px.iter_mut().enumerate() {
                         buf.clear();
-                        buf.extend(order.iter().map(|&(_, s)| samples[s].data[pixel * c + ch]));
+                        buf.extend(order.iter().map(|&(_, s)| samples[s].value(pixel * c + ch)));
                         *v = median_of(&mut buf) + clip_offset as f32 * direction[ch];
                     }
                 }
             });
-        self.reference_gain = samples.iter().map(|f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
+        self.reference_gain = samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
         self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     }
 
@@ -352,7 +347,7 @@ impl Background {
     #[must_use]
     pub fn static_structure_fraction(
         &self,
-        samples: &[Frame],
+        samples: &[FrameView<'_>],
         particles: &[Vec<[f64; 2]>],
         reach: f64,
     ) -> f64 {
@@ -383,7 +378,7 @@ impl Background {
             let t = tau * (k / clear.len() as f32).sqrt();
             let structured = (0..c).any(|ch| {
                 buf.clear();
-                buf.extend(clear.iter().map(|&j| samples[j].data[i * c + ch]));
+                buf.extend(clear.iter().map(|&j| samples[j].value(i * c + ch)));
                 (median_of(&mut buf) - self.level[ch]).abs() > t
             });
             stays += usize::from(structured);
@@ -639,19 +634,19 @@ fn dither(i: usize) -> f32 {
 }
 
 /// The per-pixel median over `samples` of every value of a frame (channel-interleaved).
-fn median_image(samples: &[Frame]) -> Vec<f32> {
-    median_values(samples, samples[0].data.len(), |v| v)
+fn median_image(samples: &[FrameView<'_>]) -> Vec<f32> {
+    median_values(samples, samples[0].len(), |v| v)
 }
 
 /// The per-pixel median over `samples` at the pixels `picked` (indices into a frame's
 /// pixels), channel-interleaved like a frame's data.
-fn median_at(samples: &[Frame], picked: &[usize]) -> Vec<f32> {
-    let c = samples[0].channels;
+fn median_at(samples: &[FrameView<'_>], picked: &[usize]) -> Vec<f32> {
+    let c = samples[0].channels();
     median_values(samples, picked.len() * c, |v| picked[v / c] * c + v % c)
 }
 
 /// `len` medians over `samples`: value `v` is the median of every sample's `data[index(v)]`.
-fn median_values(samples: &[Frame], len: usize, index: impl Fn(usize) -> usize + Sync) -> Vec<f32> {
+fn median_values(samples: &[FrameView<'_>], len: usize, index: impl Fn(usize) -> usize + Sync) -> Vec<f32> {
     const CHUNK: usize = 4096;
     let mut out = vec![0.0f32; len];
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, dst)| {
@@ -659,7 +654,7 @@ fn median_values(samples: &[Frame], len: usize, index: impl Fn(usize) -> usize +
         for (j, d) in dst.iter_mut().enumerate() {
             let i = index(chunk * CHUNK + j);
             for (b, f) in buf.iter_mut().zip(samples) {
-                *b = f.data[i];
+                *b = f.value(i);
             }
             *d = median_of(&mut buf);
         }
@@ -721,15 +716,15 @@ fn mode_level(image: &[f32], channels: usize, c: usize) -> f32 {
 /// differ by more than `threshold` in some channel, signed so that particles project
 /// positive on average. Every `stride`-th pixel of each sample is looked at (an odd stride,
 /// started one pixel later in each successive sample, as the noise sample is taken).
-fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32, stride: usize) -> Vec<f32> {
+fn colour_direction(samples: &[FrameView<'_>], bg: &Background, threshold: f32, stride: usize) -> Vec<f32> {
     let c = bg.channels;
     let mut cov = [[0.0f64; 3]; 3];
     let mut mean = [0.0f64; 3];
     let mut count = 0usize;
     for (s, f) in samples.iter().enumerate() {
-        let pixels = (f.data.len() / c).min(bg.image.len() / c);
+        let pixels = (f.len() / c).min(bg.image.len() / c);
         for i in (s % stride..pixels).step_by(stride) {
-            let (p, b) = (&f.data[i * c..(i + 1) * c], bg.pixel(i));
+            let (p, b) = (f.pixel(i), bg.pixel(i));
             let mut d = [0.0f64; 3];
             let mut big = false;
             for ch in 0..c {
@@ -779,6 +774,12 @@ fn colour_direction(samples: &[Frame], bg: &Background, threshold: f32, stride: 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::DecodedFrame;
+
+    /// The frames' views, as the estimates take them.
+    fn views(frames: &[Frame]) -> Vec<FrameView<'_>> {
+        frames.iter().map(FrameView::from).collect()
+    }
 
     fn frame_with_spot(level: f32, spot: f32, at: (usize, usize)) -> Frame {
         let mut f = Frame::filled(40, 30, &[level]);
@@ -813,8 +814,27 @@ mod tests {
             .collect();
         let mut decoder = crate::FrameDecoder::default();
         let mut buf = Frame::default();
+        // The files kept as their bytes give the same estimates to the bit.
+        let kept: Vec<DecodedFrame> = (0..5)
+            .map(|k| decoder.load_decoded(&dir.join(format!("grey_{k}.png"))).unwrap())
+            .collect();
+        let bytes: Vec<FrameView> = kept.iter().map(DecodedFrame::view).collect();
+        assert!(bytes.iter().all(|v| matches!(v, FrameView::Grey8 { .. })));
+        let found: Vec<Vec<[f64; 2]>> = (0..5).map(|k| vec![[10.0 + 5.0 * k as f64, 20.0]]).collect();
         for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
-            let bg = estimate_background(&frames, choice);
+            let mut bg = estimate_background(&views(&frames), choice);
+            let mut from_bytes = estimate_background(&bytes, choice);
+            assert_eq!(from_bytes, bg, "{choice:?}");
+            assert_eq!(
+                from_bytes
+                    .static_structure_fraction(&bytes, &found, 3.0)
+                    .to_bits(),
+                bg.static_structure_fraction(&views(&frames), &found, 3.0)
+                    .to_bits()
+            );
+            from_bytes.exclude_particles(&bytes, &found, 3.0);
+            bg.exclude_particles(&views(&frames), &found, 3.0);
+            assert_eq!(from_bytes, bg, "{choice:?}");
             for (k, frame) in frames.iter().enumerate() {
                 let view = decoder
                     .load_view(&dir.join(format!("grey_{k}.png")), &mut buf)
@@ -869,7 +889,7 @@ mod tests {
             (colour.clone(), grey.clone()),
             (vec![grey.clone(); 3], colour[1].clone()),
         ] {
-            let bg = estimate_background(&samples, BackgroundChoice::PerPixel);
+            let bg = estimate_background(&views(&samples), BackgroundChoice::PerPixel);
             let (mut got, mut want) = (Vec::new(), Vec::new());
             bg.signal_into(&odd, &mut got);
             bg.signal_into(&odd.clone().with_channels(bg.channels), &mut want);
@@ -897,7 +917,7 @@ mod tests {
                 })
                 .collect();
             for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
-                let bg = estimate_background(&frames, choice);
+                let bg = estimate_background(&views(&frames), choice);
                 let whole = bg.signal(&frames[2]);
                 for (i, v) in whole.iter().enumerate() {
                     let pixel = &frames[2].data[i * channels..(i + 1) * channels];
@@ -916,7 +936,7 @@ mod tests {
         let samples: Vec<Frame> = (0..5)
             .map(|k| frame_with_spot(200.0, 50.0, (5 + 6 * k, 10)))
             .collect();
-        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
         assert_eq!(bg.model, BackgroundModel::Constant);
         assert!((bg.level[0] - 200.0).abs() < 1e-3);
         assert!(bg.is_dark_on_light());
@@ -938,7 +958,7 @@ mod tests {
                 f
             })
             .collect();
-        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
         assert_eq!(bg.model, BackgroundModel::PerPixel);
         let s = bg.signal(&samples[3]);
         assert!(
@@ -966,14 +986,14 @@ mod tests {
                 f
             })
             .collect();
-        let mut bg = estimate_background(&samples, BackgroundChoice::PerPixel);
+        let mut bg = estimate_background(&views(&samples), BackgroundChoice::PerPixel);
         let centre = 15 * 40 + 20;
         assert!(
             (bg.image[centre] - 255.0).abs() < 1e-3,
             "the plain median keeps the spot"
         );
         let found: Vec<Vec<[f64; 2]>> = (0..7).map(|k| vec![[at(k).0 as f64, at(k).1 as f64]]).collect();
-        bg.exclude_particles(&samples, &found, 5.0);
+        bg.exclude_particles(&views(&samples), &found, 5.0);
         assert!(
             (bg.image[centre] - gradient(centre)).abs() < 1e-3,
             "the median of the three frames whose spot is farthest: {}",
@@ -997,7 +1017,7 @@ mod tests {
                 f
             })
             .collect();
-        let bg = estimate_background(&samples, BackgroundChoice::Auto);
+        let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
         let d = &bg.direction;
         // The particle is (-200, -100, -80) from the background.
         let expect = [-200.0f32, -100.0, -80.0];

@@ -175,6 +175,22 @@ impl FrameDecoder {
         Ok(frame)
     }
 
+    /// Decodes the frame file `path` (see [`load_frame`]) to be kept: an 8-bit grey file's
+    /// bytes as they are (a quarter of the memory of its [`Frame`]), any other layout as a
+    /// [`Frame`].
+    pub fn load_decoded(&mut self, path: &Path) -> Result<DecodedFrame, TrackError> {
+        let mut frame = Frame::default();
+        Ok(match self.decode(path, &mut frame)? {
+            // The samples buffer goes with the frame; the next file is decoded into a new one.
+            Some((width, height)) => DecodedFrame::Grey8 {
+                samples: std::mem::take(&mut self.samples),
+                width,
+                height,
+            },
+            None => DecodedFrame::Frame(frame),
+        })
+    }
+
     /// Decodes the frame file `path` (see [`load_frame`]) into `frame`, reusing its buffer.
     pub fn load_into(&mut self, path: &Path, frame: &mut Frame) -> Result<(), TrackError> {
         if let Some(size) = self.decode(path, frame)? {
@@ -256,6 +272,41 @@ impl FrameDecoder {
     }
 }
 
+/// A decoded frame kept for later ([`FrameDecoder::load_decoded`]): 8-bit grey as the file's
+/// bytes, read as the same levels; any other layout as a [`Frame`].
+#[derive(Clone, Debug, PartialEq)]
+pub enum DecodedFrame {
+    /// 8-bit grey.
+    Grey8 {
+        /// One byte per pixel, grey levels, rows back to back (`width * height`).
+        samples: Vec<u8>,
+        /// Width, px.
+        width: usize,
+        /// Height, px.
+        height: usize,
+    },
+    /// Any other layout.
+    Frame(Frame),
+}
+
+impl DecodedFrame {
+    /// The frame's pixels, borrowed.
+    pub fn view(&self) -> FrameView<'_> {
+        match self {
+            DecodedFrame::Grey8 {
+                samples,
+                width,
+                height,
+            } => FrameView::Grey8 {
+                samples,
+                width: *width,
+                height: *height,
+            },
+            DecodedFrame::Frame(f) => FrameView::Frame(f),
+        }
+    }
+}
+
 /// A decoded frame as [`FrameDecoder::load_view`] hands it over.
 #[derive(Clone, Copy, Debug)]
 pub enum FrameView<'a> {
@@ -278,6 +329,52 @@ impl FrameView<'_> {
         match self {
             FrameView::Grey8 { width, height, .. } => (*width, *height),
             FrameView::Frame(f) => (f.width, f.height),
+        }
+    }
+
+    /// Samples per pixel: 1 (grey) or 3 (red, green, blue).
+    pub fn channels(&self) -> usize {
+        match self {
+            FrameView::Grey8 { .. } => 1,
+            FrameView::Frame(f) => f.channels,
+        }
+    }
+
+    /// Number of samples, `width * height * channels`.
+    pub fn len(&self) -> usize {
+        match self {
+            FrameView::Grey8 { samples, .. } => samples.len(),
+            FrameView::Frame(f) => f.data.len(),
+        }
+    }
+
+    /// Whether the frame has no pixels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Sample `i` of the channel-interleaved samples (pixel `i / channels`, channel
+    /// `i % channels`), grey levels: what [`Frame::data`] holds there.
+    #[inline]
+    pub fn value(&self, i: usize) -> f32 {
+        match self {
+            FrameView::Grey8 { samples, .. } => f32::from(samples[i]),
+            FrameView::Frame(f) => f.data[i],
+        }
+    }
+
+    /// Pixel `p`'s channels, grey levels: the first [`FrameView::channels`] entries (the
+    /// rest 0).
+    #[inline]
+    pub fn pixel(&self, p: usize) -> [f32; 3] {
+        match self {
+            FrameView::Grey8 { samples, .. } => [f32::from(samples[p]), 0.0, 0.0],
+            FrameView::Frame(f) => {
+                let mut out = [0.0; 3];
+                let c = f.channels;
+                out[..c].copy_from_slice(&f.data[p * c..(p + 1) * c]);
+                out
+            }
         }
     }
 

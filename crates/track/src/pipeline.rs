@@ -16,8 +16,8 @@ use crate::background::STRUCTURED_LIMIT;
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections, list_frames,
-    load_frame, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
-    BackgroundModel, Blob, BlobSize, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
+    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
+    Blob, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
     FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
@@ -217,16 +217,16 @@ fn track_paths(
     // The sampled frames are kept and reused by the locate pass: each file is decoded once.
     let workers = Workers::default();
     let (picks, mut sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES, &workers)?;
-    let size = (sample_frames[0].width, sample_frames[0].height);
+    let size = sample_frames[0].view().size();
     let reference = &paths[picks[0]].1;
     for (&i, frame) in picks.iter().zip(&sample_frames) {
-        check_size(&paths[i].1, frame, reference, size)?;
+        check_size(&paths[i].1, frame.view(), reference, size)?;
     }
     let mut sample_of: Vec<Option<usize>> = vec![None; paths.len()];
     for (j, &i) in picks.iter().enumerate() {
         sample_of[i] = Some(j);
     }
-    let mut background = estimate_background(&sample_frames, options.background);
+    let mut background = estimate_background(&views(&sample_frames), options.background);
     // With named particles, their frame-A blobs are the particles: the sizes are measured on
     // them alone, so that texture or clutter, however plentiful, cannot set the scale.
     let starts: Option<Vec<[f64; 2]>> = options
@@ -234,13 +234,20 @@ fn track_paths(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
-    let mut sizes = Sizes::measure(&background, &sample_frames, options.radius, starts, &workers);
+    let mut sizes = Sizes::measure(
+        &background,
+        &views(&sample_frames),
+        options.radius,
+        starts,
+        &workers,
+    );
     // The per-pixel median without the particles found in each sample frame (out to twice the
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
     if background.model == BackgroundModel::PerPixel {
-        let found: Vec<Vec<[f64; 2]>> = sample_frames
+        let samples = views(&sample_frames);
+        let found: Vec<Vec<[f64; 2]>> = samples
             .par_iter()
-            .map(|frame| {
+            .map(|&frame| {
                 workers.with(|w| {
                     background.signal_into(frame, &mut w.signal);
                     find_blobs_with_scratch(&w.signal, size.0, size.1, &sizes.params, &mut w.detect)
@@ -253,14 +260,15 @@ fn track_paths(
             .collect();
         let reach = 2.0 * sizes.radius + 1.0;
         if options.background == BackgroundChoice::Auto
-            && background.static_structure_fraction(&sample_frames, &found, reach) <= STRUCTURED_LIMIT
+            && background.static_structure_fraction(&samples, &found, reach) <= STRUCTURED_LIMIT
         {
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
-            background = estimate_background(&sample_frames, BackgroundChoice::Constant);
-            sizes = Sizes::measure(&background, &sample_frames, options.radius, starts, &workers);
+            background = estimate_background(&samples, BackgroundChoice::Constant);
+            sizes = Sizes::measure(&background, &samples, options.radius, starts, &workers);
         } else {
-            background.exclude_particles(&sample_frames, &found, reach);
+            background.exclude_particles(&samples, &found, reach);
+            drop(samples);
             if starts.is_none() && options.radius.is_none() {
                 // A static scene's texture flickers into blobs as the exposure shifts, and
                 // outnumbers the particles: the sizes are measured again on the blobs of
@@ -273,8 +281,8 @@ fn track_paths(
                         *slot = match sample_of[k] {
                             Some(j) => j,
                             None => {
-                                let frame = load_frame(&paths[k].1)?;
-                                check_size(&paths[k].1, &frame, reference, size)?;
+                                let frame = workers.with(|w| w.decoder.load_decoded(&paths[k].1))?;
+                                check_size(&paths[k].1, frame.view(), reference, size)?;
                                 sample_frames.push(frame);
                                 sample_of[k] = Some(sample_frames.len() - 1);
                                 sample_frames.len() - 1
@@ -284,14 +292,20 @@ fn track_paths(
                     let moving = workers.with(|w| {
                         moving_blobs(
                             &background,
-                            three.map(|j| &sample_frames[j]),
+                            three.map(|j| sample_frames[j].view()),
                             size,
                             &sizes.params,
                             w,
                         )
                     });
                     if !moving.is_empty() {
-                        sizes = Sizes::measure(&background, &sample_frames, None, Some(&moving), &workers);
+                        sizes = Sizes::measure(
+                            &background,
+                            &views(&sample_frames),
+                            None,
+                            Some(&moving),
+                            &workers,
+                        );
                     }
                 }
             }
@@ -471,7 +485,7 @@ struct WindowFrames<'a> {
     paths: &'a [(usize, PathBuf)],
     /// Each frame's place among `samples`, if it is one.
     sample_of: &'a [Option<usize>],
-    samples: &'a [Frame],
+    samples: &'a [DecodedFrame],
     /// The file whose size every frame must have, and that size (width, height, px).
     reference: &'a Path,
     size: (usize, usize),
@@ -487,7 +501,7 @@ impl WindowFrames<'_> {
         buf: &'b mut Frame,
     ) -> Result<FrameView<'b>, TrackError> {
         if let Some(j) = self.sample_of[i] {
-            return Ok(FrameView::Frame(&self.samples[j]));
+            return Ok(self.samples[j].view());
         }
         let path = &self.paths[i].1;
         let view = decoder.load_view(path, buf)?;
@@ -549,7 +563,7 @@ fn load_sample(
     paths: &[(usize, PathBuf)],
     count: usize,
     workers: &Workers,
-) -> Result<(Vec<usize>, Vec<Frame>), TrackError> {
+) -> Result<(Vec<usize>, Vec<DecodedFrame>), TrackError> {
     let n = paths.len();
     let picks: Vec<usize> = if n <= count {
         (0..n).collect()
@@ -562,9 +576,14 @@ fn load_sample(
     // paged its buffers in again for every few frames).
     let frames = picks
         .par_iter()
-        .map(|&i| workers.with(|w| w.decoder.load(&paths[i].1)))
+        .map(|&i| workers.with(|w| w.decoder.load_decoded(&paths[i].1)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
+}
+
+/// The sample frames as the estimates read them (8-bit grey files as their bytes).
+fn views(frames: &[DecodedFrame]) -> Vec<FrameView<'_>> {
+    frames.iter().map(DecodedFrame::view).collect()
 }
 
 fn check_size<'a>(
@@ -597,7 +616,7 @@ fn check_size<'a>(
 /// three frames). Positions in the first frame, px; empty when nothing moves.
 fn moving_blobs(
     background: &Background,
-    frames: [&Frame; 3],
+    frames: [FrameView<'_>; 3],
     size: (usize, usize),
     params: &DetectParameters,
     w: &mut Worker,
@@ -650,7 +669,7 @@ impl Sizes {
     /// named particles are given.
     fn measure(
         background: &Background,
-        samples: &[Frame],
+        samples: &[FrameView<'_>],
         given: Option<f64>,
         starts: Option<&[[f64; 2]]>,
         workers: &Workers,
@@ -693,8 +712,9 @@ struct SampleSignals {
 }
 
 impl SampleSignals {
-    fn of(background: &Background, frame: &Frame) -> SampleSignals {
-        let plain = background.signal(frame);
+    fn of(background: &Background, frame: FrameView<'_>) -> SampleSignals {
+        let mut plain = Vec::new();
+        background.signal_into(frame, &mut plain);
         let corrected = background.gain_to_remove(frame).map(|g| {
             let mut corrected = plain.clone();
             background.apply_gain(g, &mut corrected);
@@ -713,14 +733,14 @@ impl SampleSignals {
 struct Estimation<'a> {
     background: &'a Background,
     workers: &'a Workers,
-    frames: &'a [Frame],
+    frames: &'a [FrameView<'a>],
     signals: Vec<OnceLock<SampleSignals>>,
 }
 
 impl Estimation<'_> {
     /// The signals of frame `j`.
     fn signals(&self, j: usize) -> &SampleSignals {
-        self.signals[j].get_or_init(|| SampleSignals::of(self.background, &self.frames[j]))
+        self.signals[j].get_or_init(|| SampleSignals::of(self.background, self.frames[j]))
     }
 
     /// `measure` (one frame's signals and a worker: its measures) over the first frame and
