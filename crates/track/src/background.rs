@@ -395,14 +395,25 @@ impl Background {
     pub fn frame_gain<'a>(&self, frame: impl Into<FrameView<'a>>) -> f64 {
         match frame.into() {
             FrameView::Frame(f) => self.gain_of(&f.data, |v| v),
+            FrameView::Grey8 { samples, .. }
+                if self.channels == 1 && self.model == BackgroundModel::Constant =>
+            {
+                self.grey8_gain_on_level(samples)
+            }
             FrameView::Grey8 { samples, .. } => self.gain_of(samples, f32::from),
         }
     }
 
+    /// How many of `data`'s values the gain looks at, and how far apart: the values
+    /// `0, stride, 2 stride, ...` below the returned length.
+    fn gain_sampling(&self, len: usize) -> (usize, usize) {
+        let n = len.min(self.image.len());
+        (n, (n / GAIN_SAMPLES).max(1) | 1)
+    }
+
     /// [`Background::frame_gain`] of the samples `data`, read as grey levels by `level`.
     fn gain_of<T: Copy>(&self, data: &[T], level: impl Fn(T) -> f32) -> f64 {
-        let n = data.len().min(self.image.len());
-        let stride = (n / GAIN_SAMPLES).max(1) | 1;
+        let (n, stride) = self.gain_sampling(data.len());
         let data = &data[..n];
         let c = self.channels;
         let mut ratios: Vec<f32> = Vec::with_capacity(n / stride + 1);
@@ -418,6 +429,44 @@ impl Background {
             return 1.0;
         }
         f64::from(quantile(&mut ratios, 0.5))
+    }
+
+    /// [`Background::frame_gain`] of 8-bit grey samples `data` against a constant grey
+    /// level, the same value to the bit, found by counting. Every ratio is a dithered level
+    /// over the same background level, and dividing by it keeps their order, so the median
+    /// ratio is the median dithered level over the background. A level's dithered values
+    /// all lie within half a level of it: a histogram of the levels tells which level holds
+    /// the median, and only that level's values are ordered.
+    fn grey8_gain_on_level(&self, data: &[u8]) -> f64 {
+        let (n, stride) = self.gain_sampling(data.len());
+        let count = n.div_ceil(stride);
+        let b = self.level[0];
+        if b < 16.0 || count < 16 {
+            return 1.0;
+        }
+        let mut histogram = [0usize; 256];
+        for &v in data[..n].iter().step_by(stride) {
+            histogram[usize::from(v)] += 1;
+        }
+        // The rank `quantile(.., 0.5)` selects, and the level holding it.
+        let rank = ((count - 1) as f64 * 0.5).round() as usize;
+        let mut below = 0;
+        let mut median_level = 0u8;
+        for (level, &c) in (0..=u8::MAX).zip(&histogram) {
+            if below + c > rank {
+                median_level = level;
+                break;
+            }
+            below += c;
+        }
+        let mut at_level: Vec<f32> = Vec::with_capacity(histogram[usize::from(median_level)]);
+        for (j, &v) in data[..n].iter().step_by(stride).enumerate() {
+            if v == median_level {
+                at_level.push(f32::from(v) + dither(j));
+            }
+        }
+        let x = *at_level.select_nth_unstable_by(rank - below, f32::total_cmp).1;
+        f64::from(x / b)
     }
 
     /// Turns `signal` (the [`Background::signal`] of `frame`) into the signal against the
@@ -864,6 +913,49 @@ mod tests {
         let view = decoder.load_view(&rgb, &mut buf).unwrap();
         assert!(matches!(view, FrameView::Frame(f) if f.channels == 3 && f.data[..3] == [10.0, 20.0, 30.0]));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// The gain of 8-bit grey bytes against a constant level, found by counting, is the
+    /// general median of the ratios to the bit: flat, noisy and saturated frames with
+    /// spots, levels below and above the 16 the gain needs, frames of fewer samples than
+    /// the 16 it needs, of every pixel and of a strided sample.
+    #[test]
+    fn grey_gain_on_a_level_is_counted_to_the_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for (w, h) in [(3usize, 2usize), (7, 5), (64, 48), (300, 200)] {
+            for level in [10.0f32, 16.0, 30.0, 149.6, 240.0] {
+                for sigma in [0.0f32, 0.4, 5.0, 40.0] {
+                    let bytes: Vec<u8> = (0..w * h)
+                        .map(|i| {
+                            let noise: f32 =
+                                (0..4).map(|_| rng.gen_range(-0.5f32..0.5)).sum::<f32>() * 1.73 * sigma;
+                            let spot = if i % 97 < 6 { 120.0 } else { 0.0 };
+                            (level + noise + spot).round().clamp(0.0, 255.0) as u8
+                        })
+                        .collect();
+                    let frame = Frame {
+                        width: w,
+                        height: h,
+                        channels: 1,
+                        data: bytes.iter().map(|&v| f32::from(v)).collect(),
+                    };
+                    let mut bg = estimate_background(&[FrameView::Frame(&frame)], BackgroundChoice::Constant);
+                    bg.level = vec![level];
+                    bg.image = vec![level; w * h];
+                    let view = FrameView::Grey8 {
+                        samples: &bytes,
+                        width: w,
+                        height: h,
+                    };
+                    assert_eq!(
+                        bg.frame_gain(view).to_bits(),
+                        bg.frame_gain(&frame).to_bits(),
+                        "{w}x{h}, level {level}, noise {sigma}"
+                    );
+                }
+            }
+        }
     }
 
     /// A frame of another channel count than the background's is read as converted: a grey
