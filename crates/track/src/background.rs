@@ -19,6 +19,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
+use crate::avx2::with_avx2;
 use crate::frames::{Frame, FrameView};
 
 /// Which background model a recording uses.
@@ -567,7 +568,8 @@ impl Background {
     /// against the background pixels `image`.
     fn grey_signal<T: Copy>(&self, data: &[T], image: &[f32], level: impl Fn(T) -> f32, out: &mut [f32]) {
         let u = self.direction[0];
-        match self.model {
+        // Every pixel of every frame: compiled for AVX2 where the CPU has it.
+        with_avx2(|| match self.model {
             BackgroundModel::Constant => {
                 let l = self.level[0];
                 for (o, &v) in out.iter_mut().zip(data) {
@@ -579,7 +581,7 @@ impl Background {
                     *o = u * (level(v) - b);
                 }
             }
-        }
+        })
     }
 
     /// The background at pixel `p` (its channels, grey levels). A constant model's level

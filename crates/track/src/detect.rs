@@ -16,6 +16,8 @@
 //! from a large object (a hand, a floor edge) or from a speck much smaller than the
 //! expected particle, and such candidates are rejected.
 
+use crate::avx2::with_avx2;
+
 /// Candidate peaks must exceed this many standard deviations of the band-passed noise.
 pub const PEAK_SIGMAS: f64 = 5.0;
 /// Blob masks are the smoothed signal above this many standard deviations of its noise.
@@ -306,9 +308,11 @@ fn find_blobs_in_rows(
         small,
         |y, small, l_row| {
             let s_row = &small[y * width..(y + 1) * width];
-            for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
-                *b = s - l;
-            }
+            with_avx2(|| {
+                for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
+                    *b = s - l;
+                }
+            });
             large[ring(y)].copy_from_slice(l_row);
             comps.push_row(y, s_row, mask.row(y, &mut row_mask));
             if y > 0 {
@@ -1030,6 +1034,7 @@ fn box_counts(len: usize, h: usize) -> Vec<f64> {
 /// One output row of a box mean of half-width `h` at row `y`, from the prefix sums `pre` of
 /// the row's column sums (fixed point, `unit` per grey level, wrapping); `inv_x` holds
 /// 1 / (pixels in the box's row span) per column.
+#[inline(always)]
 fn box_row(out: &mut [f32], pre: &[i32], inv_x: &[f64], h: usize, y: usize, height: usize, unit: f64) {
     let width = out.len();
     let inv_y = 1.0 / (((y + h).min(height - 1) - y.saturating_sub(h) + 1) as f64 * unit);
@@ -1267,43 +1272,46 @@ fn box_rows(
     }
     let inv_x: [Vec<f64>; 2] = halves.map(|h| box_counts(width, h).iter().map(|c| 1.0 / c).collect());
     let fixed_row = |r: usize| (r % ring) * width..(r % ring + 1) * width;
+    let unit = f64::from(unit);
     for y in 0..height {
         if y + reach < height {
             convert(fixed, y + reach);
         }
-        for (col, &h) in [(&mut *col_a, &halves[0]), (&mut *col_b, &halves[1])] {
-            if y + h < height {
-                let add = &fixed[fixed_row(y + h)];
-                if y > h {
+        // The running sums and the rows' box means, compiled for AVX2 where the CPU has it.
+        with_avx2(|| {
+            for (col, &h) in [(&mut *col_a, &halves[0]), (&mut *col_b, &halves[1])] {
+                if y + h < height {
+                    let add = &fixed[fixed_row(y + h)];
+                    if y > h {
+                        let sub = &fixed[fixed_row(y - h - 1)];
+                        for ((c, a), s) in col.iter_mut().zip(add).zip(sub) {
+                            *c = c.wrapping_add(a.wrapping_sub(*s));
+                        }
+                    } else {
+                        for (c, a) in col.iter_mut().zip(add) {
+                            *c = c.wrapping_add(*a);
+                        }
+                    }
+                } else if y > h {
                     let sub = &fixed[fixed_row(y - h - 1)];
-                    for ((c, a), s) in col.iter_mut().zip(add).zip(sub) {
-                        *c = c.wrapping_add(a.wrapping_sub(*s));
+                    for (c, s) in col.iter_mut().zip(sub) {
+                        *c = c.wrapping_sub(*s);
                     }
-                } else {
-                    for (c, a) in col.iter_mut().zip(add) {
-                        *c = c.wrapping_add(*a);
-                    }
-                }
-            } else if y > h {
-                let sub = &fixed[fixed_row(y - h - 1)];
-                for (c, s) in col.iter_mut().zip(sub) {
-                    *c = c.wrapping_sub(*s);
                 }
             }
-        }
-        prefix_sums(col_a, pre_a);
-        prefix_sums(col_b, pre_b);
-        let unit = f64::from(unit);
-        box_row(
-            &mut out_a[y * width..(y + 1) * width],
-            pre_a,
-            &inv_x[0],
-            halves[0],
-            y,
-            height,
-            unit,
-        );
-        box_row(row_b, pre_b, &inv_x[1], halves[1], y, height, unit);
+            prefix_sums(col_a, pre_a);
+            prefix_sums(col_b, pre_b);
+            box_row(
+                &mut out_a[y * width..(y + 1) * width],
+                pre_a,
+                &inv_x[0],
+                halves[0],
+                y,
+                height,
+                unit,
+            );
+            box_row(row_b, pre_b, &inv_x[1], halves[1], y, height, unit);
+        });
         emit(y, &out_a[..(y + 1) * width], row_b);
     }
 }

@@ -3,6 +3,7 @@
 
 mod appearance;
 mod assignment;
+mod avx2;
 mod background;
 mod crossing;
 mod detect;
