@@ -19,7 +19,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::avx2::with_avx2;
+use crate::cpu::with_avx2;
 use crate::frames::{Frame, FrameView};
 
 /// Which background model a recording uses.

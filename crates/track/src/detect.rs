@@ -16,7 +16,7 @@
 //! from a large object (a hand, a floor edge) or from a speck much smaller than the
 //! expected particle, and such candidates are rejected.
 
-use crate::avx2::with_avx2;
+use crate::cpu::{prefetch, with_avx2};
 
 /// Candidate peaks must exceed this many standard deviations of the band-passed noise.
 pub const PEAK_SIGMAS: f64 = 5.0;
@@ -482,24 +482,6 @@ const CHUNK: usize = 16;
 /// How many candidates ahead of the one growing its blob the next blob's pixels are fetched
 /// into the cache.
 const PREFETCH_AHEAD: usize = 2;
-
-/// Asks the CPU to start loading `values[at]` into the cache, so that a later read does not
-/// wait for memory (nothing out of bounds or off x86_64).
-#[inline(always)]
-fn prefetch<T>(values: &[T], at: usize) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(v) = values.get(at) {
-        // SAFETY: SSE is part of the x86_64 baseline, and a prefetch of an address inside a
-        // live slice reads nothing the program sees.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (v as *const T).cast::<i8>(),
-            );
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (values, at);
-}
 
 /// The noise-mask thresholds on the small box mean, grey levels: one per column (the box's
 /// column count), scaled in the rows near the top and bottom edges (its row count), where the

@@ -3,8 +3,8 @@
 
 mod appearance;
 mod assignment;
-mod avx2;
 mod background;
+mod cpu;
 mod crossing;
 mod detect;
 mod disjoint_sets;

@@ -1,4 +1,5 @@
-//! Hot loops compiled for AVX2 where the CPU has it.
+//! Help from the CPU for the loops over every pixel: AVX2 where it has it, and cache
+//! prefetches.
 //!
 //! The crate is built for the x86_64 baseline (SSE2, four `f32` lanes), so that one binary
 //! runs everywhere. The loops that touch every pixel of every frame are also compiled for
@@ -24,4 +25,22 @@ pub(crate) fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
         return unsafe { run(f) };
     }
     f()
+}
+
+/// Asks the CPU to start loading `values[at]` into the cache, so that a later read does not
+/// wait for memory (nothing out of bounds or off x86_64).
+#[inline(always)]
+pub(crate) fn prefetch<T>(values: &[T], at: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(v) = values.get(at) {
+        // SAFETY: SSE is part of the x86_64 baseline, and a prefetch of an address inside a
+        // live slice reads nothing the program sees.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                (v as *const T).cast::<i8>(),
+            );
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (values, at);
 }
