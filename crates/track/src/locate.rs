@@ -94,6 +94,21 @@ struct RowBuffers {
     s: Vec<f32>,
     /// The splits that cut the current row, as [`Row::splits`] holds them.
     splits: Vec<[f32; 2]>,
+    /// The window's splits in single precision, as the rows use them.
+    window_splits: Vec<WindowSplit>,
+}
+
+/// One split of a window (a bisector with a neighbour) as each row of the window uses it.
+#[derive(Clone, Copy, Debug)]
+struct WindowSplit {
+    /// The bisector's unit normal towards the neighbour.
+    n: [f32; 2],
+    /// Its offset from the centre along the normal plus half a pixel (the ramp's middle),
+    /// px.
+    offset: f32,
+    /// The largest `dx n0` over the window's columns (the row's pixel nearest the
+    /// neighbour, along x), px.
+    reach_x: f32,
 }
 
 /// [`refine_centroids`] with reusable buffers.
@@ -367,6 +382,15 @@ fn window_stats(
     rows.s.resize(padded, 0.0);
     let reach32 = reach as f32;
     let (dx_first, dx_last) = (rows.dx[0], rows.dx[n - 1]);
+    rows.window_splits.clear();
+    rows.window_splits.extend(splits.iter().map(|&(nv, half)| {
+        let (n0, n1) = (nv[0] as f32, nv[1] as f32);
+        WindowSplit {
+            n: [n0, n1],
+            offset: half as f32 + 0.5,
+            reach_x: (dx_first * n0).max(dx_last * n0),
+        }
+    }));
     // Lane-wise sums over the whole window: Σ ws, Σ ws dx, Σ ws dy, Σ ws r², Σ w² r².
     let mut acc = [[0.0f32; LANES]; 5];
     for y in ya as usize..=yb as usize {
@@ -387,13 +411,12 @@ fn window_stats(
             &rows.s
         };
         rows.splits.clear();
-        for &(nv, half) in splits {
-            let (n0, n1) = (nv[0] as f32, nv[1] as f32);
-            let base = half as f32 + 0.5 - dy * n1;
+        for split in &rows.window_splits {
+            let base = split.offset - dy * split.n[1];
             // The split is 1 along the whole row when the row's nearest pixel to the
             // neighbour is a pixel short of the bisector.
-            if base - (dx_first * n0).max(dx_last * n0) < 1.0 {
-                rows.splits.push([n0, base]);
+            if base - split.reach_x < 1.0 {
+                rows.splits.push([split.n[0], base]);
             }
         }
         accumulate_row(
