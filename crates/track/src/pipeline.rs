@@ -7,7 +7,6 @@
 //! parallel; linking is sequential.
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -15,10 +14,10 @@ use rayon::prelude::*;
 use crate::background::STRUCTURED_LIMIT;
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections, list_frames,
-    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
-    FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    estimate_background, find_blobs_forming, link_detections, list_frames, refine_centroids_with_scratch,
+    Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel, Blob, BlobSet, BlobSize,
+    DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, FrameView, LinkOptions,
+    LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -249,8 +248,8 @@ fn track_paths(
             .par_iter()
             .map(|&frame| {
                 workers.with(|w| {
-                    background.signal_into(frame, &mut w.signal);
-                    find_blobs_with_scratch(&w.signal, size.0, size.1, &sizes.params, &mut w.detect)
+                    w.finder
+                        .blobs(&background, frame, &sizes.params)
                         .blobs
                         .iter()
                         .map(|b| [b.x as f64, b.y as f64])
@@ -293,9 +292,8 @@ fn track_paths(
                         moving_blobs(
                             &background,
                             three.map(|j| sample_frames[j].view()),
-                            size,
                             &sizes.params,
-                            w,
+                            &mut w.finder,
                         )
                     });
                     if !moving.is_empty() {
@@ -335,34 +333,7 @@ fn track_paths(
         .map(|(i, (k, _))| {
             workers.with(|w| {
                 let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
-                let frame = background.matching(frame, &mut w.converted);
-                // Blobs are found in the plain signal (the band-pass ignores a flat change of
-                // brightness, and a gain is not uniform enough over a real frame to correct the
-                // component labelling with); centroids are measured in the gain-corrected one,
-                // since a centroid window integrates any offset left in it. The signal is
-                // formed row by row as the detector's filters reach it.
-                w.signal.resize(size.0 * size.1, 0.0);
-                let blobs = find_blobs_forming(
-                    &mut w.signal,
-                    size.0,
-                    size.1,
-                    &params,
-                    &mut w.detect,
-                    |pixels, out| background.signal_range(frame, pixels, out),
-                );
-                background.remove_gain(frame, &mut w.signal);
-                let seeds: Vec<[f64; 2]> = blobs.blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
-                let areas: Vec<f64> = blobs.blobs.iter().map(|b| b.area).collect();
-                let detections = refine_centroids_with_scratch(
-                    &w.signal,
-                    size.0,
-                    size.1,
-                    &seeds,
-                    &areas,
-                    window,
-                    background.noise_sigma,
-                    &mut w.locate,
-                );
+                let detections = w.finder.locate(&background, frame, &params, window);
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(n, total);
                 Ok(FrameDetections {
@@ -511,17 +482,74 @@ impl WindowFrames<'_> {
 }
 
 /// One worker thread's buffers, reused from frame to frame: the decoder's and the decoded
-/// frame's, the signal image, the filters' and blob regions' buffers (a frame-sized region
-/// map among them) and the centroids'.
+/// frame's, and the [`Finder`]'s.
 #[derive(Default)]
 struct Worker {
     decoder: FrameDecoder,
     frame: Frame,
+    finder: Finder,
+}
+
+/// One thread's buffers for finding and locating a frame's particles: the signal image, the
+/// filters' and blob regions' buffers (a frame-sized region map among them) and the
+/// centroids'.
+#[derive(Default)]
+struct Finder {
     /// A frame converted to the background's channel count (a grey file among colour ones).
     converted: Frame,
+    /// The last frame's signal, gain-corrected.
     signal: Vec<f32>,
     detect: Scratch,
     locate: LocateScratch,
+}
+
+impl Finder {
+    /// The blobs of `frame` found with `params`, its gain-corrected signal left in
+    /// `self.signal`. Blobs are found in the plain signal (the band-pass ignores a flat change
+    /// of brightness, and a gain is not uniform enough over a real frame to correct the
+    /// component labelling with); centroids are measured in the gain-corrected one, since a
+    /// centroid window integrates any offset left in it. The signal is formed row by row as
+    /// the detector's filters reach it.
+    fn blobs(&mut self, background: &Background, frame: FrameView<'_>, params: &DetectParameters) -> BlobSet {
+        let frame = background.matching(frame, &mut self.converted);
+        let (width, height) = frame.size();
+        self.signal.resize(width * height, 0.0);
+        let blobs = find_blobs_forming(
+            &mut self.signal,
+            width,
+            height,
+            params,
+            &mut self.detect,
+            |pixels, out| background.signal_range(frame, pixels, out),
+        );
+        background.remove_gain(frame, &mut self.signal);
+        blobs
+    }
+
+    /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
+    /// window of radius `window`, px.
+    fn locate(
+        &mut self,
+        background: &Background,
+        frame: FrameView<'_>,
+        params: &DetectParameters,
+        window: f64,
+    ) -> Vec<Detection> {
+        let blobs = self.blobs(background, frame, params).blobs;
+        let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
+        let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
+        let (width, height) = frame.size();
+        refine_centroids_with_scratch(
+            &self.signal,
+            width,
+            height,
+            &seeds,
+            &areas,
+            window,
+            background.noise_sigma,
+            &mut self.locate,
+        )
+    }
 }
 
 /// Idle workers, handed out to each frame's job and taken back after: their frame-sized
@@ -617,17 +645,16 @@ fn check_size<'a>(
 fn moving_blobs(
     background: &Background,
     frames: [FrameView<'_>; 3],
-    size: (usize, usize),
     params: &DetectParameters,
-    w: &mut Worker,
+    finder: &mut Finder,
 ) -> Vec<[f64; 2]> {
     let unfiltered = DetectParameters {
         expected: None,
         ..params.clone()
     };
     let [a, b, c] = frames.map(|frame| -> Vec<[f64; 2]> {
-        background.signal_into(frame, &mut w.signal);
-        find_blobs_with_scratch(&w.signal, size.0, size.1, &unfiltered, &mut w.detect)
+        finder
+            .blobs(background, frame, &unfiltered)
             .blobs
             .iter()
             .map(|b| [b.x as f64, b.y as f64])
@@ -674,16 +701,10 @@ impl Sizes {
         starts: Option<&[[f64; 2]]>,
         workers: &Workers,
     ) -> Sizes {
-        // The estimation frames' signals, plain (what blobs are found in) and gain-corrected
-        // (what centroids are measured in), computed when first needed, once for every
-        // round of the estimates.
         let estimation = Estimation {
             background,
             workers,
             frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
-            signals: std::iter::repeat_with(OnceLock::new)
-                .take(samples.len().min(RADIUS_SAMPLES))
-                .collect(),
         };
         let (radius, radius_estimated) = match given {
             Some(r) => (r, false),
@@ -702,59 +723,26 @@ impl Sizes {
     }
 }
 
-/// One estimation frame's signals: plain, where blobs are found, and gain-corrected
-/// ([`Background::remove_gain`]), where centroids and sizes are measured.
-struct SampleSignals {
-    plain: Vec<f32>,
-    /// The gain-corrected signal, when the correction changes it (under a steady light the
-    /// two are one, and a frame-sized copy is not made).
-    corrected: Option<Vec<f32>>,
-}
-
-impl SampleSignals {
-    fn of(background: &Background, frame: FrameView<'_>) -> SampleSignals {
-        let mut plain = Vec::new();
-        background.signal_into(frame, &mut plain);
-        let corrected = background.gain_to_remove(frame).map(|g| {
-            let mut corrected = plain.clone();
-            background.apply_gain(g, &mut corrected);
-            corrected
-        });
-        SampleSignals { plain, corrected }
-    }
-
-    /// The gain-corrected signal.
-    fn levelled(&self) -> &[f32] {
-        self.corrected.as_deref().unwrap_or(&self.plain)
-    }
-}
-
-/// The frames the particle sizes are estimated on, with their signals once computed.
+/// The frames the particle sizes are estimated on.
 struct Estimation<'a> {
     background: &'a Background,
     workers: &'a Workers,
     frames: &'a [FrameView<'a>],
-    signals: Vec<OnceLock<SampleSignals>>,
 }
 
 impl Estimation<'_> {
-    /// The signals of frame `j`.
-    fn signals(&self, j: usize) -> &SampleSignals {
-        self.signals[j].get_or_init(|| SampleSignals::of(self.background, self.frames[j]))
-    }
-
-    /// `measure` (one frame's signals and a worker: its measures) over the first frame and
+    /// `measure` (one frame and a worker's finder: its measures) over the first frame and
     /// as many more as should bring the measures to [`SIZE_BLOBS`] at the first frame's
     /// count (the others in parallel), concatenated in frame order; empty without frames.
-    fn over_frames<T: Send>(&self, measure: impl Fn(&SampleSignals, &mut Worker) -> Vec<T> + Sync) -> Vec<T> {
+    fn over_frames<T: Send>(&self, measure: impl Fn(FrameView<'_>, &mut Finder) -> Vec<T> + Sync) -> Vec<T> {
         if self.frames.is_empty() {
             return Vec::new();
         }
-        let mut all = self.workers.with(|w| measure(self.signals(0), w));
+        let mut all = self.workers.with(|w| measure(self.frames[0], &mut w.finder));
         let wanted = SIZE_BLOBS.div_ceil(all.len().max(1)).min(self.frames.len());
         let more: Vec<Vec<T>> = (1..wanted)
             .into_par_iter()
-            .map(|j| self.workers.with(|w| measure(self.signals(j), w)))
+            .map(|j| self.workers.with(|w| measure(self.frames[j], &mut w.finder)))
             .collect();
         all.extend(more.into_iter().flatten());
         all
@@ -788,7 +776,7 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
             Some(starts) if !estimation.frames.is_empty() => {
                 let found = estimation
                     .workers
-                    .with(|w| locate_unfiltered(background, estimation.signals(0), radius, w));
+                    .with(|w| locate_unfiltered(background, estimation.frames[0], radius, &mut w.finder));
                 sizes_of(
                     nearest_each(&found, starts, |d| [d.x, d.y])
                         .into_iter()
@@ -796,7 +784,8 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
                         .collect(),
                 )
             }
-            _ => estimation.over_frames(|frame, w| sizes_of(locate_unfiltered(background, frame, radius, w))),
+            _ => estimation
+                .over_frames(|frame, finder| sizes_of(locate_unfiltered(background, frame, radius, finder))),
         };
         if sizes.is_empty() {
             break;
@@ -815,46 +804,25 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
 /// gain-corrected signal.
 fn locate_unfiltered(
     background: &Background,
-    frame: &SampleSignals,
+    frame: FrameView<'_>,
     radius: f64,
-    w: &mut Worker,
+    finder: &mut Finder,
 ) -> Vec<Detection> {
-    let (width, height) = (background.width, background.height);
-    let blobs = unfiltered_blobs(background, frame, radius, w);
-    let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
-    let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
-    refine_centroids_with_scratch(
-        frame.levelled(),
-        width,
-        height,
-        &seeds,
-        &areas,
+    finder.locate(
+        background,
+        frame,
+        &unfiltered(background, radius),
         locate_window(radius),
-        background.noise_sigma,
-        &mut w.locate,
     )
 }
 
-/// Every blob of one estimation frame's plain signal at `radius`, with no size rejection.
-fn unfiltered_blobs(
-    background: &Background,
-    frame: &SampleSignals,
-    radius: f64,
-    w: &mut Worker,
-) -> Vec<Blob> {
-    let params = DetectParameters {
+/// Detection at `radius` with no size rejection.
+fn unfiltered(background: &Background, radius: f64) -> DetectParameters {
+    DetectParameters {
         radius,
         noise_sigma: background.noise_sigma,
         expected: None,
-    };
-    find_blobs_with_scratch(
-        &frame.plain,
-        background.width,
-        background.height,
-        &params,
-        &mut w.detect,
-    )
-    .blobs
+    }
 }
 
 /// For each start position, the item nearest to it (none when `items` is empty); an item
@@ -882,17 +850,18 @@ fn nearest_each<'a, T>(items: &'a [T], starts: &[[f64; 2]], at: impl Fn(&T) -> [
 /// [`estimate_radius`] for why).
 fn expected_size(estimation: &Estimation, radius: f64, starts: Option<&[[f64; 2]]>) -> Option<BlobSize> {
     let background = estimation.background;
+    let params = unfiltered(background, radius);
     let blobs: Vec<Blob> = match starts {
         Some(starts) if !estimation.frames.is_empty() => {
             let blobs = estimation
                 .workers
-                .with(|w| unfiltered_blobs(background, estimation.signals(0), radius, w));
+                .with(|w| w.finder.blobs(background, estimation.frames[0], &params).blobs);
             nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
                 .into_iter()
                 .copied()
                 .collect()
         }
-        _ => estimation.over_frames(|frame, w| unfiltered_blobs(background, frame, radius, w)),
+        _ => estimation.over_frames(|frame, finder| finder.blobs(background, frame, &params).blobs),
     };
     let inside: Vec<&Blob> = blobs.iter().filter(|b| !b.at_border).collect();
     if inside.is_empty() {
