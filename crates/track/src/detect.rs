@@ -305,15 +305,15 @@ fn find_blobs_in_rows(
         height,
         [h, big],
         filter,
-        small,
-        |y, small, l_row| {
+        [small, large],
+        |y, small, large| {
             let s_row = &small[y * width..(y + 1) * width];
+            let l_row = &large[ring(y)];
             with_avx2(|| {
                 for ((b, s), l) in band[ring(y)].iter_mut().zip(s_row).zip(l_row) {
                     *b = s - l;
                 }
             });
-            large[ring(y)].copy_from_slice(l_row);
             comps.push_row(y, s_row, mask.row(y, &mut row_mask));
             if y > 0 {
                 scan(y - 1, band, large, small);
@@ -1046,9 +1046,6 @@ pub(crate) struct FilterScratch {
     /// The rows of the image in fixed point (see [`box_rows`]) the boxes about the current
     /// row span, plus one: row `r` at `(r % ring) * width`.
     fixed: Vec<i32>,
-    /// The current output row of the second filter (the first writes into its caller's
-    /// image).
-    row_b: Vec<f32>,
     /// Column sums over each filter's rows (one row per filter, fixed point).
     cols: [Vec<i32>; 2],
     /// Prefix sums along the row of each filter's column sums (`width + 1`, fixed point,
@@ -1191,15 +1188,23 @@ fn box_means(
         out.resize(width * height, 0.0);
     }
     let mut rows = Formed { signal: image, width };
-    box_rows(&mut rows, width, height, halves, scratch, out_a, |y, _, b| {
-        out_b[y * width..(y + 1) * width].copy_from_slice(b);
-    });
+    box_rows(
+        &mut rows,
+        width,
+        height,
+        halves,
+        scratch,
+        [out_a, out_b],
+        |_, _, _| {},
+    );
 }
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
-/// out of each mean), row after row: the first written into `out_a` (`width * height`),
-/// the second handed over a row at a time, `emit(y, a, b)` with `a` the rows of `out_a`
-/// written so far (up to row `y`) and `b` row `y` of the second.
+/// out of each mean), row after row: the first written into `out_a` (`width * height`), the
+/// second into `out_b` as a ring of its `out_b.len() / width` rows (row `y` at
+/// `y % rows`; the whole image when it holds `height` rows). After each row `y`,
+/// `emit(y, a, b)` with `a` the rows of `out_a` written so far (up to row `y`) and `b` the
+/// ring.
 ///
 /// Separable and streaming: each output row adds the entering image row to a running column
 /// sum and subtracts the leaving one (vectorised across the row), then takes differences of
@@ -1215,22 +1220,22 @@ fn box_rows(
     height: usize,
     halves: [usize; 2],
     scratch: &mut FilterScratch,
-    out_a: &mut [f32],
+    outs: [&mut [f32]; 2],
     mut emit: impl FnMut(usize, &[f32], &[f32]),
 ) {
+    let [out_a, out_b] = outs;
+    let rows_b = out_b.len() / width.max(1);
     let reach = halves[0].max(halves[1]);
     let unit = fixed_unit(2 * reach + 1);
     // Rows y - reach - 1 to y + reach are needed at row y.
     let ring = 2 * reach + 2;
     let FilterScratch {
         fixed,
-        row_b,
         cols: [col_a, col_b],
         prefix: [pre_a, pre_b],
     } = scratch;
     // Every element is written before it is read: the buffers are only sized.
     fixed.resize(ring * width, 0);
-    row_b.resize(width, 0.0);
     let mut convert = |fixed: &mut [i32], r: usize| {
         let slot = (r % ring) * width;
         to_fixed(image.row(r), unit, &mut fixed[slot..slot + width]);
@@ -1292,9 +1297,18 @@ fn box_rows(
                 height,
                 unit,
             );
-            box_row(row_b, pre_b, &inv_x[1], halves[1], y, height, unit);
+            let slot = (y % rows_b) * width;
+            box_row(
+                &mut out_b[slot..slot + width],
+                pre_b,
+                &inv_x[1],
+                halves[1],
+                y,
+                height,
+                unit,
+            );
         });
-        emit(y, &out_a[..(y + 1) * width], row_b);
+        emit(y, &out_a[..(y + 1) * width], out_b);
     }
 }
 
