@@ -697,20 +697,52 @@ fn median_at(samples: &[FrameView<'_>], picked: &[usize]) -> Vec<f32> {
 }
 
 /// `len` medians over `samples`: value `v` is the median of every sample's `data[index(v)]`.
+/// 8-bit grey samples are ordered as bytes (the same median).
 fn median_values(samples: &[FrameView<'_>], len: usize, index: impl Fn(usize) -> usize + Sync) -> Vec<f32> {
     const CHUNK: usize = 4096;
+    let bytes: Option<Vec<&[u8]>> = samples
+        .iter()
+        .map(|f| match f {
+            FrameView::Grey8 { samples, .. } => Some(*samples),
+            FrameView::Frame(_) => None,
+        })
+        .collect();
     let mut out = vec![0.0f32; len];
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, dst)| {
         let mut buf = vec![0.0f32; samples.len()];
+        let mut byte_buf = vec![0u8; samples.len()];
         for (j, d) in dst.iter_mut().enumerate() {
             let i = index(chunk * CHUNK + j);
-            for (b, f) in buf.iter_mut().zip(samples) {
-                *b = f.value(i);
-            }
-            *d = median_of(&mut buf);
+            *d = match &bytes {
+                Some(bytes) => {
+                    for (b, f) in byte_buf.iter_mut().zip(bytes) {
+                        *b = f[i];
+                    }
+                    median_of_bytes(&mut byte_buf)
+                }
+                None => {
+                    for (b, f) in buf.iter_mut().zip(samples) {
+                        *b = f.value(i);
+                    }
+                    median_of(&mut buf)
+                }
+            };
         }
     });
     out
+}
+
+/// [`median_of`] of grey levels held as bytes (reordering them), the same value.
+fn median_of_bytes(v: &mut [u8]) -> f32 {
+    let n = v.len();
+    let (lower, m, _) = v.select_nth_unstable(n / 2);
+    let m = f32::from(*m);
+    if n % 2 == 1 {
+        m
+    } else {
+        let lo = lower.iter().copied().max().map_or(f32::NEG_INFINITY, f32::from);
+        0.5 * (lo + m)
+    }
 }
 
 fn median_of(v: &mut [f32]) -> f32 {
@@ -956,6 +988,26 @@ mod tests {
                         "{w}x{h}, level {level}, noise {sigma}"
                     );
                 }
+            }
+        }
+    }
+
+    /// The median of bytes is the median of the same levels as `f32`, to the bit, for odd
+    /// and even counts.
+    #[test]
+    fn median_of_bytes_is_the_median_of_the_levels() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for n in 1..=30 {
+            for _ in 0..20 {
+                let spread = rng.gen_range(1u32..=256);
+                let mut bytes: Vec<u8> = (0..n).map(|_| rng.gen_range(0..spread) as u8).collect();
+                let mut levels: Vec<f32> = bytes.iter().map(|&b| f32::from(b)).collect();
+                assert_eq!(
+                    median_of_bytes(&mut bytes).to_bits(),
+                    median_of(&mut levels).to_bits(),
+                    "{n} values"
+                );
             }
         }
     }
