@@ -3,8 +3,9 @@
 //!
 //! Every frame is held as `f32` samples on the 8-bit scale (0 = black, 255 = white), one
 //! channel for grey images and three for colour ones (alpha is dropped). 16-bit images
-//! keep their precision as fractional levels. The locate pass also takes an 8-bit grey
-//! file's bytes as they are ([`FrameView::Grey8`]), read as the same levels.
+//! keep their precision as fractional levels. An 8-bit grey file's bytes are also taken as
+//! they are, read as the same levels: by the locate pass ([`FrameView::Grey8`]) and for the
+//! sample frames kept for the estimates ([`DecodedFrame::Grey8`]).
 
 use std::cmp::Ordering;
 use std::io::Cursor;
