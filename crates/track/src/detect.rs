@@ -1224,7 +1224,7 @@ fn box_rows(
     mut emit: impl FnMut(usize, &[f32], &[f32]),
 ) {
     let [out_a, out_b] = outs;
-    let rows_b = out_b.len() / width.max(1);
+    let rows_b = (out_b.len() / width.max(1)).max(1);
     let reach = halves[0].max(halves[1]);
     let unit = fixed_unit(2 * reach + 1);
     // Rows y - reach - 1 to y + reach are needed at row y.

@@ -103,8 +103,8 @@ struct RowBuffers {
 struct WindowSplit {
     /// The bisector's unit normal towards the neighbour.
     n: [f32; 2],
-    /// Its offset from the centre along the normal plus half a pixel (the ramp's middle),
-    /// px.
+    /// The bisector's distance from the centre along the normal plus half a pixel (where
+    /// the split's ramp reaches 0), px.
     offset: f32,
     /// The largest `dx n0` over the window's columns (the row's pixel nearest the
     /// neighbour, along x), px.

@@ -267,6 +267,7 @@ fn track_paths(
             sizes = Sizes::measure(&background, &samples, options.radius, starts, &workers);
         } else {
             background.exclude_particles(&samples, &found, reach);
+            // The views borrow the sample frames, which the frames after the first may join.
             drop(samples);
             if starts.is_none() && options.radius.is_none() {
                 // A static scene's texture flickers into blobs as the exposure shifts, and
@@ -292,7 +293,7 @@ fn track_paths(
                         moving_blobs(
                             &background,
                             three.map(|j| sample_frames[j].view()),
-                            &sizes.params,
+                            sizes.radius,
                             &mut w.finder,
                         )
                     });
@@ -641,20 +642,18 @@ fn check_size<'a>(
 /// in the next frame more than half a pixel away (a speck of static texture stays put), and
 /// the frame after holds a blob within a pixel, or a tenth of the step, of where constant
 /// velocity puts it (a speck flickering in and out of the band-pass does not chain over
-/// three frames). Positions in the first frame, px; empty when nothing moves.
+/// three frames). Blobs are found at `radius` (px) with no size rejection. Positions in the
+/// first frame, px; empty when nothing moves.
 fn moving_blobs(
     background: &Background,
     frames: [FrameView<'_>; 3],
-    params: &DetectParameters,
+    radius: f64,
     finder: &mut Finder,
 ) -> Vec<[f64; 2]> {
-    let unfiltered = DetectParameters {
-        expected: None,
-        ..params.clone()
-    };
+    let params = unfiltered(background, radius);
     let [a, b, c] = frames.map(|frame| -> Vec<[f64; 2]> {
         finder
-            .blobs(background, frame, &unfiltered)
+            .blobs(background, frame, &params)
             .blobs
             .iter()
             .map(|b| [b.x as f64, b.y as f64])
