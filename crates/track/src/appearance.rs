@@ -439,15 +439,17 @@ fn sorted_robust_spread(values: &[f64]) -> f64 {
 }
 
 /// 1.4826 times the median absolute value about the median (the standard deviation of a
-/// normal distribution), of a non-empty sample (reordered; its values are replaced by their
-/// absolute deviations).
-fn robust_spread(v: &mut [f64]) -> f64 {
+/// normal distribution), of a sample (reordered; its values are replaced by their absolute
+/// deviations); NaN when it is empty.
+pub(crate) fn robust_spread(v: &mut [f64]) -> f64 {
     let m = median(v);
     v.iter_mut().for_each(|x| *x = (*x - m).abs());
     1.4826 * median(v)
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (reordered; the upper of the two middle values of an even count); NaN
+/// when it is empty.
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

@@ -33,7 +33,9 @@
 //! while it is in the image. Without them, every unmatched detection starts a track named
 //! by an integer, and tracks unseen for more than `memory` frames end.
 
-use crate::appearance::{Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance};
+use crate::appearance::{
+    median, robust_spread, Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance,
+};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::point_grid::{nearest_other, PointGrid};
@@ -834,10 +836,10 @@ impl SingleParticle {
     }
 }
 
-fn median_and_spread(v: Vec<f64>) -> (f64, f64) {
-    let m = median(v.clone());
-    let dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
-    (m, 1.4826 * median(dev))
+/// The median and [`robust_spread`] of the finite values of `v`.
+fn median_and_spread(mut v: Vec<f64>) -> (f64, f64) {
+    v.retain(|x| x.is_finite());
+    (median(&mut v), robust_spread(&mut v))
 }
 
 fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
@@ -898,7 +900,7 @@ fn reacquire(
         if recent.is_empty() {
             continue;
         }
-        let own = median(recent);
+        let own = finite_median(recent);
         let Some((last_i, last)) = tr
             .points
             .iter()
@@ -927,7 +929,7 @@ fn reacquire(
                 .map(|&i| dets[i].mass.ln())
                 .collect();
             let mine = (d.mass.ln() - own).abs();
-            let accepted = clutter.is_empty() || mine < (d.mass.ln() - median(clutter)).abs();
+            let accepted = clutter.is_empty() || mine < (d.mass.ln() - finite_median(clutter)).abs();
             if accepted {
                 let cost = (mine / (mine + 1.0)).min(0.999);
                 problem.pairs.push((a, b, cost));
@@ -991,13 +993,10 @@ fn diagonal(o: &LinkOptions) -> f64 {
     (o.width as f64).hypot(o.height as f64)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The [`median`] of the finite values of `v`.
+fn finite_median(mut v: Vec<f64>) -> f64 {
     v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    median(&mut v)
 }
 
 /// The tracks (indices into the frame's live tracks) that claim one detection: almost always
