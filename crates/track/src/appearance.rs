@@ -100,7 +100,7 @@ pub struct AppearanceSpread {
 impl AppearanceSpread {
     /// Pooled over a recording from unambiguous links (see the module doc); `None` when
     /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist. Frames are visited spread over
-    /// the recording until [`POOLED_LINKS`] links are found.
+    /// the recording until 2 000 links are found (`POOLED_LINKS`).
     pub fn pooled(frames: &[FrameDetections]) -> Option<AppearanceSpread> {
         let mut dm: Vec<f64> = Vec::new();
         let mut ds: Vec<f64> = Vec::new();

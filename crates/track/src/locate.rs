@@ -117,8 +117,8 @@ struct WindowSplit {
 /// them, but each sweep measures only the estimates that can still change: those not yet
 /// converged, and their neighbours (seeds whose windows may share pixels). An estimate has
 /// converged when its distance left to the fixed point (estimated from its last two steps)
-/// is below [`TOLERANCE_OF_ERROR`] of its own standard error, or its step below
-/// [`TOLERANCE`]. A lone particle stops as soon as it has converged, whatever the others
+/// is below 3 % of its own standard error (`TOLERANCE_OF_ERROR`), or its step below
+/// 1e-4 px (`TOLERANCE`). A lone particle stops as soon as it has converged, whatever the others
 /// do; iteration ends when every estimate has.
 #[allow(clippy::too_many_arguments)]
 pub fn refine_centroids_with_scratch(
