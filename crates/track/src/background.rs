@@ -992,6 +992,38 @@ mod tests {
         }
     }
 
+    /// The signal formed by the loop compiled for AVX2 is the baseline's to the bit, from
+    /// bytes and from `f32` frames, against constant and per-pixel backgrounds.
+    #[test]
+    fn avx2_signal_is_the_baseline_signal() {
+        let (w, h) = (37usize, 11usize);
+        let frames: Vec<Frame> = (0..5)
+            .map(|k| Frame {
+                width: w,
+                height: h,
+                channels: 1,
+                data: (0..w * h).map(|i| ((i * 31 + k * 17) % 200) as f32).collect(),
+            })
+            .collect();
+        let bytes: Vec<u8> = frames[2].data.iter().map(|&v| v as u8).collect();
+        let view = FrameView::Grey8 {
+            samples: &bytes,
+            width: w,
+            height: h,
+        };
+        for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+            let bg = estimate_background(&views(&frames), choice);
+            for frame in [view, FrameView::Frame(&frames[2])] {
+                let signal = || {
+                    let mut out = Vec::new();
+                    bg.signal_into(frame, &mut out);
+                    out.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                };
+                assert_eq!(signal(), crate::cpu::baseline_only(signal), "{choice:?}");
+            }
+        }
+    }
+
     /// The median of bytes is the median of the same levels as `f32`, to the bit, for odd
     /// and even counts.
     #[test]

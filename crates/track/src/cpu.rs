@@ -12,7 +12,7 @@
 #[inline(always)]
 pub(crate) fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if std::arch::is_x86_feature_detected!("avx2") && !baseline_forced() {
         /// `f` compiled for AVX2.
         ///
         /// # Safety
@@ -25,6 +25,31 @@ pub(crate) fn with_avx2<R>(f: impl FnOnce() -> R) -> R {
         return unsafe { run(f) };
     }
     f()
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Set by [`baseline_only`]: this thread runs the baseline versions.
+    static BASELINE_ONLY: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Whether this thread must run the baseline versions (only ever in tests).
+#[inline(always)]
+fn baseline_forced() -> bool {
+    #[cfg(test)]
+    return BASELINE_ONLY.with(std::cell::Cell::get);
+    #[cfg(not(test))]
+    false
+}
+
+/// Runs `f` with every [`with_avx2`] on this thread in its baseline version, so that tests
+/// can compare the two on a CPU that has AVX2.
+#[cfg(test)]
+pub(crate) fn baseline_only<R>(f: impl FnOnce() -> R) -> R {
+    BASELINE_ONLY.with(|b| b.set(true));
+    let out = f();
+    BASELINE_ONLY.with(|b| b.set(false));
+    out
 }
 
 /// Asks the CPU to start loading `values[at]` into the cache, so that a later read does not

@@ -1549,6 +1549,49 @@ mod tests {
         }
     }
 
+    /// The loops compiled for AVX2 give the baseline's box means and blobs to the bit, on
+    /// widths that leave every remainder of eight lanes.
+    #[test]
+    fn avx2_loops_give_the_baseline_values() {
+        for (w, h) in [(97usize, 61usize), (64, 40), (131, 23)] {
+            let mut img = disc_image(
+                w,
+                h,
+                &[(20.0, 15.0), (26.5, 16.0), (w as f64 - 9.5, 12.25)],
+                4.0,
+                150.0,
+            );
+            for (i, v) in img.iter_mut().enumerate() {
+                *v += ((i * 7_919) % 17) as f32 * 0.37 - 3.0;
+            }
+            let means = || {
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                box_means(
+                    &img,
+                    w,
+                    h,
+                    [3, 7],
+                    [&mut a, &mut b],
+                    &mut FilterScratch::default(),
+                );
+                (a, b)
+            };
+            let p = DetectParameters {
+                radius: 4.0,
+                noise_sigma: 2.5,
+                expected: None,
+            };
+            let (wide, base) = (means(), crate::cpu::baseline_only(means));
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&wide.0), bits(&base.0), "{w}x{h}");
+            assert_eq!(bits(&wide.1), bits(&base.1), "{w}x{h}");
+            let blobs = find_blobs(&img, w, h, &p);
+            assert!(blobs.blobs.len() >= 2, "{blobs:?}");
+            let baseline = crate::cpu::baseline_only(|| find_blobs(&img, w, h, &p));
+            assert_eq!(format!("{blobs:?}"), format!("{baseline:?}"));
+        }
+    }
+
     /// Formed row by row as the filters ask, the signal gives the blobs of the whole image
     /// formed first, and ends up whole; each row is asked for once, in order.
     #[test]
