@@ -1173,30 +1173,21 @@ unsafe fn prefix_sums_sse2(col: &[i32], pre: &mut [i32]) {
 }
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
-/// out of each mean), into `outs`.
+/// out of each mean), whole images.
 #[cfg(test)]
-fn box_means(
-    image: &[f32],
-    width: usize,
-    height: usize,
-    halves: [usize; 2],
-    outs: [&mut Vec<f32>; 2],
-    scratch: &mut FilterScratch,
-) {
-    let [out_a, out_b] = outs;
-    for out in [&mut *out_a, &mut *out_b] {
-        out.resize(width * height, 0.0);
-    }
+fn box_means(image: &[f32], width: usize, height: usize, halves: [usize; 2]) -> [Vec<f32>; 2] {
+    let (mut a, mut b) = (vec![0.0; width * height], vec![0.0; width * height]);
     let mut rows = Formed { signal: image, width };
     box_rows(
         &mut rows,
         width,
         height,
         halves,
-        scratch,
-        [out_a, out_b],
+        &mut FilterScratch::default(),
+        [&mut a, &mut b],
         |_, _, _| {},
     );
+    [a, b]
 }
 
 /// Box means of sides `2 h + 1` for two half-widths `h` (pixels outside the image are left
@@ -1482,32 +1473,29 @@ mod tests {
         }
     }
 
+    /// The mean of `img` (`w` x `h`) over the box of half-width `half` about `(x, y)`, the
+    /// pixels outside the image left out, summed in double precision.
+    fn brute_box_mean(img: &[f32], w: usize, h: usize, half: usize, x: usize, y: usize) -> f64 {
+        let (mut s, mut n) = (0.0f64, 0.0);
+        for yy in y.saturating_sub(half)..=(y + half).min(h - 1) {
+            for xx in x.saturating_sub(half)..=(x + half).min(w - 1) {
+                s += f64::from(img[yy * w + xx]);
+                n += 1.0;
+            }
+        }
+        s / n
+    }
+
     #[test]
     fn box_means_of_a_signed_fractional_signal() {
         let (w, h) = (37, 23);
         let img: Vec<f32> = (0..w * h)
             .map(|i| (((i * 7_919) % 1_000) as f32 - 500.0) * 0.417)
             .collect();
-        let (mut a, mut b) = (Vec::new(), Vec::new());
-        box_means(
-            &img,
-            w,
-            h,
-            [3, 7],
-            [&mut a, &mut b],
-            &mut FilterScratch::default(),
-        );
-        for (out, half) in [(&a, 3usize), (&b, 7)] {
+        for (out, half) in box_means(&img, w, h, [3, 7]).iter().zip([3, 7]) {
             for y in 0..h {
                 for x in 0..w {
-                    let (mut s, mut n) = (0.0f64, 0.0);
-                    for yy in y.saturating_sub(half)..=(y + half).min(h - 1) {
-                        for xx in x.saturating_sub(half)..=(x + half).min(w - 1) {
-                            s += f64::from(img[yy * w + xx]);
-                            n += 1.0;
-                        }
-                    }
-                    let want = s / n;
+                    let want = brute_box_mean(&img, w, h, half, x, y);
                     assert!(
                         (f64::from(out[y * w + x]) - want).abs() < 1e-3,
                         "half {half} at {x},{y}"
@@ -1521,28 +1509,16 @@ mod tests {
     fn box_mean_matches_brute_force_at_borders() {
         let (w, h) = (9, 7);
         let img: Vec<f32> = (0..w * h).map(|i| ((i * 37) % 11) as f32).collect();
-        let (mut a, mut b) = (Vec::new(), Vec::new());
         for halves in [[2, 5], [1, 3], [4, 12]] {
-            box_means(
-                &img,
-                w,
-                h,
-                halves,
-                [&mut a, &mut b],
-                &mut FilterScratch::default(),
-            );
-            for (out, half) in [(&a, halves[0]), (&b, halves[1])] {
+            for (out, half) in box_means(&img, w, h, halves).iter().zip(halves) {
                 for y in 0..h {
                     for x in 0..w {
-                        let (mut s, mut n) = (0.0, 0.0);
-                        for yy in y.saturating_sub(half)..=(y + half).min(h - 1) {
-                            for xx in x.saturating_sub(half)..=(x + half).min(w - 1) {
-                                s += img[yy * w + xx];
-                                n += 1.0;
-                            }
-                        }
+                        let want = brute_box_mean(&img, w, h, half, x, y);
                         // Fixed point rounds each pixel to 1/8192 of a level.
-                        assert!((out[y * w + x] - s / n).abs() < 2e-4, "half {half} at {x},{y}");
+                        assert!(
+                            (f64::from(out[y * w + x]) - want).abs() < 2e-4,
+                            "half {half} at {x},{y}"
+                        );
                     }
                 }
             }
@@ -1564,18 +1540,7 @@ mod tests {
             for (i, v) in img.iter_mut().enumerate() {
                 *v += ((i * 7_919) % 17) as f32 * 0.37 - 3.0;
             }
-            let means = || {
-                let (mut a, mut b) = (Vec::new(), Vec::new());
-                box_means(
-                    &img,
-                    w,
-                    h,
-                    [3, 7],
-                    [&mut a, &mut b],
-                    &mut FilterScratch::default(),
-                );
-                (a, b)
-            };
+            let means = || box_means(&img, w, h, [3, 7]);
             let p = DetectParameters {
                 radius: 4.0,
                 noise_sigma: 2.5,
@@ -1583,8 +1548,8 @@ mod tests {
             };
             let (wide, base) = (means(), crate::cpu::baseline_only(means));
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&wide.0), bits(&base.0), "{w}x{h}");
-            assert_eq!(bits(&wide.1), bits(&base.1), "{w}x{h}");
+            assert_eq!(bits(&wide[0]), bits(&base[0]), "{w}x{h}");
+            assert_eq!(bits(&wide[1]), bits(&base[1]), "{w}x{h}");
             let blobs = find_blobs(&img, w, h, &p);
             assert!(blobs.blobs.len() >= 2, "{blobs:?}");
             let baseline = crate::cpu::baseline_only(|| find_blobs(&img, w, h, &p));
