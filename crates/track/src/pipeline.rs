@@ -505,13 +505,23 @@ struct Finder {
 }
 
 impl Finder {
-    /// The blobs of `frame` found with `params`, its gain-corrected signal left in
-    /// `self.signal`. Blobs are found in the plain signal (the band-pass ignores a flat change
-    /// of brightness, and a gain is not uniform enough over a real frame to correct the
-    /// component labelling with); centroids are measured in the gain-corrected one, since a
-    /// centroid window integrates any offset left in it. The signal is formed row by row as
-    /// the detector's filters reach it.
+    /// The blobs of `frame` found with `params` (its signal left in `self.signal`).
     fn blobs(&mut self, background: &Background, frame: FrameView<'_>, params: &DetectParameters) -> BlobSet {
+        self.find(background, frame, params, false)
+    }
+
+    /// [`Finder::blobs`], the signal then gain-corrected when `levelled`. Blobs are found in
+    /// the plain signal (the band-pass ignores a flat change of brightness, and a gain is not
+    /// uniform enough over a real frame to correct the component labelling with); centroids
+    /// are measured in the gain-corrected one, since a centroid window integrates any offset
+    /// left in it. The signal is formed row by row as the detector's filters reach it.
+    fn find(
+        &mut self,
+        background: &Background,
+        frame: FrameView<'_>,
+        params: &DetectParameters,
+        levelled: bool,
+    ) -> BlobSet {
         let frame = background.matching(frame, &mut self.converted);
         let (width, height) = frame.size();
         self.signal.resize(width * height, 0.0);
@@ -523,12 +533,14 @@ impl Finder {
             &mut self.detect,
             |pixels, out| background.signal_range(frame, pixels, out),
         );
-        background.remove_gain(frame, &mut self.signal);
+        if levelled {
+            background.remove_gain(frame, &mut self.signal);
+        }
         blobs
     }
 
     /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
-    /// window of radius `window`, px.
+    /// window of radius `window` (px) of the gain-corrected signal.
     fn locate(
         &mut self,
         background: &Background,
@@ -536,7 +548,7 @@ impl Finder {
         params: &DetectParameters,
         window: f64,
     ) -> Vec<Detection> {
-        let blobs = self.blobs(background, frame, params).blobs;
+        let blobs = self.find(background, frame, params, true).blobs;
         let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
         let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
         let (width, height) = frame.size();
