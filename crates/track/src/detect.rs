@@ -97,6 +97,18 @@ pub fn box_half_width(radius: f64) -> usize {
         .max(1.0)) as usize
 }
 
+/// Standard deviation of the band-pass response to pixel noise of standard deviation
+/// `noise_sigma` (grey levels) away from the border, at detector radius `radius` (px): the
+/// small box lies inside the large one, so the variance of their difference of means is
+/// `sigma^2 (1 / n_small - 1 / n_large)`. Grey levels.
+pub fn band_noise(radius: f64, noise_sigma: f64) -> f64 {
+    let h = box_half_width(radius);
+    let big = 2 * h + 1;
+    let n_small = ((2 * h + 1) * (2 * h + 1)) as f64;
+    let n_large = ((2 * big + 1) * (2 * big + 1)) as f64;
+    noise_sigma * (1.0 / n_small - 1.0 / n_large).sqrt()
+}
+
 /// Finds particle-like blobs in a signal image (`width * height`, row-major, grey levels,
 /// particles positive). See the module doc for the method.
 pub fn find_blobs(signal: &[f32], width: usize, height: usize, params: &DetectParameters) -> BlobSet {
@@ -218,8 +230,7 @@ fn find_blobs_in_rows(
         sigma * (1.0 / ns - 1.0 / nl).max(0.0).sqrt()
     };
     let n_small = ((2 * h + 1) * (2 * h + 1)) as f64;
-    let n_large = ((2 * big + 1) * (2 * big + 1)) as f64;
-    let peak_min = (PEAK_SIGMAS * sigma * (1.0 / n_small - 1.0 / n_large).sqrt()) as f32;
+    let peak_min = (PEAK_SIGMAS * band_noise(params.radius, sigma)) as f32;
     let mask_t = (MASK_SIGMAS * sigma / n_small.sqrt()) as f32;
     // Mask thresholds per column and factors per row: sqrt(full count / count) of the small
     // box.

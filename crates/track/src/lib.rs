@@ -16,6 +16,7 @@ mod locate;
 mod pipeline;
 mod png_reader;
 mod point_grid;
+mod scale;
 mod score;
 mod shared;
 mod track_table;

@@ -12,12 +12,13 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
+use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    estimate_background, find_blobs_forming, link_detections, list_frames, refine_centroids_with_scratch,
-    Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel, Blob, BlobSet, BlobSize,
-    DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections, FrameView, LinkOptions,
-    LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    band_noise, estimate_background, find_blobs_forming, link_detections, list_frames,
+    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
+    Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
+    FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -28,7 +29,7 @@ const RADIUS_SAMPLES: usize = 5;
 /// as should hold this many (the medians are then known to a twentieth of the blobs' own
 /// spread), so a crowded recording measures one frame, not five.
 const SIZE_BLOBS: usize = 400;
-/// Radius, px, the estimation starts from; the rounds make it independent of this.
+/// Radius, px, the estimation starts from when the scale-space scan finds no particle.
 const START_RADIUS: f64 = 3.0;
 /// Most rounds of the radius estimate (each re-detects and re-measures with the last
 /// estimate; a small start converges upwards in about ten rounds).
@@ -654,21 +655,20 @@ fn check_size<'a>(
 /// in the next frame more than half a pixel away (a speck of static texture stays put), and
 /// the frame after holds a blob within a pixel, or a tenth of the step, of where constant
 /// velocity puts it (a speck flickering in and out of the band-pass does not chain over
-/// three frames). Blobs are found at `radius` (px) with no size rejection. Positions in the
-/// first frame, px; empty when nothing moves.
+/// three frames). Blobs are found at `radius` (px) with no size rejection and located by
+/// their centroids: their peaks' whole pixels judged a slowly rolling ball static at one
+/// radius and moving at the next. Positions in the first frame, px; empty when nothing
+/// moves.
 fn moving_blobs(
     background: &Background,
     frames: [FrameView<'_>; 3],
     radius: f64,
     finder: &mut Finder,
 ) -> Vec<[f64; 2]> {
-    let params = unfiltered(background, radius);
     let [a, b, c] = frames.map(|frame| -> Vec<[f64; 2]> {
-        finder
-            .blobs(background, frame, &params)
-            .blobs
+        locate_unfiltered(background, frame, radius, finder)
             .iter()
-            .map(|b| [b.x as f64, b.y as f64])
+            .map(|d| [d.x, d.y])
             .collect()
     });
     let later = [b, c];
@@ -774,7 +774,7 @@ impl Estimation<'_> {
 /// the particles' size; the structure's start positions say which blobs are particles.
 fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 {
     let background = estimation.background;
-    let mut radius = START_RADIUS;
+    let mut radius = scale_start(estimation, starts).unwrap_or(START_RADIUS);
     for _ in 0..RADIUS_ROUNDS {
         let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
             found
@@ -809,6 +809,47 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
         radius = next;
     }
     radius
+}
+
+/// Where the radius estimate starts, px: the scale of the particles of the first estimation
+/// frame, found in scale space (see [`crate::scale`]): with `starts`, the median over the
+/// particle nearest each start; otherwise the typical scale of every particle found
+/// ([`scale::typical_radius`]). `None` when no particle is found at any scale.
+fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f64> {
+    let background = estimation.background;
+    let frame = *estimation.frames.first()?;
+    let (width, height) = frame.size();
+    let found: Vec<Vec<ScaleBlob>> = scale::ladder(width, height)
+        .into_par_iter()
+        .map(|radius| {
+            let blobs = estimation.workers.with(|w| {
+                w.finder
+                    .blobs(background, frame, &unfiltered(background, radius))
+                    .blobs
+            });
+            blobs
+                .iter()
+                .map(|b| ScaleBlob {
+                    x: b.x as f64,
+                    y: b.y as f64,
+                    peak: f64::from(b.peak),
+                    radius,
+                    snr: f64::from(b.peak) / band_noise(radius, background.noise_sigma.max(1e-6)),
+                })
+                .collect()
+        })
+        .collect();
+    let kept = scale::strongest(found.into_iter().flatten().collect());
+    match starts {
+        Some(starts) => {
+            let mut radii: Vec<f64> = nearest_each(&kept, starts, |b| [b.x, b.y])
+                .into_iter()
+                .map(|b| b.radius)
+                .collect();
+            (!radii.is_empty()).then(|| median(&mut radii))
+        }
+        None => scale::typical_radius(&kept),
+    }
 }
 
 /// Every blob of one estimation frame at `radius`, with no size rejection, located in the
