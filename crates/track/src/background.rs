@@ -19,6 +19,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
+use crate::blind::BlindPixels;
 use crate::cpu::with_avx2;
 use crate::frames::{Frame, FrameView};
 
@@ -84,6 +85,10 @@ pub struct Background {
     /// structure (four standard errors of a median over the samples, at least 3), grey
     /// levels.
     pub structure_threshold: f32,
+    /// Pixels where the background is as bright as a particle along its colour direction, so
+    /// that a particle cannot show there, and how their signal is filled in (see
+    /// [`Background::find_blind`]); none until then.
+    pub blind: BlindPixels,
 }
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
@@ -210,6 +215,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         brightest: 0.0,
         clip_offset: 0.0,
         structure_threshold: tau,
+        blind: BlindPixels::default(),
     };
     // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
     // successive frames' samples fall on other columns).
@@ -603,6 +609,24 @@ impl Background {
             (1, BackgroundModel::PerPixel) => self.direction[0] * (pixel[0] - self.image[i]),
             _ => colour_signal(pixel, &self.image[i * c..(i + 1) * c], &self.direction),
         }
+    }
+
+    /// Finds the blind pixels of a per-pixel background (see [`crate::BlindPixels`]) for
+    /// particles whose signal is `contrast` (grey levels), filled from up to `reach` px away;
+    /// a constant background has none.
+    pub fn find_blind(&mut self, contrast: f32, reach: usize) {
+        self.blind = match self.model {
+            BackgroundModel::Constant => BlindPixels::default(),
+            BackgroundModel::PerPixel => {
+                let c = self.channels;
+                let structure: Vec<f32> = self
+                    .image
+                    .chunks_exact(c)
+                    .map(|b| colour_signal(b, &self.level, &self.direction))
+                    .collect();
+                BlindPixels::find(&structure, self.width, self.height, contrast, reach)
+            }
+        };
     }
 
     /// Returns true if and only if particles are darker than the background (grey frames),

@@ -4,6 +4,7 @@
 mod appearance;
 mod assignment;
 mod background;
+mod blind;
 mod cpu;
 mod crossing;
 mod detect;
@@ -24,6 +25,7 @@ mod track_table;
 pub use appearance::*;
 pub use assignment::*;
 pub use background::*;
+pub use blind::BlindPixels;
 pub use detect::*;
 pub use error::TrackError;
 pub use frames::*;

@@ -15,10 +15,11 @@ use crate::background::STRUCTURED_LIMIT;
 use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    band_noise, estimate_background, find_blobs_forming, link_detections, list_frames,
-    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
-    Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
-    FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError, TrackTable,
+    band_noise, estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections,
+    list_frames, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
+    BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder,
+    FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError,
+    TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -241,6 +242,8 @@ fn track_paths(
         starts,
         &workers,
     );
+    // Without a structure, the blobs that move steadily, where the sizes were measured on them.
+    let mut moving_starts: Option<Vec<[f64; 2]>> = None;
     // The per-pixel median without the particles found in each sample frame (out to twice the
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
     if background.model == BackgroundModel::PerPixel {
@@ -306,8 +309,22 @@ fn track_paths(
                             Some(&moving),
                             &workers,
                         );
+                        moving_starts = Some(moving);
                     }
                 }
+            }
+        }
+    }
+    // Where the scene's own structure is as bright as the particles they cannot show, and a
+    // thin structure across a particle cuts it in two: such pixels are filled in from their
+    // neighbours, and the sizes measured again on the particles made whole.
+    if background.model == BackgroundModel::PerPixel {
+        let size_starts = starts.or(moving_starts.as_deref());
+        let samples = views(&sample_frames);
+        if let Some(contrast) = particle_contrast(&background, samples[0], &sizes, size_starts, &workers) {
+            background.find_blind(contrast, sizes.radius.ceil() as usize);
+            if !background.blind.is_empty() {
+                sizes = Sizes::measure(&background, &samples, options.radius, size_starts, &workers);
             }
         }
     }
@@ -526,14 +543,21 @@ impl Finder {
         let frame = background.matching(frame, &mut self.converted);
         let (width, height) = frame.size();
         self.signal.resize(width * height, 0.0);
-        let blobs = find_blobs_forming(
-            &mut self.signal,
-            width,
-            height,
-            params,
-            &mut self.detect,
-            |pixels, out| background.signal_range(frame, pixels, out),
-        );
+        let blobs = if background.blind.is_empty() {
+            find_blobs_forming(
+                &mut self.signal,
+                width,
+                height,
+                params,
+                &mut self.detect,
+                |pixels, out| background.signal_range(frame, pixels, out),
+            )
+        } else {
+            // Blind pixels are filled from their neighbours, so the signal is formed whole first.
+            background.signal_range(frame, 0..width * height, &mut self.signal);
+            background.blind.fill(&mut self.signal);
+            find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
+        };
         if levelled {
             background.remove_gain(frame, &mut self.signal);
         }
@@ -850,6 +874,49 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
         }
         None => scale::typical_radius(&kept),
     }
+}
+
+/// The particles' signal, grey levels: the median over the particles of `frame` (those
+/// nearest `starts` when given) of the largest signal within a radius of each; `None` when no
+/// particle is found.
+fn particle_contrast(
+    background: &Background,
+    frame: FrameView<'_>,
+    sizes: &Sizes,
+    starts: Option<&[[f64; 2]]>,
+    workers: &Workers,
+) -> Option<f32> {
+    let (width, height) = frame.size();
+    let mut peaks: Vec<f64> = workers.with(|w| {
+        let found = w
+            .finder
+            .locate(background, frame, &sizes.params, locate_window(sizes.radius));
+        let particles: Vec<&Detection> = match starts {
+            Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
+            None => found.iter().collect(),
+        };
+        let r = sizes.radius;
+        particles
+            .iter()
+            .map(|d| {
+                let (x0, x1) = (
+                    (d.x - r).floor().max(0.0) as usize,
+                    ((d.x + r).ceil() as usize).min(width - 1),
+                );
+                let (y0, y1) = (
+                    (d.y - r).floor().max(0.0) as usize,
+                    ((d.y + r).ceil() as usize).min(height - 1),
+                );
+                (y0..=y1)
+                    .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+                    .filter(|&(x, y)| (x as f64 - d.x).hypot(y as f64 - d.y) <= r)
+                    .map(|(x, y)| f64::from(w.finder.signal[y * width + x]))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .filter(|v| v.is_finite())
+            .collect()
+    });
+    (!peaks.is_empty()).then(|| median(&mut peaks) as f32)
 }
 
 /// Every blob of one estimation frame at `radius`, with no size rejection, located in the
