@@ -65,6 +65,12 @@ pub enum TrackError {
         /// Frames in the folder.
         count: usize,
     },
+    /// Named particles could not be followed: the tracks would be wrong.
+    #[error("{}", .concerns.join("; "))]
+    NotFollowed {
+        /// What is wrong with each, a sentence each (naming the particle and frames).
+        concerns: Vec<String>,
+    },
     /// An option is invalid (a non-finite start position, a non-positive radius, ...).
     #[error("invalid tracking option: {0}")]
     Option(String),

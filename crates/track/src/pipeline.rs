@@ -6,6 +6,7 @@
 //! from the components at that radius. Frames are decoded, filtered and located in
 //! parallel; linking is sequential.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -15,11 +16,11 @@ use crate::background::STRUCTURED_LIMIT;
 use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    band_noise, estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections,
-    list_frames, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
-    BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder,
-    FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError,
-    TrackTable,
+    band_noise, check_tracks, estimate_background, find_blobs_forming, find_blobs_with_scratch,
+    link_detections, list_frames, refine_centroids_with_scratch, skirts, Ambiguity, AmbiguityKind,
+    Background, BackgroundChoice, BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters,
+    Detection, Frame, FrameDecoder, FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch,
+    PointFlag, Scratch, TrackError, TrackPoint, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -432,6 +433,20 @@ fn track_paths(
         )?;
     }
     warnings.extend(link_warnings);
+    // Tracks that contradict themselves: named particles not followed are an error (their
+    // tracks would be wrong); unnamed ones are warned of.
+    let skirts = sample_skirts(&table, &frames, &background, &params, radius, &workers)?;
+    let concerns = check_tracks(&table, radius, &skirts);
+    if !concerns.is_empty() {
+        if options.named_start.is_some() {
+            let mut concerns: Vec<String> = concerns.iter().map(|c| c.to_string()).collect();
+            concerns.push(format!(
+                "no tracks written: if the particles are larger or smaller than {radius:.2} px in radius, give it with --radius"
+            ));
+            return Err(TrackError::NotFollowed { concerns });
+        }
+        warnings.extend(concerns.iter().map(|c| c.to_string()));
+    }
     warnings.extend(
         ambiguities
             .iter()
@@ -874,6 +889,49 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
         }
         None => scale::typical_radius(&kept),
     }
+}
+
+/// The skirts ([`crate::skirts`]) of the detected points of `table` in the sample frames of
+/// the window, by particle: frame and skirt each.
+fn sample_skirts(
+    table: &TrackTable,
+    frames: &WindowFrames<'_>,
+    background: &Background,
+    params: &DetectParameters,
+    radius: f64,
+    workers: &Workers,
+) -> Result<BTreeMap<String, Vec<(usize, f64)>>, TrackError> {
+    let first = frames.paths.first().map_or(0, |p| p.0);
+    let mut by_frame: BTreeMap<usize, Vec<&TrackPoint>> = BTreeMap::new();
+    for p in &table.points {
+        if p.flag == PointFlag::Detected && frames.sample_of.get(p.frame - first).is_some_and(Option::is_some)
+        {
+            by_frame.entry(p.frame).or_default().push(p);
+        }
+    }
+    let measured: Vec<Vec<(String, usize, f64)>> = by_frame
+        .into_par_iter()
+        .map(|(k, points)| {
+            workers.with(|w| {
+                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                let (width, height) = frame.size();
+                w.finder.find(background, frame, params, true);
+                let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
+                let s = skirts(&w.finder.signal, width, height, &at, radius);
+                Ok(points
+                    .iter()
+                    .zip(s)
+                    .filter(|(_, s)| s.is_finite())
+                    .map(|(p, s)| (p.particle.clone(), k, s))
+                    .collect())
+            })
+        })
+        .collect::<Result<_, TrackError>>()?;
+    let mut out: BTreeMap<String, Vec<(usize, f64)>> = BTreeMap::new();
+    for (particle, k, s) in measured.into_iter().flatten() {
+        out.entry(particle).or_default().push((k, s));
+    }
+    Ok(out)
 }
 
 /// The particles' signal, grey levels: the median over the particles of `frame` (those

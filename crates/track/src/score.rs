@@ -146,7 +146,7 @@ pub fn score_tracks(tracks: &TrackTable, truth: &TrackTable, match_radius: f64) 
 impl TrackScore {
     /// The score as a two-column Markdown table.
     pub fn to_markdown(&self) -> String {
-        let mut rows = vec![
+        let mut rows: Vec<(String, String)> = vec![
             ("frames scored".to_string(), self.frame_count.to_string()),
             (
                 "recall".into(),
@@ -159,23 +159,42 @@ impl TrackScore {
                 "precision".into(),
                 format!("{:.4} ({} track points)", self.precision, self.track_count),
             ),
-            ("RMS error x, px".into(), format!("{:.4}", self.rms_x)),
-            ("RMS error y, px".into(), format!("{:.4}", self.rms_y)),
+        ];
+        // Errors are only measured on matched points: with none, there is nothing to show.
+        let detected = self.matched_count - self.matched_bridged_count;
+        let none = |what: &str| format!("none: no {what} matched a truth point");
+        let error = |v: f64, n: usize, what: &str| if n == 0 { none(what) } else { format!("{v:.4}") };
+        rows.extend([
+            (
+                "RMS error x, px".into(),
+                error(self.rms_x, self.matched_count, "track point"),
+            ),
+            (
+                "RMS error y, px".into(),
+                error(self.rms_y, self.matched_count, "track point"),
+            ),
             (
                 "RMS error x, detected points only, px".into(),
-                format!("{:.4}", self.rms_x_detected),
+                error(self.rms_x_detected, detected, "detected point"),
             ),
             (
                 "RMS error y, detected points only, px".into(),
-                format!("{:.4}", self.rms_y_detected),
+                error(self.rms_y_detected, detected, "detected point"),
             ),
-            ("largest error, px".into(), format!("{:.3}", self.max_error)),
+            (
+                "largest error, px".into(),
+                if self.matched_count == 0 {
+                    none("track point")
+                } else {
+                    format!("{:.3}", self.max_error)
+                },
+            ),
             (
                 "matched points bridged or split".into(),
                 self.matched_bridged_count.to_string(),
             ),
             ("identity switches".into(), self.id_switches.to_string()),
-        ];
+        ]);
         if let Some(n) = self.name_mismatches {
             rows.push(("points named after the wrong particle".into(), n.to_string()));
         }
@@ -198,6 +217,45 @@ impl std::fmt::Display for TrackScore {
 mod tests {
     use super::*;
     use crate::track_table::TrackPoint;
+
+    #[test]
+    fn no_error_is_printed_when_nothing_matched() {
+        let truth = TrackTable {
+            points: vec![
+                TrackPoint::new(0, "a", 0.0, 0.0),
+                TrackPoint::new(1, "a", 1.0, 0.0),
+            ],
+        };
+        let far = TrackTable {
+            points: vec![
+                TrackPoint::new(0, "a", 50.0, 0.0),
+                TrackPoint::new(1, "a", 51.0, 0.0),
+            ],
+        };
+        let score = score_tracks(&far, &truth, 3.0);
+        assert_eq!(score.matched_count, 0);
+        let md = score.to_markdown();
+        assert!(
+            md.contains("| RMS error x, px | none: no track point matched a truth point |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| largest error, px | none: no track point matched a truth point |"),
+            "{md}"
+        );
+        assert!(
+            !md.lines().any(|l| l.contains("error") && l.contains("0.0")),
+            "{md}"
+        );
+        let near = TrackTable {
+            points: vec![
+                TrackPoint::new(0, "a", 0.5, 0.0),
+                TrackPoint::new(1, "a", 1.5, 0.0),
+            ],
+        };
+        let md = score_tracks(&near, &truth, 3.0).to_markdown();
+        assert!(md.contains("| RMS error x, px | 0.5000 |"), "{md}");
+    }
 
     #[test]
     fn counts_a_swap_and_errors() {
