@@ -196,6 +196,11 @@ pub struct BenchArgs {
     /// Smaller inputs, for a quick look (seconds, not minutes).
     #[arg(long)]
     pub quick: bool,
+    /// With `track`: instead of speed, the tracker's accuracy over a grid of particle radius
+    /// (1.5-48 px), profile (disc, Gaussian, ring, textured, shaded sphere) and noise (0, 5,
+    /// 20), drawn by physfit-synth.
+    #[arg(long)]
+    pub sweep: bool,
     /// Also write the tables to this Markdown file.
     #[arg(long)]
     pub out: Option<PathBuf>,

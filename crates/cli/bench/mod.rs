@@ -2,6 +2,7 @@
 
 pub mod fit;
 pub mod render;
+pub mod sweep;
 pub mod track;
 
 use anyhow::Context;
@@ -11,6 +12,19 @@ use crate::progress::Verbosity;
 
 /// Runs the chosen benchmarks and prints (and optionally saves) their tables.
 pub fn run(args: &BenchArgs, _verbosity: Verbosity) -> anyhow::Result<()> {
+    if args.sweep {
+        anyhow::ensure!(
+            args.what == BenchTarget::Track,
+            "--sweep applies to `physfit bench track` only"
+        );
+        let report = sweep::run(args.quick)?;
+        print!("{report}");
+        if let Some(path) = &args.out {
+            physfit_model::write_atomic(path, report.as_bytes())
+                .with_context(|| format!("writing {}", path.display()))?;
+        }
+        return Ok(());
+    }
     let mut report = String::new();
     if matches!(args.what, BenchTarget::Render | BenchTarget::All) {
         report.push_str(&render::run(args.quick)?);

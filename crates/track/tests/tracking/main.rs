@@ -10,3 +10,4 @@ mod parabola;
 mod real;
 mod scenes;
 mod styles;
+mod sweep;

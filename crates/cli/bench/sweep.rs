@@ -1,0 +1,149 @@
+//! `physfit bench track --sweep`: the tracker over a grid of particle sizes, profiles and
+//! noise levels drawn by `physfit-synth`, as a Markdown table of recall, RMS error, the
+//! Cramér-Rao bound, identity switches and pass or fail per cell.
+//!
+//! Every cell is one recording: up to four bright particles (contrast 150 over 30, grey, no
+//! blur, even light, steady exposure) on smooth random walks of up to 2 px per frame, 20
+//! frames, tracked named from their first-frame positions. A cell passes with recall 1, no
+//! identity error and an RMS per axis within `max(0.05 + 0.01 σ, 2 CRB)` px (`0.10 + 0.02 σ`
+//! below 3 px), plus the offset of the noise-free particle's intensity centroid from its
+//! centre (a shaded sphere's leans towards the light): the rule of the tracker's style-sweep
+//! test (`crates/track/tests/tracking/sweep.rs`).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use physfit_synth::{Polarity, Profile, Sequence, Style};
+use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+
+/// Radii of the full grid, px.
+const RADII: [f64; 6] = [1.5, 3.0, 6.0, 12.0, 24.0, 48.0];
+/// Noise levels of the full grid, grey levels.
+const NOISES: [f64; 3] = [0.0, 5.0, 20.0];
+/// Radii and noise levels of `--quick`.
+const QUICK_RADII: [f64; 3] = [1.5, 6.0, 24.0];
+const QUICK_NOISES: [f64; 2] = [0.0, 20.0];
+
+/// A folder removed when dropped.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// The cell's style: a fixed draw for the motion's seed, then every look set.
+fn cell_style(profile: Profile, radius: f64, noise: f64, seed: u64) -> Style {
+    let mut s = Style::random(seed);
+    s.profile = profile;
+    s.radius = radius;
+    s.mixed = false;
+    s.particle_count = ((48.0 / radius) as usize).clamp(1, 4);
+    s.polarity = Polarity::BrightOnDark;
+    s.colour = false;
+    s.background = [30.0; 3];
+    s.foreground = [180.0; 3];
+    s.blur = 0.0;
+    s.noise = noise;
+    s.gradient = 0.0;
+    s.vignetting = 0.0;
+    s.exposure = 0.0;
+    s.saturating = false;
+    s.speed = 2.0;
+    s.frame_count = 20;
+    s.fit_frame(1.0);
+    s
+}
+
+fn table(names: &[String], points: &[Vec<[f64; 2]>]) -> TrackTable {
+    let mut out = Vec::new();
+    for (k, frame) in points.iter().enumerate() {
+        for (name, p) in names.iter().zip(frame) {
+            out.push(TrackPoint::new(k, name.clone(), p[0], p[1]));
+        }
+    }
+    TrackTable { points: out }
+}
+
+/// Runs the sweep and returns its Markdown table; `quick` runs a smaller grid.
+pub fn run(quick: bool) -> anyhow::Result<String> {
+    let (radii, noises): (&[f64], &[f64]) = if quick {
+        (&QUICK_RADII, &QUICK_NOISES)
+    } else {
+        (&RADII, &NOISES)
+    };
+    let mut out = String::from(
+        "### Tracker style sweep: up to 4 bright particles (150 over 30, grey, sharp, even light), 20 frames, named\n\n",
+    );
+    out.push_str("| radius (px) | profile | noise | recall | RMS x (px) | RMS y (px) | CRB σ (px) | centroid offset (px) | tolerance (px) | switches | tracker radius (px) | result |\n");
+    out.push_str("|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+    let (mut cells, mut passed) = (0, 0);
+    for &radius in radii {
+        for profile in Profile::all() {
+            for &noise in noises {
+                let seed = 7000 + cells as u64;
+                let seq = Sequence::new(cell_style(profile, radius, noise, seed));
+                let dir = Scratch(
+                    std::env::temp_dir().join(format!("physfit-bench-sweep-{}-{cells}", std::process::id())),
+                );
+                seq.write_frames(&dir.0)
+                    .with_context(|| format!("drawing into {}", dir.0.display()))?;
+                let truth = table(&seq.truth.names, &seq.truth.positions);
+                let start = seq
+                    .truth
+                    .names
+                    .iter()
+                    .cloned()
+                    .zip(seq.truth.positions[0].iter().copied())
+                    .collect();
+                let options = TrackOptions {
+                    named_start: Some(start),
+                    ..TrackOptions::default()
+                };
+                let crb = seq.bound().sigma();
+                let offset = seq.truth.centroid_offset_rms();
+                let base: f64 = if radius >= 3.0 {
+                    0.05 + 0.01 * noise
+                } else {
+                    0.10 + 0.02 * noise
+                };
+                let tol = [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+                cells += 1;
+                let row = match track_folder(&dir.0, &options, &|_, _| {}) {
+                    Ok(t) => {
+                        let s = score_tracks(&t.table, &truth, radius);
+                        let switches = s.id_switches + s.name_mismatches.unwrap_or(0);
+                        let ok = s.matched_count == s.truth_count
+                            && switches == 0
+                            && s.rms_x <= tol[0]
+                            && s.rms_y <= tol[1];
+                        passed += usize::from(ok);
+                        format!(
+                            "| {radius} | {} | {noise} | {:.3} | {:.4} | {:.4} | {:.4} | {:.3} | {:.3} | {switches} | {:.2} | {} |\n",
+                            profile.name(),
+                            s.matched_count as f64 / s.truth_count.max(1) as f64,
+                            s.rms_x,
+                            s.rms_y,
+                            crb[0].max(crb[1]),
+                            offset[0].hypot(offset[1]),
+                            tol[0].max(tol[1]),
+                            t.stats.radius,
+                            if ok { "pass" } else { "FAIL" }
+                        )
+                    }
+                    Err(e) => format!(
+                        "| {radius} | {} | {noise} | - | - | - | {:.4} | {:.3} | {:.3} | - | - | FAIL: {e} |\n",
+                        profile.name(),
+                        crb[0].max(crb[1]),
+                        offset[0].hypot(offset[1]),
+                        tol[0].max(tol[1]),
+                    ),
+                };
+                out.push_str(&row);
+            }
+        }
+    }
+    out.push_str(&format!("\n{passed} of {cells} cells pass.\n"));
+    Ok(out)
+}

@@ -1,0 +1,281 @@
+//! Randomized style sweep (tracker issue 20, "follow any particle a person can see, at any
+//! size"): 40 styles drawn by `physfit-synth` (flat discs, Gaussian spots, rings, textured
+//! balls, shaded spheres; radius 1.5-60 px, mixed sizes, either polarity, grey or colour,
+//! blur, noise, uneven light, exposure drift, saturation) and 8 drawn through physfit's own
+//! renderer (flat discs, radius 1.5-60 px), all from fixed seeds.
+//!
+//! Every particle must be followed in every frame under its own name (recall 1, no identity
+//! switch) with an RMS error per axis within
+//!
+//! * `0.05 px + 0.01 σ` (σ the pixel noise, grey levels) when the smallest particle is at
+//!   least 3 px in radius, or `0.10 px + 0.02 σ` below that: a sharp 1.5 px disc's
+//!   pixel-integrated image has its own centroid up to 0.01 px off its centre (the pixel grid
+//!   aliases its edge), and its centroid window holds more background per unit of signal;
+//! * or twice the style's Cramér-Rao bound (the standard deviation), where that is larger;
+//! * plus the RMS offset of the noise-free particle's intensity centroid from its centre
+//!   (the truth): a shaded sphere's centroid leans towards the light, and an illumination
+//!   gradient or vignetting tilts any particle's (a centroid cannot know the centre of a
+//!   lopsided image). The table shows that offset and the error against the centroid, so a
+//!   track that follows the centroid is told from one that follows something else.
+//!
+//! Every style is run before anything is asserted, and a table with one row per style is
+//! printed, so a failure shows every failing style, not the first.
+
+use std::path::Path;
+
+use physfit_model::{Colour, Recording, RenderSettings, Vec2};
+use physfit_render::render_sequence;
+use physfit_synth::{Polarity, Profile, Sequence, Style};
+use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+
+use crate::common::TempDir;
+
+/// Seeds of the styles drawn by `physfit-synth`.
+const SYNTH_SEEDS: std::ops::Range<u64> = 1000..1040;
+/// Seeds of the flat-disc styles drawn through `physfit-render`.
+const RENDER_SEEDS: std::ops::Range<u64> = 2000..2008;
+
+/// One style's outcome: a row of the table.
+struct Row {
+    source: &'static str,
+    style: Style,
+    recall: f64,
+    rms: [f64; 2],
+    rms_centroid: [f64; 2],
+    switches: usize,
+    crb: [f64; 2],
+    offset: [f64; 2],
+    tolerance: [f64; 2],
+    tracker_radius: f64,
+    failure: Option<String>,
+}
+
+impl Row {
+    fn passed(&self) -> bool {
+        self.failure.is_none()
+    }
+
+    fn line(&self) -> String {
+        let s = &self.style;
+        let mut extras = Vec::new();
+        if s.gradient > 0.0 {
+            extras.push(format!("grad {:.2}", s.gradient));
+        }
+        if s.vignetting > 0.0 {
+            extras.push(format!("vign {:.2}", s.vignetting));
+        }
+        if s.exposure > 0.0 {
+            extras.push(format!("exp ±{:.2}", s.exposure));
+        }
+        if s.saturating {
+            extras.push("sat".to_string());
+        }
+        format!(
+            "| {} | {} | {} | {:.2} | {} | {:.1} | {:.2} | {} | {} | {} | {} | {:.3} | {:.4} / {:.4} | {:.4} / {:.4} | {} | {:.4} / {:.4} | {:.4} / {:.4} | {:.4} / {:.4} | {:.2} | {} |",
+            self.source,
+            s.seed,
+            s.profile.name(),
+            s.radius,
+            if s.mixed { "x2.5" } else { "-" },
+            s.noise,
+            s.blur,
+            match s.polarity {
+                Polarity::BrightOnDark => "bright",
+                Polarity::DarkOnLight => "dark",
+            },
+            if s.colour { "rgb" } else { "grey" },
+            s.particle_count,
+            if extras.is_empty() { "-".to_string() } else { extras.join(", ") },
+            self.recall,
+            self.rms[0],
+            self.rms[1],
+            self.rms_centroid[0],
+            self.rms_centroid[1],
+            self.switches,
+            self.crb[0],
+            self.crb[1],
+            self.offset[0],
+            self.offset[1],
+            self.tolerance[0],
+            self.tolerance[1],
+            self.tracker_radius,
+            match &self.failure {
+                None => "pass".to_string(),
+                Some(why) => format!("FAIL: {why}"),
+            }
+        )
+    }
+}
+
+const HEADER: &str = "| source | seed | profile | radius | mixed | noise | blur | polarity | colour | n | light, camera | recall | RMS x / y (px) | RMS vs centroid x / y | switches | CRB σ x / y | centroid offset x / y | tolerance x / y | tracker radius | result |\n|---|---:|---|---:|---|---:|---:|---|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|";
+
+/// The truth as a track table: `points[k]` of every particle (centres or centroids).
+fn table(names: &[String], points: &[Vec<[f64; 2]>]) -> TrackTable {
+    let mut out = Vec::new();
+    for (k, frame) in points.iter().enumerate() {
+        for (name, p) in names.iter().zip(frame) {
+            out.push(TrackPoint::new(k, name.clone(), p[0], p[1]));
+        }
+    }
+    TrackTable { points: out }
+}
+
+/// Tracks the frames in `dir` named after `seq`'s particles and scores them.
+fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
+    let style = seq.style.clone();
+    let truth = table(&seq.truth.names, &seq.truth.positions);
+    let centroid_truth = table(&seq.truth.names, &seq.truth.centroids);
+    let start: Vec<(String, [f64; 2])> = seq
+        .truth
+        .names
+        .iter()
+        .cloned()
+        .zip(seq.truth.positions[0].iter().copied())
+        .collect();
+    let crb = seq.bound().sigma();
+    let offset = seq.truth.centroid_offset_rms();
+    let base: f64 = if style.radius >= 3.0 {
+        0.05 + 0.01 * style.noise
+    } else {
+        0.10 + 0.02 * style.noise
+    };
+    let tolerance = [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+    let mut row = Row {
+        source,
+        style: style.clone(),
+        recall: 0.0,
+        rms: [f64::NAN; 2],
+        rms_centroid: [f64::NAN; 2],
+        switches: 0,
+        crb,
+        offset,
+        tolerance,
+        tracker_radius: f64::NAN,
+        failure: None,
+    };
+    let options = TrackOptions {
+        named_start: Some(start),
+        threads: Some(1),
+        ..TrackOptions::default()
+    };
+    let outcome = match track_folder(dir, &options, &|_, _| {}) {
+        Ok(o) => o,
+        Err(e) => {
+            row.failure = Some(format!("tracking failed: {e}"));
+            return row;
+        }
+    };
+    // A point farther than the smallest true radius from a true centre is on another
+    // particle or none.
+    let s = score_tracks(&outcome.table, &truth, style.radius);
+    let c = score_tracks(&outcome.table, &centroid_truth, style.radius);
+    row.recall = s.matched_count as f64 / s.truth_count.max(1) as f64;
+    row.rms = [s.rms_x, s.rms_y];
+    row.rms_centroid = [c.rms_x, c.rms_y];
+    row.switches = s.id_switches + s.name_mismatches.unwrap_or(0);
+    row.tracker_radius = outcome.stats.radius;
+    let mut why = Vec::new();
+    if s.matched_count < s.truth_count {
+        why.push(format!("{} of {} points", s.matched_count, s.truth_count));
+    }
+    if row.switches > 0 {
+        why.push(format!("{} identity errors", row.switches));
+    }
+    if !(row.rms[0] <= tolerance[0] && row.rms[1] <= tolerance[1]) {
+        why.push("RMS".to_string());
+    }
+    if !why.is_empty() {
+        row.failure = Some(why.join(", "));
+    }
+    row
+}
+
+/// A synth style drawn from `seed`, tracked.
+fn synth_row(seed: u64) -> Row {
+    let seq = Sequence::new(Style::random(seed));
+    let dir = TempDir::new("sweep");
+    seq.write_frames(dir.path()).expect("write frames");
+    run("synth", &seq, dir.path())
+}
+
+/// A flat-disc style for `physfit-render`: the style drawn from `seed` with the radius
+/// spread log-uniformly over 1.5-60 px across the seeds, one size, no uneven light or
+/// exposure drift (the renderer draws neither); rendered by `physfit_render`.
+fn render_row(seed: u64, index: usize, count: usize) -> Row {
+    let mut style = Style::random(seed);
+    let u = (index as f64 + 0.5) / count as f64;
+    style.radius = 1.5 * 40f64.powf(u);
+    style.profile = Profile::Disc;
+    style.mixed = false;
+    style.particle_count = style
+        .particle_count
+        .min(((48.0 / style.radius) as usize).clamp(1, 8));
+    style.gradient = 0.0;
+    style.vignetting = 0.0;
+    style.exposure = 0.0;
+    style.saturating = false;
+    style.background = style.background.map(|v| v.round());
+    style.foreground = style.foreground.map(|v| v.round());
+    style.fit_frame(1.1);
+    style.noise = style.noise.min(style.visible_noise());
+    let colour = |c: [f64; 3]| {
+        let c = c.map(|v| v.clamp(0.0, 255.0) as u8);
+        if style.colour {
+            Colour::Rgb(c)
+        } else {
+            Colour::Grey(c[0])
+        }
+    };
+    let settings = RenderSettings {
+        width: style.width,
+        height: style.height,
+        radius: style.radius,
+        background: colour(style.background),
+        foreground: colour(style.foreground),
+        noise: style.noise,
+        blur: style.blur,
+        seed,
+    };
+    let seq = Sequence::new(style);
+    let positions: Vec<Vec2> = seq
+        .truth
+        .positions
+        .iter()
+        .flatten()
+        .map(|p| Vec2::new(p[0], p[1]))
+        .collect();
+    let recording = Recording {
+        particle_count: seq.style.particle_count,
+        velocities: vec![Vec2::zeros(); positions.len()],
+        positions,
+    };
+    let dir = TempDir::new("sweep-render");
+    render_sequence(&recording, &settings, dir.path(), &|_| {}).expect("render frames");
+    run("render", &seq, dir.path())
+}
+
+#[test]
+#[ignore = "tracker issue 20: 38 of 48 styles fail, see the table"]
+fn sweep_of_random_styles_is_followed_within_the_bound() {
+    let start = std::time::Instant::now();
+    let mut rows: Vec<Row> = SYNTH_SEEDS.map(synth_row).collect();
+    let count = (RENDER_SEEDS.end - RENDER_SEEDS.start) as usize;
+    rows.extend(
+        RENDER_SEEDS
+            .enumerate()
+            .map(|(i, seed)| render_row(seed, i, count)),
+    );
+    let failed = rows.iter().filter(|r| !r.passed()).count();
+    let mut report = format!("{HEADER}\n");
+    for r in &rows {
+        report.push_str(&r.line());
+        report.push('\n');
+    }
+    report.push_str(&format!(
+        "\n{failed} of {} styles fail ({:.1} s)\n",
+        rows.len(),
+        start.elapsed().as_secs_f64()
+    ));
+    println!("{report}");
+    assert_eq!(failed, 0, "\n{report}");
+}
