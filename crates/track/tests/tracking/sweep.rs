@@ -158,6 +158,15 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         threads: Some(1),
         ..TrackOptions::default()
     };
+    // PHYSFIT_SWEEP_KEEP=DIR keeps each style's frames in DIR/SOURCE-SEED for a closer look.
+    if let Ok(keep) = std::env::var("PHYSFIT_SWEEP_KEEP") {
+        let to = Path::new(&keep).join(format!("{source}-{}", style.seed));
+        std::fs::create_dir_all(&to).expect("keep folder");
+        for entry in std::fs::read_dir(dir).expect("frames").flatten() {
+            std::fs::copy(entry.path(), to.join(entry.file_name())).expect("copy frame");
+        }
+        truth.write_csv(&to.join("truth.csv")).expect("write truth");
+    }
     let outcome = match track_folder(dir, &options, &|_, _| {}) {
         Ok(o) => o,
         Err(e) => {
