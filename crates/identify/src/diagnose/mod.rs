@@ -24,6 +24,7 @@
 mod costs;
 mod effect;
 mod family;
+mod flights;
 mod jolts;
 mod localise;
 mod outcome;
@@ -165,9 +166,11 @@ fn diagnose_inner(
     let mut excluded = exclusion(&rough);
     let mut jolt_list = Vec::new();
     let mut supports = Vec::new();
+    let mut rough_field = physfit_model::Vec2::zeros();
     for _ in 0..2 {
         let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
-        let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales);
+        let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales, &excluded);
+        rough_field = field;
         let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
         jolt_list = found;
         excluded = exclusion(&jolt_list);
@@ -250,10 +253,22 @@ fn diagnose_inner(
     let mut current = base.clone();
     let mut accepted: Vec<(Proposal, report::Evidence, usize)> = Vec::new();
     let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
+    let mut replaced: Vec<report::Replaced> = Vec::new();
     let mut guesses = guesses;
     let mut round = 0;
     let mut restarts = 0;
-    while accepted.len() < options.max_effects {
+    let stop: String;
+    // Swaps keep the count of effects: the rounds are bounded as well.
+    let max_rounds = 2 * options.max_effects + MAX_RESTARTS + 1;
+    loop {
+        if accepted.len() >= options.max_effects {
+            stop = format!("the most effects allowed ({}) were added", options.max_effects);
+            break;
+        }
+        if round >= max_rounds {
+            stop = format!("the most rounds allowed ({max_rounds}) were run");
+            break;
+        }
         round += 1;
         let debug = std::env::var_os("PHYSFIT_DEBUG").is_some();
         let tq = Instant::now();
@@ -337,13 +352,111 @@ fn diagnose_inner(
             .into_iter()
             .filter(|g| !accepted_walls.iter().any(|w| same_wall(w, &g.init, &scales)))
             .collect();
+        // The field's proposal for walls: a floor and a field are each useless to a
+        // multi-step fit without the other; where bounces leave the weak form blind (its
+        // field is no estimate), the field seen in the free flights starts it.
+        let field_proposal = (!current.family.effects.contains(&Effect::Gravity)).then(|| {
+            let screened_field = screened.iter().find(|p| p.effect == Effect::Gravity);
+            let weak_blind = !screened_field.and_then(|p| p.screen).is_some_and(|s| s > 0.0);
+            Proposal {
+                effect: Effect::Gravity,
+                init: if weak_blind || screened_field.is_none() {
+                    vec![rough_field.x, rough_field.y]
+                } else {
+                    screened_field.map(|p| p.init.clone()).unwrap_or_default()
+                },
+                screen: screened_field.and_then(|p| p.screen),
+                score_test: screened_field.and_then(|p| p.score_test),
+                jolts: Vec::new(),
+            }
+        });
         for wall in walls_left.iter().take(3) {
             to_verify.push(vec![wall.clone()]);
             for p in by_screen.iter().take(1) {
                 to_verify.push(vec![wall.clone(), (*p).clone()]);
             }
+            if let Some(f) = &field_proposal {
+                if !by_screen.iter().take(1).any(|p| p.effect == Effect::Gravity) {
+                    to_verify.push(vec![wall.clone(), f.clone()]);
+                }
+            }
+        }
+        // Pairs that work only together (a field with a tether is a pendulum; a field with
+        // drag): verified when a pair explains more of the weak form per parameter than any
+        // single candidate.
+        let best_single = screened
+            .iter()
+            .filter_map(|p| p.screen.map(|s| s / p.effect.parameter_count() as f64))
+            .fold(0.0f64, f64::max);
+        let pairs = ctx.screen_pairs(&current, &candidates, Effect::Gravity);
+        for pair in pairs.iter().take(search::VERIFIED_PAIRS_PER_ROUND) {
+            let k: usize = pair.iter().map(|p| p.effect.parameter_count()).sum();
+            let per = pair[0].screen.unwrap_or(0.0) / k as f64;
+            if per > search::SCREEN_PER_PARAMETER && per > best_single {
+                to_verify.push(pair.clone());
+            }
+        }
+        // A pendulum from the geometry of the most circular path (see `circle_pair`).
+        let circles = current
+            .family
+            .free
+            .iter()
+            .filter_map(|&p| ctx.circle_pair(&current, p))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((pair, misfit)) = circles {
+            if debug {
+                eprintln!(
+                    "   circle pair (misfit {misfit:.2e} of the radius): {:?} {:?}",
+                    pair[0].init, pair[1].init
+                );
+            }
+            to_verify.push(pair);
+        }
+        if debug {
+            for pair in pairs.iter().take(3) {
+                eprintln!(
+                    "   pair {:?}+{:?} screen {:?} init {:?} {:?}",
+                    pair[0].effect, pair[1].effect, pair[0].screen, pair[0].init, pair[1].init
+                );
+            }
         }
         let mut verified: Vec<search::Verified> = to_verify.iter().map(|p| ctx.verify(&current, p)).collect();
+        // Swaps: while the fit is far from the noise, an accepted smooth effect may be a poor
+        // stand-in for a better explanation (a far tether imitating a pendulum's field and
+        // tether): each is taken out, the best single and pair screened in its place, and
+        // verified against the current model.
+        if !ctx.explained(&current) {
+            for k in 0..current.family.effects.len() {
+                let removed = current.family.effects[k];
+                if !removed.is_smooth() {
+                    continue;
+                }
+                let reduced = ctx.without(&current, k);
+                let mut options: Vec<Vec<Proposal>> = Vec::new();
+                if let Some(p) = ctx
+                    .screen(&reduced, &candidates)
+                    .into_iter()
+                    .find(|p| p.screen.is_some_and(|s| s > 0.0))
+                {
+                    options.push(vec![p]);
+                }
+                if let Some(pair) = ctx
+                    .screen_pairs(&reduced, &candidates, Effect::Gravity)
+                    .into_iter()
+                    .find(|p| p[0].screen.is_some_and(|s| s > 0.0))
+                {
+                    options.push(pair);
+                }
+                for o in options {
+                    let v = ctx.verify_swap(&current, k, &o);
+                    if debug {
+                        let effects: Vec<Effect> = o.iter().map(|p| p.effect).collect();
+                        eprintln!("   swap {removed:?} -> {effects:?}: {:?}", v.evidence);
+                    }
+                    verified.push(v);
+                }
+            }
+        }
         if debug {
             for v in &verified {
                 let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();
@@ -389,9 +502,42 @@ fn diagnose_inner(
         }
         let Some(best) = best else {
             merge_rejects(&mut rejected, round_rejects);
+            stop = if ctx.explained(&current) {
+                "the residual is at the noise level and no candidate earns its place".into()
+            } else {
+                "no candidate, alone, paired with the field or in place of an accepted effect, \
+                 removes enough held-out cost to pay for its parameters"
+                    .into()
+            };
             break;
         };
-        let Some(next) = best.current.clone() else { break };
+        let Some(next) = best.current.clone() else {
+            stop = "the best candidate's fit failed".into();
+            break;
+        };
+        if let Some(k) = best.removes {
+            // A swap: the replaced effect leaves, the new ones join.
+            merge_rejects(&mut rejected, round_rejects);
+            let (old, _, added) = accepted.remove(k);
+            replaced.push(report::Replaced {
+                effect: old.effect.name().into(),
+                label: old.effect.label(&family0.structure),
+                added_round: added,
+                round,
+                by: best
+                    .proposals
+                    .iter()
+                    .map(|p| p.effect.label(&family0.structure))
+                    .collect(),
+            });
+            for p in &best.proposals {
+                accepted.push((p.clone(), best.evidence.clone(), round));
+            }
+            observer.observe(round, next.fit.sum_squares);
+            current = next;
+            prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
+            continue;
+        }
         // Guard against a better optimum of the model without the terms: refit it from the
         // new fit's values (terms removed) and rescore.
         let mut evidence = best.evidence.clone();
@@ -414,6 +560,7 @@ fn diagnose_inner(
             merge_rejects(&mut rejected, round_rejects);
             restarts += 1;
             if restarts > MAX_RESTARTS {
+                stop = "the current model's refits kept finding better optima of it".into();
                 break;
             }
             continue;
@@ -424,6 +571,7 @@ fn diagnose_inner(
         }
         observer.observe(round, next.fit.sum_squares);
         current = next;
+        prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
     }
     rejected.retain(|r| !accepted.iter().any(|(p, _, _)| rejected_matches(&family0, r, p)));
 
@@ -485,11 +633,69 @@ fn diagnose_inner(
         base: outcome.base,
         final_model: outcome.final_model,
         residuals: outcome.residuals,
+        replaced,
+        search: report::SearchSummary {
+            rounds: round,
+            stop_reason: stop,
+        },
         warnings,
         seconds: t0.elapsed().as_secs_f64(),
         final_scene: outcome.scene,
         predictions: outcome.predictions,
     })
+}
+
+/// Backward elimination after a round: an effect accepted in an earlier round that the newer
+/// ones make redundant (the model refitted without it loses less held-out cost, in units of
+/// the fit's residual variance, than its `k ln N` penalty) is taken out, the most redundant
+/// first, until every one pays for its parameters.
+fn prune(
+    ctx: &Context<'_>,
+    family0: &Family,
+    current: &mut Current,
+    accepted: &mut Vec<(Proposal, report::Evidence, usize)>,
+    replaced: &mut Vec<report::Replaced>,
+    round: usize,
+) {
+    while accepted.len() >= 2 {
+        let held = ctx.held_count(&current.family);
+        let (n, before) = if held > 0 {
+            (held, current.held_cost)
+        } else {
+            (current.fit.residual_count, current.fit.sum_squares)
+        };
+        let variance = ctx.noise_variance(current);
+        let mut worst: Option<(f64, usize, Current)> = None;
+        for (k, entry) in accepted.iter().enumerate() {
+            if entry.2 == round {
+                continue;
+            }
+            let reduced = ctx.without(current, k);
+            let Some(fit) = ctx.fit(&reduced.family, &reduced.fit.params, &current.fit.state, true) else {
+                continue;
+            };
+            let after = if held > 0 {
+                fit.held_cost
+            } else {
+                fit.fit.sum_squares
+            };
+            let worth = (after - before) / variance
+                - current.family.effects[k].parameter_count() as f64 * (n.max(2) as f64).ln();
+            if worth.is_finite() && worth < 0.0 && worst.as_ref().map_or(true, |w| worth < w.0) {
+                worst = Some((worth, k, fit));
+            }
+        }
+        let Some((_, k, fit)) = worst else { return };
+        let (old, _, added) = accepted.remove(k);
+        replaced.push(report::Replaced {
+            effect: old.effect.name().into(),
+            label: old.effect.label(&family0.structure),
+            added_round: added,
+            round,
+            by: Vec::new(),
+        });
+        *current = fit;
+    }
 }
 
 /// Returns true if and only if two walls' parameters (`[angle, offset, restitution]`) are
@@ -586,7 +792,10 @@ fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (V
 }
 
 /// The rough model's accelerations at every complete frame (px/s²) and its uniform field
-/// (px/s²): the structure and a field, estimated together in the weak form.
+/// (px/s²): the structure and a field, estimated together in the weak form; when bounces
+/// leave the weak form too few fitted rows for that (fewer than twice its columns), the field
+/// is the median of the free flights' accelerations instead (module `flights`).
+#[allow(clippy::too_many_arguments)]
 fn rough_model(
     family0: &Family,
     obs: &Observations,
@@ -595,6 +804,7 @@ fn rough_model(
     held: &[bool],
     start: &physfit_model::State,
     scales: &DataScales,
+    excluded: &[bool],
 ) -> (Vec<Option<Vec<physfit_model::Vec2>>>, physfit_model::Vec2) {
     let family = family0.with_effects(vec![Effect::Gravity]);
     let params = Context {
@@ -607,14 +817,34 @@ fn rough_model(
     }
     .joint_estimate(&family, &vec![0.0; family.dim()]);
     let nb = family.bond_dim();
-    let field = physfit_model::Vec2::new(params[nb], params[nb + 1]);
-    let model = family.model(&params, None);
-    let acc = (0..obs.frame_count())
+    let mut field = physfit_model::Vec2::new(params[nb], params[nb + 1]);
+    let structure_model = family0.model(&params[..nb], None);
+    let structure_acc: Vec<Option<Vec<physfit_model::Vec2>>> = (0..obs.frame_count())
         .map(|k| {
             let s = obs.state(k)?;
             let mut a = vec![physfit_model::Vec2::zeros(); s.len()];
-            model.accelerations(&s, &mut a);
+            structure_model.accelerations(&s, &mut a);
             Some(a)
+        })
+        .collect();
+    let train_rows = weak.rows.iter().filter(|r| r.train).count();
+    if train_rows < 2 * (weak.bond_column_count() + 2) {
+        if let Some(f) = flights::field_from_flights(obs, &structure_acc, excluded) {
+            field = f;
+        }
+    }
+    let free: Vec<bool> = family0.structure.particles.iter().map(|p| !p.fixed).collect();
+    let acc = structure_acc
+        .into_iter()
+        .map(|a| {
+            a.map(|mut a| {
+                for (p, v) in a.iter_mut().enumerate() {
+                    if free.get(p).copied().unwrap_or(false) {
+                        *v += field;
+                    }
+                }
+                a
+            })
         })
         .collect();
     (acc, field)

@@ -90,6 +90,31 @@ impl Evidence {
     }
 }
 
+/// An effect accepted in an earlier round and taken out later: replaced by a better
+/// explanation (a swap), or made redundant by the effects that joined after it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Replaced {
+    /// Effect name, as in [`Finding::effect`].
+    pub effect: String,
+    /// Readable label.
+    pub label: String,
+    /// Round in which it had been accepted.
+    pub added_round: usize,
+    /// Round in which it was taken out.
+    pub round: usize,
+    /// Labels of the effects that replaced it (empty: removed as redundant).
+    pub by: Vec<String>,
+}
+
+/// How the greedy search ended.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SearchSummary {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Why it stopped, in words.
+    pub stop_reason: String,
+}
+
 /// An accepted effect.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Finding {
@@ -290,6 +315,11 @@ pub struct Diagnosis {
     pub final_model: ModelSummary,
     /// Residual series before and after.
     pub residuals: ResidualSeries,
+    /// Effects accepted and later taken out (swapped for a better explanation or made
+    /// redundant).
+    pub replaced: Vec<Replaced>,
+    /// How the greedy search ended.
+    pub search: SearchSummary,
     /// What went wrong or was worked around.
     pub warnings: Vec<String>,
     /// Wall time, s.
