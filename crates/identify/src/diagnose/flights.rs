@@ -13,12 +13,14 @@ use crate::Observations;
 
 /// The median residual acceleration (px/s²) over free particles and frames `k` whose
 /// neighbours `k - 1 ..= k + 1` are tracked and not `excluded`, with `structure_acc[k][p]`
-/// (the structure's own forces per unit mass) removed; `None` with fewer than three samples.
+/// (the structure's own forces per unit mass) removed, and its standard error per coordinate
+/// (`1.2533` times the robust spread `1.4826 MAD` over the square root of the count: a
+/// median's); `None` with fewer than three samples.
 pub fn field_from_flights(
     obs: &Observations,
     structure_acc: &[Option<Vec<Vec2>>],
     excluded: &[bool],
-) -> Option<Vec2> {
+) -> Option<(Vec2, Vec2)> {
     let frames = obs.frame_count();
     let dt = obs.frame_dt();
     if frames < 3 || dt.is_nan() || dt <= 0.0 {
@@ -55,7 +57,15 @@ pub fn field_from_flights(
     if xs.len() < 3 {
         return None;
     }
-    Some(Vec2::new(median(&mut xs), median(&mut ys)))
+    let n = xs.len() as f64;
+    let (mx, my) = (median(&mut xs), median(&mut ys));
+    let mut dx: Vec<f64> = xs.iter().map(|v| (v - mx).abs()).collect();
+    let mut dy: Vec<f64> = ys.iter().map(|v| (v - my).abs()).collect();
+    let se = |mad: f64| 1.2533 * 1.4826 * mad / n.sqrt();
+    Some((
+        Vec2::new(mx, my),
+        Vec2::new(se(median(&mut dx)), se(median(&mut dy))),
+    ))
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -91,7 +101,7 @@ mod tests {
             v += g * dt;
         }
         let obs = Observations::from_positions(vec!["ball".into()], vec![false], fps, 0, positions);
-        let f = field_from_flights(&obs, &[], &[false; 40]).unwrap_or_else(Vec2::zeros);
+        let (f, _) = field_from_flights(&obs, &[], &[false; 40]).unwrap_or_default();
         assert!((f - g).norm() < 1e-6, "{f:?}");
     }
 }

@@ -35,6 +35,7 @@ mod shooting;
 mod support;
 #[cfg(test)]
 mod tests;
+mod verdict;
 mod weak;
 
 pub use costs::scene_costs;
@@ -42,9 +43,11 @@ pub use effect::Effect;
 pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
-    ParticleResidual, Predictions, RejectedCandidate, ResidualSeries, Seen,
+    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen, Verdict,
+    VerdictParticle,
 };
 pub use support::Support;
+pub use verdict::EXPLAINED_RMS_RATIO;
 
 use std::time::Instant;
 
@@ -353,18 +356,13 @@ fn diagnose_inner(
             .filter(|g| !accepted_walls.iter().any(|w| same_wall(w, &g.init, &scales)))
             .collect();
         // The field's proposal for walls: a floor and a field are each useless to a
-        // multi-step fit without the other; where bounces leave the weak form blind (its
-        // field is no estimate), the field seen in the free flights starts it.
+        // multi-step fit without the other; the rough model's field starts it (the free
+        // flights' where bounces spoil or empty the weak form).
         let field_proposal = (!current.family.effects.contains(&Effect::Gravity)).then(|| {
             let screened_field = screened.iter().find(|p| p.effect == Effect::Gravity);
-            let weak_blind = !screened_field.and_then(|p| p.screen).is_some_and(|s| s > 0.0);
             Proposal {
                 effect: Effect::Gravity,
-                init: if weak_blind || screened_field.is_none() {
-                    vec![rough_field.x, rough_field.y]
-                } else {
-                    screened_field.map(|p| p.init.clone()).unwrap_or_default()
-                },
+                init: vec![rough_field.x, rough_field.y],
                 screen: screened_field.and_then(|p| p.screen),
                 score_test: screened_field.and_then(|p| p.score_test),
                 jolts: Vec::new(),
@@ -478,7 +476,13 @@ fn diagnose_inner(
                 .and(v.evidence.score_on(common))
                 .unwrap_or(f64::NEG_INFINITY)
         };
-        verified.sort_by(|a, b| rank(b).total_cmp(&rank(a)));
+        // An explanation that fits at the noise level beats one that does not, whatever
+        // their scores (a far tether imitating a field can remove much cost and still leave
+        // a residual many times the noise).
+        let fits = |v: &search::Verified| {
+            v.evidence.score.is_some_and(|s| s > 0.0) && v.current.as_ref().is_some_and(|c| ctx.explained(c))
+        };
+        verified.sort_by(|a, b| fits(b).cmp(&fits(a)).then(rank(b).total_cmp(&rank(a))));
         // Record this round's losers (and unverified screened ones).
         let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
         for p in &screened {
@@ -533,6 +537,8 @@ fn diagnose_inner(
             for p in &best.proposals {
                 accepted.push((p.clone(), best.evidence.clone(), round));
             }
+            let first_new = next.family.effects.len() - best.proposals.len();
+            let next = rigid_tethers(&ctx, next, first_new);
             observer.observe(round, next.fit.sum_squares);
             current = next;
             prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
@@ -569,6 +575,7 @@ fn diagnose_inner(
         for p in &best.proposals {
             accepted.push((p.clone(), evidence.clone(), round));
         }
+        let next = rigid_tethers(&ctx, next, current.family.effects.len());
         observer.observe(round, next.fit.sum_squares);
         current = next;
         prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
@@ -620,6 +627,13 @@ fn diagnose_inner(
         );
     }
     warnings.extend(outcome.warnings);
+    let verdict = verdict::verdict(
+        outcome.final_model.costs.multi_step.rms,
+        obs.noise,
+        scales.length,
+        &outcome.residuals,
+        &jolt_list,
+    );
     Ok(Diagnosis {
         structure: structure.name.clone(),
         seed: options.seed,
@@ -633,6 +647,7 @@ fn diagnose_inner(
         base: outcome.base,
         final_model: outcome.final_model,
         residuals: outcome.residuals,
+        verdict,
         replaced,
         search: report::SearchSummary {
             rounds: round,
@@ -643,6 +658,17 @@ fn diagnose_inner(
         final_scene: outcome.scene,
         predictions: outcome.predictions,
     })
+}
+
+/// `next` with each tether from effect `first_new` on taken as rigid where the tracks cannot
+/// tell it from an inextensible one (see [`Context::rigid_tether`]).
+fn rigid_tethers(ctx: &Context<'_>, mut next: Current, first_new: usize) -> Current {
+    for k in first_new..next.family.effects.len() {
+        if let Some(rigid) = ctx.rigid_tether(&next, k) {
+            next = rigid;
+        }
+    }
+    next
 }
 
 /// Backward elimination after a round: an effect accepted in an earlier round that the newer
@@ -827,9 +853,14 @@ fn rough_model(
             Some(a)
         })
         .collect();
+    // The free flights' field replaces the weak form's where the weak form is short of
+    // rows or disagrees with it by more than five of its standard errors (bounces the jolt
+    // test missed spoil the weak form's windows, not the median).
     let train_rows = weak.rows.iter().filter(|r| r.train).count();
-    if train_rows < 2 * (weak.bond_column_count() + 2) {
-        if let Some(f) = flights::field_from_flights(obs, &structure_acc, excluded) {
+    if let Some((f, se)) = flights::field_from_flights(obs, &structure_acc, excluded) {
+        let d = f - field;
+        let disagree = d.x.abs() > 5.0 * se.x || d.y.abs() > 5.0 * se.y;
+        if train_rows < 2 * (weak.bond_column_count() + 2) || disagree {
             field = f;
         }
     }

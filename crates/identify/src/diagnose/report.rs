@@ -115,6 +115,42 @@ pub struct SearchSummary {
     pub stop_reason: String,
 }
 
+/// One particle's share of the final residual.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VerdictParticle {
+    /// Particle id.
+    pub particle: String,
+    /// Its multi-step RMS under the final model, px.
+    pub rms: f64,
+    /// `rms` over the track noise.
+    pub rms_over_noise: f64,
+}
+
+/// The final model against the track noise (see `docs/diagnosis.md`, "The verdict").
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Verdict {
+    /// True when the final multi-step RMS is within `threshold` track noises.
+    pub explained: bool,
+    /// The final model's multi-step RMS over the sequence, px.
+    pub rms: f64,
+    /// The track noise compared with, px (the measured noise; for exact tracks a floor of a
+    /// millionth of the data's length scale).
+    pub noise: f64,
+    /// `rms / noise`.
+    pub ratio: f64,
+    /// The largest `ratio` that counts as explained.
+    pub threshold: f64,
+    /// Each particle's final residual.
+    pub particles: Vec<VerdictParticle>,
+    /// Frame runs `[first, last]` whose residual exceeds `threshold` noises.
+    pub frames: Vec<[usize; 2]>,
+    /// What the final residual looks like, in words.
+    pub pattern: String,
+    /// The verdict in words: `explained to the noise level: ...` or `not explained: X px RMS
+    /// against a noise of Y px ...`.
+    pub text: String,
+}
+
 /// An accepted effect.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Finding {
@@ -133,6 +169,12 @@ pub struct Finding {
     pub evidence: Evidence,
     /// Greedy round (1-based) in which it was accepted.
     pub round: usize,
+    /// False when some fitted value is not identified by the tracks (standard error above
+    /// its value, or a tether's anchor running off; see `note`).
+    pub identified: bool,
+    /// What the tracks do not determine and the simpler equivalent, or how a value was held
+    /// (a tether taken as rigid); `null` when there is nothing to say.
+    pub note: Option<String>,
 }
 
 /// A candidate that did not earn its place, with its best scores.
@@ -316,6 +358,8 @@ pub struct Diagnosis {
     /// Residual series before and after.
     pub residuals: ResidualSeries,
     /// Effects accepted and later taken out (swapped for a better explanation or made
+    /// The final model against the track noise.
+    pub verdict: Verdict,
     /// redundant).
     pub replaced: Vec<Replaced>,
     /// How the greedy search ended.

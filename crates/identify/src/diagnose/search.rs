@@ -384,41 +384,7 @@ impl Context<'_> {
         {
             return None;
         }
-        let xs: Vec<(usize, Vec2)> = (0..obs.frame_count())
-            .filter_map(|k| Some((k, obs.positions[k].get(particle).copied()??)))
-            .collect();
-        if xs.len() < 6 {
-            return None;
-        }
-        let mean = xs.iter().map(|(_, x)| x).sum::<Vec2>() / xs.len() as f64;
-        // Kasa fit: x² + y² = 2 a x + 2 b y + c, centred on the mean for conditioning.
-        let mut m = nalgebra::Matrix3::<f64>::zeros();
-        let mut r = nalgebra::Vector3::<f64>::zeros();
-        for (_, x) in &xs {
-            let d = x - mean;
-            let row = nalgebra::Vector3::new(2.0 * d.x, 2.0 * d.y, 1.0);
-            m += row * row.transpose();
-            r += row * d.norm_squared();
-        }
-        let sol = m.try_inverse()? * r;
-        let centre = mean + Vec2::new(sol[0], sol[1]);
-        let radius2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
-        if !(radius2 > 0.0 && radius2.is_finite()) {
-            return None;
-        }
-        let radius = radius2.sqrt();
-        let misfit = (xs
-            .iter()
-            .map(|(_, x)| ((x - centre).norm() - radius).powi(2))
-            .sum::<f64>()
-            / xs.len() as f64)
-            .sqrt();
-        let extent = xs.iter().map(|(_, x)| (x - mean).norm()).fold(0.0, f64::max);
-        // An arc: the particle stays off its centre, and the circle fits far better than the
-        // particle's own spread.
-        if !(radius > extent && misfit < 0.1 * extent) {
-            return None;
-        }
+        let (centre, radius, misfit) = self.circle_of(particle)?;
         // The field from the tangential accelerations, the current model's removed.
         let model = family.model(&current.fit.params, None);
         let dt = obs.frame_dt();
@@ -474,8 +440,115 @@ impl Context<'_> {
                     vec![centre.x, centre.y, radius, stiffness],
                 ),
             ],
-            misfit / radius,
+            misfit,
         ))
+    }
+
+    /// The circle that best fits `particle`'s tracked positions (algebraic fit): its centre,
+    /// radius (px) and RMS misfit over the radius; `None` when the path is no arc (fewer than
+    /// six points, the centre within the path's spread, or a misfit above a tenth of it).
+    pub fn circle_of(&self, particle: usize) -> Option<(Vec2, f64, f64)> {
+        let obs = self.obs;
+        let xs: Vec<(usize, Vec2)> = (0..obs.frame_count())
+            .filter_map(|k| Some((k, obs.positions[k].get(particle).copied()??)))
+            .collect();
+        if xs.len() < 6 {
+            return None;
+        }
+        let mean = xs.iter().map(|(_, x)| x).sum::<Vec2>() / xs.len() as f64;
+        // Kasa fit: x² + y² = 2 a x + 2 b y + c, centred on the mean for conditioning.
+        let mut m = nalgebra::Matrix3::<f64>::zeros();
+        let mut r = nalgebra::Vector3::<f64>::zeros();
+        for (_, x) in &xs {
+            let d = x - mean;
+            let row = nalgebra::Vector3::new(2.0 * d.x, 2.0 * d.y, 1.0);
+            m += row * row.transpose();
+            r += row * d.norm_squared();
+        }
+        let sol = m.try_inverse()? * r;
+        let centre = mean + Vec2::new(sol[0], sol[1]);
+        let radius2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
+        if !(radius2 > 0.0 && radius2.is_finite()) {
+            return None;
+        }
+        let radius = radius2.sqrt();
+        let misfit = (xs
+            .iter()
+            .map(|(_, x)| ((x - centre).norm() - radius).powi(2))
+            .sum::<f64>()
+            / xs.len() as f64)
+            .sqrt();
+        let extent = xs.iter().map(|(_, x)| (x - mean).norm()).fold(0.0, f64::max);
+        // An arc: the particle stays off its centre, and the circle fits far better than the
+        // particle's own spread.
+        if !(radius > extent && misfit < 0.1 * extent) {
+            return None;
+        }
+        Some((centre, radius, misfit / radius))
+    }
+
+    /// A tether the tracks cannot tell from an inextensible one, taken as rigid: with a field
+    /// in the model, effect `k` of `with` (a tether) is refitted with its stiffness held at
+    /// the value that stretches it by a tenth of the track noise under the field (no more
+    /// than the integration keeps stable), from the fit's anchor with the length at its
+    /// stretched value and from the circle of the particle's path. The rigid fit is returned
+    /// when the cost it adds (held-out frames; fitted ones without them), in units of the
+    /// fit's residual variance, is below one parameter's penalty `ln N`: the elastic
+    /// tether's stiffness then does not pay for itself.
+    pub fn rigid_tether(&self, with: &Current, k: usize) -> Option<Current> {
+        let family = &with.family;
+        let Effect::Tether { particle } = *family.effects.get(k)? else {
+            return None;
+        };
+        if family.is_pinned(k, 3) {
+            return None;
+        }
+        let g = family.effects.iter().position(|e| *e == Effect::Gravity)?;
+        let go = family.effect_offset(g);
+        let field = Vec2::new(with.fit.params[go], with.fit.params[go + 1]).norm();
+        let o = family.effect_offset(k);
+        let p: Vec<f64> = with.fit.params[o..o + 4].to_vec();
+        let mass = family.structure.particles.get(particle).map_or(1.0, |q| q.mass);
+        let substep = family.structure.integration_parameters().dt();
+        let stable = 0.25 * mass / (substep * substep);
+        let sigma = noise_floor(self.obs.noise, self.scales.length);
+        let rigid = (mass * field / (2.0 * 0.1 * sigma)).min(stable);
+        if !(rigid > p[3] && p[3] > 0.0 && field > 0.0) {
+            return None;
+        }
+        let mut pinned = family.clone();
+        pinned.pins.push((k, 3, rigid));
+        let stretch = |s: f64| mass * field / (2.0 * s);
+        let mut start = with.fit.params.clone();
+        start[o + 2] = (p[2] + stretch(p[3]) - stretch(rigid)).max(1e-3);
+        start[o + 3] = rigid;
+        let mut best = self.fit(&pinned, &start, &with.fit.state, true);
+        if let Some((centre, radius, _)) = self.circle_of(particle) {
+            let mut circle = start.clone();
+            circle[o] = centre.x;
+            circle[o + 1] = centre.y;
+            circle[o + 2] = (radius - stretch(rigid)).max(1e-3);
+            if let Some(b) = self.fit(&pinned, &circle, &with.fit.state, false) {
+                if best
+                    .as_ref()
+                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
+                {
+                    best = Some(b);
+                }
+            }
+        }
+        let best = best?;
+        let held = self.held_count(family);
+        let (n, added) = if held > 0 {
+            (held, best.held_cost - with.held_cost)
+        } else {
+            (
+                with.fit.residual_count,
+                best.fit.sum_squares - with.fit.sum_squares,
+            )
+        };
+        let variance = self.noise_variance(with);
+        (added.is_finite() && added / variance < (n.max(2) as f64).ln()).then_some(best)
     }
 
     /// The anchor of a tether on `particle` that best explains the fitted rows, with the
@@ -603,12 +676,10 @@ impl Context<'_> {
         let width = family.effects[k].parameter_count();
         let mut params = current.fit.params.clone();
         params.drain(o..o + width);
-        let mut effects = family.effects.clone();
-        effects.remove(k);
         let mut fit = current.fit.clone();
         fit.params = params;
         Current {
-            family: family.with_effects(effects),
+            family: family.without_effect(k),
             fit,
             held_cost: current.held_cost,
         }
