@@ -380,25 +380,33 @@ fn diagnose_inner(
             }
         }
         // Pairs that work only together (a field with a tether is a pendulum; a field with
-        // drag): verified when a pair explains more of the weak form per parameter than any
-        // single candidate.
-        let best_single = screened
-            .iter()
-            .filter_map(|p| p.screen.map(|s| s / p.effect.parameter_count() as f64))
-            .fold(0.0f64, f64::max);
+        // drag): the weak form's best pairs are verified when they pass the screen's gate
+        // (the weak form often cannot tell which partner a field needs: drag or dashpots).
         let pairs = ctx.screen_pairs(&current, &candidates, Effect::Gravity);
         for pair in pairs.iter().take(search::VERIFIED_PAIRS_PER_ROUND) {
             let k: usize = pair.iter().map(|p| p.effect.parameter_count()).sum();
             let per = pair[0].screen.unwrap_or(0.0) / k as f64;
-            if per > search::SCREEN_PER_PARAMETER && per > best_single {
+            if per > search::SCREEN_PER_PARAMETER {
                 to_verify.push(pair.clone());
             }
         }
-        // A pendulum from the geometry of the most circular path (see `circle_pair`).
+        // A pendulum from the geometry of the most circular path (see `circle_pair`), for
+        // particles a tether alone screens better than the field alone (a pendulum's field
+        // alone explains nothing in the weak form, its tension balancing it; where the
+        // field screens best, the motion is the field's and the pairs above cover it).
+        let screen_of = |e: Effect| {
+            screened
+                .iter()
+                .find(|p| p.effect == e)
+                .and_then(|p| p.screen)
+                .unwrap_or(f64::NEG_INFINITY)
+        };
+        let field_screen = screen_of(Effect::Gravity);
         let circles = current
             .family
             .free
             .iter()
+            .filter(|&&p| screen_of(Effect::Tether { particle: p }) > field_screen)
             .filter_map(|&p| ctx.circle_pair(&current, p))
             .min_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((pair, misfit)) = circles {
@@ -419,11 +427,12 @@ fn diagnose_inner(
             }
         }
         let mut verified: Vec<search::Verified> = to_verify.iter().map(|p| ctx.verify(&current, p)).collect();
-        // Swaps: while the fit is far from the noise, an accepted smooth effect may be a poor
-        // stand-in for a better explanation (a far tether imitating a pendulum's field and
-        // tether): each is taken out, the best single and pair screened in its place, and
-        // verified against the current model.
-        if !ctx.explained(&current) {
+        // Swaps: when no addition earns its place and the fit is still far from the noise, an
+        // accepted smooth effect may be a poor stand-in for a better explanation (a far
+        // tether imitating a pendulum's field and tether): each is taken out, the best single
+        // and pair screened in its place, and verified against the current model.
+        let addition_pays = verified.iter().any(|v| v.evidence.score.is_some_and(|s| s > 0.0));
+        if !addition_pays && !ctx.explained(&current) {
             for k in 0..current.family.effects.len() {
                 let removed = current.family.effects[k];
                 if !removed.is_smooth() {

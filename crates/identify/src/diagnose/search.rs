@@ -290,6 +290,10 @@ impl Context<'_> {
     /// together and a tether's anchor is searched with the partner's columns present. Each
     /// entry holds the partner's proposal then the candidate's, both carrying the pair's
     /// screen score; best first by score per parameter. Empty when `current` has the partner.
+    /// Only pairs that work together are kept: the pair must remove more of the held-out
+    /// weak-form residual than the better of its two members alone by
+    /// [`SCREEN_PER_PARAMETER`] residual variances per parameter the other member adds (a
+    /// tether alone is judged at the pair's anchor).
     pub fn screen_pairs(
         &self,
         current: &Current,
@@ -322,6 +326,7 @@ impl Context<'_> {
         let mut with_partner = base.clone();
         with_partner.extend(partner_cols.iter().map(|v| v.as_slice()));
         let np = with_partner.len();
+        let (partner_after, _) = ssr(&with_partner);
         let mut out = Vec::new();
         for &effect in candidates {
             if effect == partner || family.effects.contains(&effect) || !effect.is_smooth() {
@@ -341,6 +346,18 @@ impl Context<'_> {
             let variance = (after / judge.len().max(1) as f64).max(f64::MIN_POSITIVE);
             let score = (before - after) / variance;
             if !score.is_finite() {
+                continue;
+            }
+            let mut alone = base.clone();
+            alone.extend(extra.iter().map(|v| v.as_slice()));
+            let (single_after, _) = ssr(&alone);
+            let added = if partner_after <= single_after {
+                effect.parameter_count()
+            } else {
+                partner.parameter_count()
+            };
+            let synergy = (partner_after.min(single_after) - after) / variance;
+            if synergy.is_nan() || synergy <= SCREEN_PER_PARAMETER * added as f64 {
                 continue;
             }
             let proposal = |e: Effect, init: Vec<f64>| Proposal {
@@ -445,8 +462,11 @@ impl Context<'_> {
     }
 
     /// The circle that best fits `particle`'s tracked positions (algebraic fit): its centre,
-    /// radius (px) and RMS misfit over the radius; `None` when the path is no arc (fewer than
-    /// six points, the centre within the path's spread, or a misfit above a tenth of it).
+    /// radius (px) and RMS misfit over the radius; `None` when the path is no swinging arc
+    /// (fewer than six points, the centre within the path's spread, a misfit above a tenth of
+    /// it, or no swing: the angle about the centre must turn back at an interior frame, by
+    /// more than five track noises on both sides, as a pendulum's does every half period and a
+    /// tumbling body's curved path need not).
     pub fn circle_of(&self, particle: usize) -> Option<(Vec2, f64, f64)> {
         let obs = self.obs;
         let xs: Vec<(usize, Vec2)> = (0..obs.frame_count())
@@ -482,6 +502,27 @@ impl Context<'_> {
         // An arc: the particle stays off its centre, and the circle fits far better than the
         // particle's own spread.
         if !(radius > extent && misfit < 0.1 * extent) {
+            return None;
+        }
+        let angles: Vec<f64> = xs
+            .iter()
+            .map(|(_, x)| (x.x - centre.x).atan2(centre.y - x.y))
+            .collect();
+        let turn = 5.0 * noise_floor(obs.noise, self.scales.length) / radius;
+        let last = angles.len() - 1;
+        let swings = |extreme: usize| {
+            extreme > 0
+                && extreme < last
+                && (angles[extreme] - angles[0]).abs() > turn
+                && (angles[extreme] - angles[last]).abs() > turn
+        };
+        let (imax, imin) = angles.iter().enumerate().fold((0, 0), |(a, b), (k, v)| {
+            (
+                if *v > angles[a] { k } else { a },
+                if *v < angles[b] { k } else { b },
+            )
+        });
+        if !(swings(imax) || swings(imin)) {
             return None;
         }
         Some((centre, radius, misfit / radius))
