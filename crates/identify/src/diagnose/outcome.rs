@@ -268,8 +268,18 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 v.std_error = None;
             }
         }
-        let unidentified: Vec<String> = parameters
+        // Magnitudes are compared with their standard errors; positions (an anchor, a wall's
+        // line) and directions are not magnitudes: a field is judged by its length, an anchor
+        // by its distance from the particle (below), a wall by its bounces.
+        let magnitude = |name: &str| {
+            !matches!(
+                name,
+                "gravity_x" | "gravity_y" | "normal_x" | "normal_y" | "offset" | "anchor_x" | "anchor_y"
+            )
+        };
+        let mut unidentified: Vec<String> = parameters
             .iter()
+            .filter(|v| magnitude(&v.name))
             .filter(|v| v.std_error.is_some_and(|e| e.is_nan() || e > v.value.abs()))
             .map(|v| {
                 format!(
@@ -280,6 +290,13 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 )
             })
             .collect();
+        if effect == Effect::Gravity {
+            let g = values[0].hypot(values[1]);
+            let e = errs[0].unwrap_or(0.0).hypot(errs[1].unwrap_or(0.0));
+            if e.is_nan() || e > g {
+                unidentified.push(format!("the field's strength ({g:.4} ± {e:.2e})"));
+            }
+        }
         let mut identified = unidentified.is_empty();
         if !unidentified.is_empty() {
             notes.push(format!(
@@ -305,6 +322,13 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 let extent = xs.iter().map(|x| (x - mean).norm()).fold(0.0, f64::max).max(1e-9);
                 let to_anchor = Vec2::new(values[0], values[1]) - mean;
                 let distance = to_anchor.norm();
+                let e = errs[0].unwrap_or(0.0).hypot(errs[1].unwrap_or(0.0));
+                if e.is_nan() || e > distance {
+                    identified = false;
+                    notes.push(format!(
+                        "the anchor is not located by the tracks (± {e:.2e} px on a distance of {distance:.1} px)"
+                    ));
+                }
                 if distance > TETHER_RUNS_OFF * extent {
                     identified = false;
                     let mass = inp.structure.particles.get(particle).map_or(1.0, |p| p.mass);

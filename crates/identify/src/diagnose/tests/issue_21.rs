@@ -342,9 +342,14 @@ fn the_drop_at_30_fps_is_a_field_and_a_floor() {
 
 #[test]
 fn drops_at_other_frame_rates_and_fields() {
+    // Both ends of the range, then rates drawn log-uniformly between them.
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2121);
-    for k in 0..5 {
-        let fps = f64::exp(rng.gen_range(f64::ln(24.0)..f64::ln(240.0)));
+    for k in 0..7 {
+        let fps = match k {
+            0 => 24.0,
+            1 => 240.0,
+            _ => f64::exp(rng.gen_range(f64::ln(24.0)..f64::ln(240.0))),
+        };
         let g = rng.gen_range(1500.0..9000.0);
         let floor = rng.gen_range(300.0..500.0);
         let height = rng.gen_range(0.6..0.95) * floor;
