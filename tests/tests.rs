@@ -3,6 +3,7 @@
 mod diagnose;
 mod fit;
 mod getting_started;
+mod issue_21;
 mod real;
 mod render;
 mod run;

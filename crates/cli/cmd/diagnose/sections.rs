@@ -17,7 +17,7 @@ pub fn value_text(v: &FittedValue) -> String {
 pub fn summary(d: &Diagnosis) -> String {
     let mut s = String::new();
     if d.findings.is_empty() {
-        s.push_str("no missing physics found: the structure explains the tracks to the noise level\n");
+        s.push_str("no missing physics found\n");
     }
     for f in &d.findings {
         let values: Vec<String> = f.parameters.iter().map(value_text).collect();
@@ -27,11 +27,74 @@ pub fn summary(d: &Diagnosis) -> String {
             values.join(", "),
             f.seen.text
         ));
+        if let Some(note) = &f.note {
+            s.push_str(&format!("  note: {note}\n"));
+        }
     }
     s.push_str(&format!(
-        "multi-step RMS over the sequence: base {:.4} px, diagnosed {:.4} px (track noise {:.4} px)\n",
-        d.base.costs.multi_step.rms, d.final_model.costs.multi_step.rms, d.track_noise
+        "multi-step RMS over the sequence: base {} px, diagnosed {} px (track noise {} px)\n",
+        number(d.base.costs.multi_step.rms),
+        number(d.final_model.costs.multi_step.rms),
+        number(d.track_noise)
     ));
+    s.push_str(&format!("verdict: {}\n", d.verdict.text));
+    s
+}
+
+/// A value with four decimals, or `not measured` where it is not finite (no NaN or inf in
+/// a report).
+pub fn number(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.4}")
+    } else {
+        "not measured".into()
+    }
+}
+
+/// The verdict as a Markdown section body: explained or not, and where the residual lives.
+pub fn verdict(d: &Diagnosis) -> String {
+    let v = &d.verdict;
+    let mut chars = v.text.chars();
+    let text: String = chars
+        .next()
+        .map(|c| c.to_uppercase().chain(chars).collect())
+        .unwrap_or_default();
+    let mut s = format!("**{text}.**\n");
+    if !v.explained && !v.particles.is_empty() {
+        s.push('\n');
+        let rows: Vec<Vec<String>> = v
+            .particles
+            .iter()
+            .map(|p| {
+                vec![
+                    p.particle.clone(),
+                    number(p.rms),
+                    format!("{:.1}", p.rms_over_noise),
+                ]
+            })
+            .collect();
+        s.push_str(&report::markdown_table(
+            &["particle", "final multi-step RMS, px", "over the noise"],
+            &rows,
+        ));
+    }
+    s.push_str(&format!(
+        "\nThe search stopped after {} round(s): {}.\n",
+        d.search.rounds, d.search.stop_reason
+    ));
+    for r in &d.replaced {
+        s.push_str(&format!(
+            "- {} (accepted in round {}) was taken out in round {}{}.\n",
+            r.label,
+            r.added_round,
+            r.round,
+            if r.by.is_empty() {
+                ": the effects that joined after it made it redundant".to_string()
+            } else {
+                format!(", replaced by {}", r.by.join(" and "))
+            }
+        ));
+    }
     s
 }
 
@@ -50,7 +113,7 @@ pub fn findings(d: &Diagnosis) -> String {
     if d.findings.is_empty() {
         s.push_str(
             "Nothing added: no candidate effect explained enough of the held-out frames to pay for \
-             its parameters; the structure explains the tracks to the noise level.\n",
+             its parameters.\n",
         );
     } else {
         let rows: Vec<Vec<String>> = d
@@ -81,6 +144,16 @@ pub fn findings(d: &Diagnosis) -> String {
             ],
             &rows,
         ));
+        for f in &d.findings {
+            if let Some(note) = &f.note {
+                s.push_str(&format!(
+                    "\n- {}{}: {note}.",
+                    f.label,
+                    if f.identified { "" } else { " (not identified)" }
+                ));
+            }
+        }
+        s.push('\n');
     }
     if !d.rejected.is_empty() {
         s.push_str(
@@ -132,9 +205,9 @@ pub fn costs(d: &Diagnosis) -> String {
                 m.effects.join(", ")
             },
             m.parameter_count.to_string(),
-            format!("{:.4}", m.costs.one_step),
-            format!("{:.4}", m.costs.multi_step.sum_squares),
-            format!("{:.4}", m.costs.multi_step.rms),
+            number(m.costs.one_step),
+            number(m.costs.multi_step.sum_squares),
+            number(m.costs.multi_step.rms),
         ]
     };
     report::markdown_table(
@@ -154,9 +227,14 @@ pub fn costs(d: &Diagnosis) -> String {
 pub fn markdown(d: &Diagnosis, pictures: &str) -> String {
     let mut s = format!("# physfit diagnosis: {}\n\n", d.structure);
     s.push_str(&format!(
-        "Frames {}..{} analysed; track noise {:.4} px per coordinate; {:.1} s.\n\n## Findings\n\n",
-        d.window[0], d.window[1], d.track_noise, d.seconds
+        "Frames {}..{} analysed; track noise {} px per coordinate; {:.1} s.\n\n## Verdict\n\n",
+        d.window[0],
+        d.window[1],
+        number(d.track_noise),
+        d.seconds
     ));
+    s.push_str(&verdict(d));
+    s.push_str("\n## Findings\n\n");
     s.push_str(&findings(d));
     s.push_str("\n## Where the base model disagreed\n\n");
     s.push_str(&localisation(d));

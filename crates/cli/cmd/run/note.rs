@@ -195,19 +195,23 @@ pub fn lab_note(r: &RunReport, pictures: &str) -> String {
     let d = r.diagnosis;
     let mut s = format!("# physfit report: {}\n\n", g.structure);
     let found: Vec<&str> = d.findings.iter().map(|f| f.label.as_str()).collect();
+    let verdict = if d.verdict.explained {
+        format!("explained to the noise level ({})", d.verdict.text)
+    } else {
+        d.verdict.text.clone()
+    };
     s.push_str(&if found.is_empty() {
         format!(
-            "**In short:** the structure alone explains the tracks to their noise level (multi-step RMS {:.4} px); nothing was added.\n\n",
-            d.final_model.costs.multi_step.rms
+            "**In short:** nothing was added; the structure alone: {verdict}.\n\n"
         )
     } else {
         format!(
-            "**In short:** the structure alone left the model {:.4} px RMS from the tracks; physfit found {} and, with {}, the diagnosed model comes within {:.4} px RMS (track noise {:.4} px).\n\n",
-            d.base.costs.multi_step.rms,
+            "**In short:** the structure alone left the model {} px RMS from the tracks; physfit found {} and, with {}, the diagnosed model comes within {} px RMS (track noise {} px). Verdict: {verdict}.\n\n",
+            sections::number(d.base.costs.multi_step.rms),
             found.join(", "),
             if found.len() == 1 { "it" } else { "them" },
-            d.final_model.costs.multi_step.rms,
-            d.track_noise
+            sections::number(d.final_model.costs.multi_step.rms),
+            sections::number(d.track_noise)
         )
     });
 
@@ -272,6 +276,9 @@ pub fn lab_note(r: &RunReport, pictures: &str) -> String {
 
     s.push_str("\n## Where the base model disagreed\n\n");
     s.push_str(&sections::localisation(d));
+
+    s.push_str("\n## Verdict\n\n");
+    s.push_str(&sections::verdict(d));
 
     s.push_str("\n## Findings\n\n");
     s.push_str(&sections::findings(d));

@@ -21,6 +21,9 @@ pub struct Family {
     known: Option<Model>,
     /// The added effects, in vector order.
     pub effects: Vec<Effect>,
+    /// Parameters held at a value instead of fitted: `(effect index, parameter index within
+    /// the effect, value)` (a tether taken as rigid: its stiffness).
+    pub pins: Vec<(usize, usize, f64)>,
     /// Indices of the structure's free particles.
     pub free: Vec<usize>,
 }
@@ -38,6 +41,7 @@ impl Family {
             problem,
             known,
             effects: Vec::new(),
+            pins: Vec::new(),
             free: (0..structure.particles.len())
                 .filter(|&p| !structure.particles[p].fixed)
                 .collect(),
@@ -45,11 +49,41 @@ impl Family {
     }
 
     /// The same family with `effects` instead.
+    /// (Pins are kept where the effect at their index is unchanged.)
     pub fn with_effects(&self, effects: Vec<Effect>) -> Family {
+        let pins = self
+            .pins
+            .iter()
+            .filter(|(k, _, _)| effects.get(*k).is_some() && effects.get(*k) == self.effects.get(*k))
+            .copied()
+            .collect();
         Family {
             effects,
+            pins,
             ..self.clone()
         }
+    }
+
+    /// The same family without effect `k` (its pins dropped, later ones re-indexed).
+    pub fn without_effect(&self, k: usize) -> Family {
+        let mut effects = self.effects.clone();
+        effects.remove(k);
+        let pins = self
+            .pins
+            .iter()
+            .filter(|(e, _, _)| *e != k)
+            .map(|&(e, i, v)| (if e > k { e - 1 } else { e }, i, v))
+            .collect();
+        Family {
+            effects,
+            pins,
+            ..self.clone()
+        }
+    }
+
+    /// Returns true if and only if parameter `i` of effect `k` is pinned.
+    pub fn is_pinned(&self, k: usize, i: usize) -> bool {
+        self.pins.iter().any(|&(e, j, _)| e == k && j == i)
     }
 
     /// Number of bond parameters.
@@ -98,6 +132,13 @@ impl Family {
             for b in e.bounds() {
                 lower.push(b[0]);
                 upper.push(b[1]);
+            }
+        }
+        for &(k, i, v) in &self.pins {
+            if k < self.effects.len() {
+                let o = self.effect_offset(k) + i;
+                lower[o] = v;
+                upper[o] = v;
             }
         }
         (lower, upper)

@@ -51,6 +51,8 @@ pub fn localise(
     let structure = &family.structure;
     let n = obs.particle_count();
     let sigma = obs.noise;
+    // Ratios to the noise use its floor where the tracks are exact (noise 0).
+    let sigma_ratio = super::search::noise_floor(sigma, super::family::DataScales::of(structure, obs).length);
     let (acc, theta) = acceleration_residuals(family, weak, None);
 
     // Noise replicas: the change of every row's residual under fresh noise.
@@ -198,19 +200,28 @@ pub fn localise(
         }
 
         if significant || has_jolts {
-            summary.push(format!(
-                "{}: {pattern}, residual acceleration {:.2} px/s^2 RMS against {:.2} from noise, mean {:.2} px/s^2 towards {:.0} degrees",
-                id(p),
-                rms,
-                noise,
-                mean.norm(),
-                mean.y.atan2(mean.x).to_degrees()
-            ));
+            summary.push(if rms.is_finite() && noise.is_finite() {
+                format!(
+                    "{}: {pattern}, residual acceleration {:.2} px/s^2 RMS against {:.2} from noise, mean {:.2} px/s^2 towards {:.0} degrees",
+                    id(p),
+                    rms,
+                    noise,
+                    mean.norm(),
+                    mean.y.atan2(mean.x).to_degrees()
+                )
+            } else {
+                format!(
+                    "{}: {pattern}, position residual {:.3} px RMS ({:.1} track noises); no weak-form window free of bounces measures its acceleration",
+                    id(p),
+                    position_rms,
+                    position_rms / sigma_ratio
+                )
+            });
         }
         particles.push(ParticleResidual {
             particle: id(p),
             position_rms,
-            position_rms_over_noise: position_rms / sigma.max(f64::MIN_POSITIVE),
+            position_rms_over_noise: position_rms / sigma_ratio,
             acceleration_rms: rms,
             acceleration_noise: noise,
             mean_acceleration: [mean.x, mean.y],
@@ -266,7 +277,7 @@ pub fn localise(
         bonds.push(BondResidual {
             between: [id(i), id(j)],
             length_rms,
-            length_rms_over_noise: length_rms / (sigma * std::f64::consts::SQRT_2).max(f64::MIN_POSITIVE),
+            length_rms_over_noise: length_rms / (sigma_ratio * std::f64::consts::SQRT_2),
             along_acceleration_rms: along_rms,
             along_acceleration_noise: along_noise,
             significant,

@@ -24,6 +24,7 @@
 mod costs;
 mod effect;
 mod family;
+mod flights;
 mod jolts;
 mod localise;
 mod outcome;
@@ -34,6 +35,7 @@ mod shooting;
 mod support;
 #[cfg(test)]
 mod tests;
+mod verdict;
 mod weak;
 
 pub use costs::scene_costs;
@@ -41,9 +43,11 @@ pub use effect::Effect;
 pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
-    ParticleResidual, Predictions, RejectedCandidate, ResidualSeries, Seen,
+    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen, Verdict,
+    VerdictParticle,
 };
 pub use support::Support;
+pub use verdict::EXPLAINED_RMS_RATIO;
 
 use std::time::Instant;
 
@@ -165,9 +169,11 @@ fn diagnose_inner(
     let mut excluded = exclusion(&rough);
     let mut jolt_list = Vec::new();
     let mut supports = Vec::new();
+    let mut rough_field = physfit_model::Vec2::zeros();
     for _ in 0..2 {
         let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
-        let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales);
+        let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales, &excluded);
+        rough_field = field;
         let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
         jolt_list = found;
         excluded = exclusion(&jolt_list);
@@ -250,10 +256,22 @@ fn diagnose_inner(
     let mut current = base.clone();
     let mut accepted: Vec<(Proposal, report::Evidence, usize)> = Vec::new();
     let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
+    let mut replaced: Vec<report::Replaced> = Vec::new();
     let mut guesses = guesses;
     let mut round = 0;
     let mut restarts = 0;
-    while accepted.len() < options.max_effects {
+    let stop: String;
+    // Swaps keep the count of effects: the rounds are bounded as well.
+    let max_rounds = 2 * options.max_effects + MAX_RESTARTS + 1;
+    loop {
+        if accepted.len() >= options.max_effects {
+            stop = format!("the most effects allowed ({}) were added", options.max_effects);
+            break;
+        }
+        if round >= max_rounds {
+            stop = format!("the most rounds allowed ({max_rounds}) were run");
+            break;
+        }
         round += 1;
         let debug = std::env::var_os("PHYSFIT_DEBUG").is_some();
         let tq = Instant::now();
@@ -337,13 +355,115 @@ fn diagnose_inner(
             .into_iter()
             .filter(|g| !accepted_walls.iter().any(|w| same_wall(w, &g.init, &scales)))
             .collect();
+        // The field's proposal for walls: a floor and a field are each useless to a
+        // multi-step fit without the other; the rough model's field starts it (the free
+        // flights' where bounces spoil or empty the weak form).
+        let field_proposal = (!current.family.effects.contains(&Effect::Gravity)).then(|| {
+            let screened_field = screened.iter().find(|p| p.effect == Effect::Gravity);
+            Proposal {
+                effect: Effect::Gravity,
+                init: vec![rough_field.x, rough_field.y],
+                screen: screened_field.and_then(|p| p.screen),
+                score_test: screened_field.and_then(|p| p.score_test),
+                jolts: Vec::new(),
+            }
+        });
         for wall in walls_left.iter().take(3) {
             to_verify.push(vec![wall.clone()]);
             for p in by_screen.iter().take(1) {
                 to_verify.push(vec![wall.clone(), (*p).clone()]);
             }
+            if let Some(f) = &field_proposal {
+                if !by_screen.iter().take(1).any(|p| p.effect == Effect::Gravity) {
+                    to_verify.push(vec![wall.clone(), f.clone()]);
+                }
+            }
+        }
+        // Pairs that work only together (a field with a tether is a pendulum; a field with
+        // drag): the weak form's best pairs are verified when they pass the screen's gate
+        // (the weak form often cannot tell which partner a field needs: drag or dashpots).
+        let pairs = ctx.screen_pairs(&current, &candidates, Effect::Gravity);
+        for pair in pairs.iter().take(search::VERIFIED_PAIRS_PER_ROUND) {
+            let k: usize = pair.iter().map(|p| p.effect.parameter_count()).sum();
+            let per = pair[0].screen.unwrap_or(0.0) / k as f64;
+            if per > search::SCREEN_PER_PARAMETER {
+                to_verify.push(pair.clone());
+            }
+        }
+        // A pendulum from the geometry of the most circular path (see `circle_pair`), for
+        // particles a tether alone screens better than the field alone (a pendulum's field
+        // alone explains nothing in the weak form, its tension balancing it; where the
+        // field screens best, the motion is the field's and the pairs above cover it).
+        let screen_of = |e: Effect| {
+            screened
+                .iter()
+                .find(|p| p.effect == e)
+                .and_then(|p| p.screen)
+                .unwrap_or(f64::NEG_INFINITY)
+        };
+        let field_screen = screen_of(Effect::Gravity);
+        let circles = current
+            .family
+            .free
+            .iter()
+            .filter(|&&p| screen_of(Effect::Tether { particle: p }) > field_screen)
+            .filter_map(|&p| ctx.circle_pair(&current, p))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((pair, misfit)) = circles {
+            if debug {
+                eprintln!(
+                    "   circle pair (misfit {misfit:.2e} of the radius): {:?} {:?}",
+                    pair[0].init, pair[1].init
+                );
+            }
+            to_verify.push(pair);
+        }
+        if debug {
+            for pair in pairs.iter().take(3) {
+                eprintln!(
+                    "   pair {:?}+{:?} screen {:?} init {:?} {:?}",
+                    pair[0].effect, pair[1].effect, pair[0].screen, pair[0].init, pair[1].init
+                );
+            }
         }
         let mut verified: Vec<search::Verified> = to_verify.iter().map(|p| ctx.verify(&current, p)).collect();
+        // Swaps: when no addition earns its place and the fit is still far from the noise, an
+        // accepted smooth effect may be a poor stand-in for a better explanation (a far
+        // tether imitating a pendulum's field and tether): each is taken out, the best single
+        // and pair screened in its place, and verified against the current model.
+        let addition_pays = verified.iter().any(|v| v.evidence.score.is_some_and(|s| s > 0.0));
+        if !addition_pays && !ctx.explained(&current) {
+            for k in 0..current.family.effects.len() {
+                let removed = current.family.effects[k];
+                if !removed.is_smooth() {
+                    continue;
+                }
+                let reduced = ctx.without(&current, k);
+                let mut options: Vec<Vec<Proposal>> = Vec::new();
+                if let Some(p) = ctx
+                    .screen(&reduced, &candidates)
+                    .into_iter()
+                    .find(|p| p.screen.is_some_and(|s| s > 0.0))
+                {
+                    options.push(vec![p]);
+                }
+                if let Some(pair) = ctx
+                    .screen_pairs(&reduced, &candidates, Effect::Gravity)
+                    .into_iter()
+                    .find(|p| p[0].screen.is_some_and(|s| s > 0.0))
+                {
+                    options.push(pair);
+                }
+                for o in options {
+                    let v = ctx.verify_swap(&current, k, &o);
+                    if debug {
+                        let effects: Vec<Effect> = o.iter().map(|p| p.effect).collect();
+                        eprintln!("   swap {removed:?} -> {effects:?}: {:?}", v.evidence);
+                    }
+                    verified.push(v);
+                }
+            }
+        }
         if debug {
             for v in &verified {
                 let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();
@@ -365,7 +485,13 @@ fn diagnose_inner(
                 .and(v.evidence.score_on(common))
                 .unwrap_or(f64::NEG_INFINITY)
         };
-        verified.sort_by(|a, b| rank(b).total_cmp(&rank(a)));
+        // An explanation that fits at the noise level beats one that does not, whatever
+        // their scores (a far tether imitating a field can remove much cost and still leave
+        // a residual many times the noise).
+        let fits = |v: &search::Verified| {
+            v.evidence.score.is_some_and(|s| s > 0.0) && v.current.as_ref().is_some_and(|c| ctx.explained(c))
+        };
+        verified.sort_by(|a, b| fits(b).cmp(&fits(a)).then(rank(b).total_cmp(&rank(a))));
         // Record this round's losers (and unverified screened ones).
         let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
         for p in &screened {
@@ -389,9 +515,44 @@ fn diagnose_inner(
         }
         let Some(best) = best else {
             merge_rejects(&mut rejected, round_rejects);
+            stop = if ctx.explained(&current) {
+                "the residual is at the noise level and no candidate earns its place".into()
+            } else {
+                "no candidate, alone, paired with the field or in place of an accepted effect, \
+                 removes enough held-out cost to pay for its parameters"
+                    .into()
+            };
             break;
         };
-        let Some(next) = best.current.clone() else { break };
+        let Some(next) = best.current.clone() else {
+            stop = "the best candidate's fit failed".into();
+            break;
+        };
+        if let Some(k) = best.removes {
+            // A swap: the replaced effect leaves, the new ones join.
+            merge_rejects(&mut rejected, round_rejects);
+            let (old, _, added) = accepted.remove(k);
+            replaced.push(report::Replaced {
+                effect: old.effect.name().into(),
+                label: old.effect.label(&family0.structure),
+                added_round: added,
+                round,
+                by: best
+                    .proposals
+                    .iter()
+                    .map(|p| p.effect.label(&family0.structure))
+                    .collect(),
+            });
+            for p in &best.proposals {
+                accepted.push((p.clone(), best.evidence.clone(), round));
+            }
+            let first_new = next.family.effects.len() - best.proposals.len();
+            let next = rigid_tethers(&ctx, next, first_new);
+            observer.observe(round, next.fit.sum_squares);
+            current = next;
+            prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
+            continue;
+        }
         // Guard against a better optimum of the model without the terms: refit it from the
         // new fit's values (terms removed) and rescore.
         let mut evidence = best.evidence.clone();
@@ -414,6 +575,7 @@ fn diagnose_inner(
             merge_rejects(&mut rejected, round_rejects);
             restarts += 1;
             if restarts > MAX_RESTARTS {
+                stop = "the current model's refits kept finding better optima of it".into();
                 break;
             }
             continue;
@@ -422,8 +584,10 @@ fn diagnose_inner(
         for p in &best.proposals {
             accepted.push((p.clone(), evidence.clone(), round));
         }
+        let next = rigid_tethers(&ctx, next, current.family.effects.len());
         observer.observe(round, next.fit.sum_squares);
         current = next;
+        prune(&ctx, &family0, &mut current, &mut accepted, &mut replaced, round);
     }
     rejected.retain(|r| !accepted.iter().any(|(p, _, _)| rejected_matches(&family0, r, p)));
 
@@ -472,6 +636,13 @@ fn diagnose_inner(
         );
     }
     warnings.extend(outcome.warnings);
+    let verdict = verdict::verdict(
+        outcome.final_model.costs.multi_step.rms,
+        obs.noise,
+        scales.length,
+        &outcome.residuals,
+        &jolt_list,
+    );
     Ok(Diagnosis {
         structure: structure.name.clone(),
         seed: options.seed,
@@ -485,11 +656,81 @@ fn diagnose_inner(
         base: outcome.base,
         final_model: outcome.final_model,
         residuals: outcome.residuals,
+        verdict,
+        replaced,
+        search: report::SearchSummary {
+            rounds: round,
+            stop_reason: stop,
+        },
         warnings,
         seconds: t0.elapsed().as_secs_f64(),
         final_scene: outcome.scene,
         predictions: outcome.predictions,
     })
+}
+
+/// `next` with each tether from effect `first_new` on taken as rigid where the tracks cannot
+/// tell it from an inextensible one (see [`Context::rigid_tether`]).
+fn rigid_tethers(ctx: &Context<'_>, mut next: Current, first_new: usize) -> Current {
+    for k in first_new..next.family.effects.len() {
+        if let Some(rigid) = ctx.rigid_tether(&next, k) {
+            next = rigid;
+        }
+    }
+    next
+}
+
+/// Backward elimination after a round: an effect accepted in an earlier round that the newer
+/// ones make redundant (the model refitted without it loses less held-out cost, in units of
+/// the fit's residual variance, than its `k ln N` penalty) is taken out, the most redundant
+/// first, until every one pays for its parameters.
+fn prune(
+    ctx: &Context<'_>,
+    family0: &Family,
+    current: &mut Current,
+    accepted: &mut Vec<(Proposal, report::Evidence, usize)>,
+    replaced: &mut Vec<report::Replaced>,
+    round: usize,
+) {
+    while accepted.len() >= 2 {
+        let held = ctx.held_count(&current.family);
+        let (n, before) = if held > 0 {
+            (held, current.held_cost)
+        } else {
+            (current.fit.residual_count, current.fit.sum_squares)
+        };
+        let variance = ctx.noise_variance(current);
+        let mut worst: Option<(f64, usize, Current)> = None;
+        for (k, entry) in accepted.iter().enumerate() {
+            if entry.2 == round {
+                continue;
+            }
+            let reduced = ctx.without(current, k);
+            let Some(fit) = ctx.fit(&reduced.family, &reduced.fit.params, &current.fit.state, true) else {
+                continue;
+            };
+            let after = if held > 0 {
+                fit.held_cost
+            } else {
+                fit.fit.sum_squares
+            };
+            let worth = (after - before) / variance
+                - current.family.effects[k].parameter_count() as f64 * (n.max(2) as f64).ln();
+            if worth.is_finite() && worth < 0.0 && worst.as_ref().map_or(true, |w| worth < w.0) {
+                worst = Some((worth, k, fit));
+            }
+        }
+        let Some((_, k, fit)) = worst else { return };
+        let (old, _, added) = accepted.remove(k);
+        replaced.push(report::Replaced {
+            effect: old.effect.name().into(),
+            label: old.effect.label(&family0.structure),
+            added_round: added,
+            round,
+            by: Vec::new(),
+        });
+        *current = fit;
+    }
 }
 
 /// Returns true if and only if two walls' parameters (`[angle, offset, restitution]`) are
@@ -586,7 +827,10 @@ fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (V
 }
 
 /// The rough model's accelerations at every complete frame (px/s²) and its uniform field
-/// (px/s²): the structure and a field, estimated together in the weak form.
+/// (px/s²): the structure and a field, estimated together in the weak form; when bounces
+/// leave the weak form too few fitted rows for that (fewer than twice its columns), the field
+/// is the median of the free flights' accelerations instead (module `flights`).
+#[allow(clippy::too_many_arguments)]
 fn rough_model(
     family0: &Family,
     obs: &Observations,
@@ -595,6 +839,7 @@ fn rough_model(
     held: &[bool],
     start: &physfit_model::State,
     scales: &DataScales,
+    excluded: &[bool],
 ) -> (Vec<Option<Vec<physfit_model::Vec2>>>, physfit_model::Vec2) {
     let family = family0.with_effects(vec![Effect::Gravity]);
     let params = Context {
@@ -607,14 +852,39 @@ fn rough_model(
     }
     .joint_estimate(&family, &vec![0.0; family.dim()]);
     let nb = family.bond_dim();
-    let field = physfit_model::Vec2::new(params[nb], params[nb + 1]);
-    let model = family.model(&params, None);
-    let acc = (0..obs.frame_count())
+    let mut field = physfit_model::Vec2::new(params[nb], params[nb + 1]);
+    let structure_model = family0.model(&params[..nb], None);
+    let structure_acc: Vec<Option<Vec<physfit_model::Vec2>>> = (0..obs.frame_count())
         .map(|k| {
             let s = obs.state(k)?;
             let mut a = vec![physfit_model::Vec2::zeros(); s.len()];
-            model.accelerations(&s, &mut a);
+            structure_model.accelerations(&s, &mut a);
             Some(a)
+        })
+        .collect();
+    // The free flights' field replaces the weak form's where the weak form is short of
+    // rows or disagrees with it by more than five of its standard errors (bounces the jolt
+    // test missed spoil the weak form's windows, not the median).
+    let train_rows = weak.rows.iter().filter(|r| r.train).count();
+    if let Some((f, se)) = flights::field_from_flights(obs, &structure_acc, excluded) {
+        let d = f - field;
+        let disagree = d.x.abs() > 5.0 * se.x || d.y.abs() > 5.0 * se.y;
+        if train_rows < 2 * (weak.bond_column_count() + 2) || disagree {
+            field = f;
+        }
+    }
+    let free: Vec<bool> = family0.structure.particles.iter().map(|p| !p.fixed).collect();
+    let acc = structure_acc
+        .into_iter()
+        .map(|a| {
+            a.map(|mut a| {
+                for (p, v) in a.iter_mut().enumerate() {
+                    if free.get(p).copied().unwrap_or(false) {
+                        *v += field;
+                    }
+                }
+                a
+            })
         })
         .collect();
     (acc, field)

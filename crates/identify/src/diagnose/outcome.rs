@@ -128,6 +128,11 @@ fn residual_series(
     out
 }
 
+/// A tether's anchor farther from its particle than this many times the particle's motion
+/// extent "runs off": over the motion its pull is a uniform field plus a linear spring, and
+/// the anchor, length and stiffness are not separately determined.
+pub const TETHER_RUNS_OFF: f64 = 10.0;
+
 /// Assembles findings, scene, summaries and residuals.
 pub fn assemble(inp: Inputs<'_>) -> Outcome {
     let mut warnings = Vec::new();
@@ -256,6 +261,91 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 );
             }
         }
+        // Held values carry no standard error; values the tracks do not pin down are named.
+        let mut notes = Vec::new();
+        for (i, v) in parameters.iter_mut().enumerate() {
+            if fam.is_pinned(k, i) {
+                v.std_error = None;
+            }
+        }
+        // Magnitudes are compared with their standard errors; positions (an anchor, a wall's
+        // line) and directions are not magnitudes: a field is judged by its length, an anchor
+        // by its distance from the particle (below), a wall by its bounces.
+        let magnitude = |name: &str| {
+            !matches!(
+                name,
+                "gravity_x" | "gravity_y" | "normal_x" | "normal_y" | "offset" | "anchor_x" | "anchor_y"
+            )
+        };
+        let mut unidentified: Vec<String> = parameters
+            .iter()
+            .filter(|v| magnitude(&v.name))
+            .filter(|v| v.std_error.is_some_and(|e| e.is_nan() || e > v.value.abs()))
+            .map(|v| {
+                format!(
+                    "{} ({:.4} ± {:.2e})",
+                    v.name,
+                    v.value,
+                    v.std_error.unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
+        if effect == Effect::Gravity {
+            let g = values[0].hypot(values[1]);
+            let e = errs[0].unwrap_or(0.0).hypot(errs[1].unwrap_or(0.0));
+            if e.is_nan() || e > g {
+                unidentified.push(format!("the field's strength ({g:.4} ± {e:.2e})"));
+            }
+        }
+        let mut identified = unidentified.is_empty();
+        if !unidentified.is_empty() {
+            notes.push(format!(
+                "not identified by the tracks: {} (standard error above the value)",
+                unidentified.join(", ")
+            ));
+        }
+        if let Effect::Tether { particle } = effect {
+            if fam.is_pinned(k, 3) {
+                notes.push(format!(
+                    "taken as rigid: an elastic tether fits no better, so its stiffness is held at {:.4e} (a stretch of a tenth of the track noise under the field)",
+                    values[3]
+                ));
+            }
+            let xs: Vec<Vec2> = inp
+                .obs
+                .positions
+                .iter()
+                .filter_map(|f| f.get(particle).copied().flatten())
+                .collect();
+            if !xs.is_empty() {
+                let mean = xs.iter().sum::<Vec2>() / xs.len() as f64;
+                let extent = xs.iter().map(|x| (x - mean).norm()).fold(0.0, f64::max).max(1e-9);
+                let to_anchor = Vec2::new(values[0], values[1]) - mean;
+                let distance = to_anchor.norm();
+                let e = errs[0].unwrap_or(0.0).hypot(errs[1].unwrap_or(0.0));
+                if e.is_nan() || e > distance {
+                    identified = false;
+                    notes.push(format!(
+                        "the anchor is not located by the tracks (± {e:.2e} px on a distance of {distance:.1} px)"
+                    ));
+                }
+                if distance > TETHER_RUNS_OFF * extent {
+                    identified = false;
+                    let mass = inp.structure.particles.get(particle).map_or(1.0, |p| p.mass);
+                    let pull = 2.0 * values[3] * (distance - values[2]) / mass;
+                    // The field points towards the anchor when the tether is stretched.
+                    let u = to_anchor / distance * pull.signum();
+                    notes.push(format!(
+                        "the anchor runs off ({distance:.0} px away, {:.0} times the motion's extent): over the motion this tether is a uniform field of {:.2} px/s^2 towards ({:.3}, {:.3}) plus a restoring acceleration of {:.3} /s^2 per px along that line",
+                        distance / extent,
+                        pull.abs(),
+                        u.x,
+                        u.y,
+                        2.0 * values[3] / mass
+                    ));
+                }
+            }
+        }
         findings.push(Finding {
             effect: effect.name().into(),
             label: effect.label(inp.structure),
@@ -264,6 +354,8 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             seen,
             evidence: evidence.clone(),
             round: *round,
+            identified,
+            note: (!notes.is_empty()).then(|| notes.join("; ")),
         });
     }
 

@@ -90,6 +90,67 @@ impl Evidence {
     }
 }
 
+/// An effect accepted in an earlier round and taken out later: replaced by a better
+/// explanation (a swap), or made redundant by the effects that joined after it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Replaced {
+    /// Effect name, as in [`Finding::effect`].
+    pub effect: String,
+    /// Readable label.
+    pub label: String,
+    /// Round in which it had been accepted.
+    pub added_round: usize,
+    /// Round in which it was taken out.
+    pub round: usize,
+    /// Labels of the effects that replaced it (empty: removed as redundant).
+    pub by: Vec<String>,
+}
+
+/// How the greedy search ended.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SearchSummary {
+    /// Rounds run.
+    pub rounds: usize,
+    /// Why it stopped, in words.
+    pub stop_reason: String,
+}
+
+/// One particle's share of the final residual.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct VerdictParticle {
+    /// Particle id.
+    pub particle: String,
+    /// Its multi-step RMS under the final model, px.
+    pub rms: f64,
+    /// `rms` over the track noise.
+    pub rms_over_noise: f64,
+}
+
+/// The final model against the track noise (see `docs/diagnosis.md`, "The verdict").
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Verdict {
+    /// True when the final multi-step RMS is within `threshold` track noises.
+    pub explained: bool,
+    /// The final model's multi-step RMS over the sequence, px.
+    pub rms: f64,
+    /// The track noise compared with, px (the measured noise; for exact tracks a floor of a
+    /// millionth of the data's length scale).
+    pub noise: f64,
+    /// `rms / noise`.
+    pub ratio: f64,
+    /// The largest `ratio` that counts as explained.
+    pub threshold: f64,
+    /// Each particle's final residual.
+    pub particles: Vec<VerdictParticle>,
+    /// Frame runs `[first, last]` whose residual exceeds `threshold` noises.
+    pub frames: Vec<[usize; 2]>,
+    /// What the final residual looks like, in words.
+    pub pattern: String,
+    /// The verdict in words: `explained to the noise level: ...` or `not explained: X px RMS
+    /// against a noise of Y px ...`.
+    pub text: String,
+}
+
 /// An accepted effect.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Finding {
@@ -108,6 +169,12 @@ pub struct Finding {
     pub evidence: Evidence,
     /// Greedy round (1-based) in which it was accepted.
     pub round: usize,
+    /// False when some fitted value is not identified by the tracks (standard error above
+    /// its value, or a tether's anchor running off; see `note`).
+    pub identified: bool,
+    /// What the tracks do not determine and the simpler equivalent, or how a value was held
+    /// (a tether taken as rigid); `null` when there is nothing to say.
+    pub note: Option<String>,
 }
 
 /// A candidate that did not earn its place, with its best scores.
@@ -290,6 +357,13 @@ pub struct Diagnosis {
     pub final_model: ModelSummary,
     /// Residual series before and after.
     pub residuals: ResidualSeries,
+    /// Effects accepted and later taken out (swapped for a better explanation or made
+    /// The final model against the track noise.
+    pub verdict: Verdict,
+    /// redundant).
+    pub replaced: Vec<Replaced>,
+    /// How the greedy search ended.
+    pub search: SearchSummary,
     /// What went wrong or was worked around.
     pub warnings: Vec<String>,
     /// Wall time, s.

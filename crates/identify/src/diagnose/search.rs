@@ -32,6 +32,14 @@ pub const VERIFIED_PER_ROUND: usize = 3;
 /// Least screen score, per parameter, for a smooth candidate to be verified.
 pub const SCREEN_PER_PARAMETER: f64 = 2.0;
 
+/// Most pairs of effects (the field with another candidate) verified per round.
+pub const VERIFIED_PAIRS_PER_ROUND: usize = 2;
+
+/// A fit explains the tracks when its residual variance is at most this many times the
+/// squared track noise (its RMS within twice the noise): the localisation's significance
+/// rule, applied to the whole fit.
+pub const EXPLAINED_VARIANCE_RATIO: f64 = 4.0;
+
 /// Most missing-spring pairs screened (the nearest pairs first).
 pub const MAX_PAIRS: usize = 200;
 
@@ -76,6 +84,8 @@ pub struct Verified {
     pub current: Option<Current>,
     /// Its scores.
     pub evidence: Evidence,
+    /// The index of an accepted effect this candidate replaces (a swap), if any.
+    pub removes: Option<usize>,
 }
 
 /// Everything the search needs about the data.
@@ -274,6 +284,314 @@ impl Context<'_> {
         out
     }
 
+    /// Screens every smooth candidate together with `partner`, an effect that may explain
+    /// little alone and everything with another (a field with a tether is a pendulum; a field
+    /// with drag), in the weak form as [`Context::screen`] does: the pair's columns are solved
+    /// together and a tether's anchor is searched with the partner's columns present. Each
+    /// entry holds the partner's proposal then the candidate's, both carrying the pair's
+    /// screen score; best first by score per parameter. Empty when `current` has the partner.
+    /// Only pairs that work together are kept: the pair must remove more of the held-out
+    /// weak-form residual than the better of its two members alone by
+    /// [`SCREEN_PER_PARAMETER`] residual variances per parameter the other member adds (a
+    /// tether alone is judged at the pair's anchor).
+    pub fn screen_pairs(
+        &self,
+        current: &Current,
+        candidates: &[Effect],
+        partner: Effect,
+    ) -> Vec<Vec<Proposal>> {
+        let family = &current.family;
+        if family.effects.contains(&partner) || !partner.is_smooth() {
+            return Vec::new();
+        }
+        let weak = self.weak;
+        let train = self.train_rows();
+        let held = self.held_rows();
+        let cols = self.effect_columns(family, &current.fit.params);
+        let mut base: Vec<&[f64]> = weak.bond_columns().iter().map(|c| c.as_slice()).collect();
+        for c in &cols {
+            base.extend(c.iter().map(|v| v.as_slice()));
+        }
+        let judge: &[usize] = if held.is_empty() { &train } else { &held };
+        let ssr = |cols: &[&[f64]]| {
+            let theta = solve(cols, &weak.rhs, &train);
+            let r = residuals(cols, &theta, &weak.rhs);
+            (judge.iter().map(|&i| r[i] * r[i]).sum::<f64>(), theta)
+        };
+        let (before, _) = ssr(&base);
+        let partner_cols = weak.effect_columns(family, partner, None);
+        if partner_cols.is_empty() {
+            return Vec::new();
+        }
+        let mut with_partner = base.clone();
+        with_partner.extend(partner_cols.iter().map(|v| v.as_slice()));
+        let np = with_partner.len();
+        let (partner_after, _) = ssr(&with_partner);
+        let mut out = Vec::new();
+        for &effect in candidates {
+            if effect == partner || family.effects.contains(&effect) || !effect.is_smooth() {
+                continue;
+            }
+            let anchor = match effect {
+                Effect::Tether { particle } => Some(self.search_anchor(family, &with_partner, particle)),
+                _ => None,
+            };
+            let extra = weak.effect_columns(family, effect, anchor);
+            if extra.is_empty() {
+                continue;
+            }
+            let mut all = with_partner.clone();
+            all.extend(extra.iter().map(|v| v.as_slice()));
+            let (after, theta) = ssr(&all);
+            let variance = (after / judge.len().max(1) as f64).max(f64::MIN_POSITIVE);
+            let score = (before - after) / variance;
+            if !score.is_finite() {
+                continue;
+            }
+            let mut alone = base.clone();
+            alone.extend(extra.iter().map(|v| v.as_slice()));
+            let (single_after, _) = ssr(&alone);
+            let added = if partner_after <= single_after {
+                effect.parameter_count()
+            } else {
+                partner.parameter_count()
+            };
+            let synergy = (partner_after.min(single_after) - after) / variance;
+            if synergy.is_nan() || synergy <= SCREEN_PER_PARAMETER * added as f64 {
+                continue;
+            }
+            let proposal = |e: Effect, init: Vec<f64>| Proposal {
+                effect: e,
+                init,
+                screen: Some(score),
+                score_test: None,
+                jolts: Vec::new(),
+            };
+            out.push(vec![
+                proposal(
+                    partner,
+                    self.effect_params(partner, &theta[base.len()..np], None, &[]),
+                ),
+                proposal(effect, self.effect_params(effect, &theta[np..], anchor, &[])),
+            ]);
+        }
+        let key = |v: &Vec<Proposal>| {
+            let k: usize = v.iter().map(|p| p.effect.parameter_count()).sum();
+            v[0].screen.unwrap_or(0.0) / k.max(1) as f64
+        };
+        out.sort_by(|a, b| key(b).total_cmp(&key(a)));
+        out
+    }
+
+    /// A field and a taut tether on `particle` (a pendulum), started from the path's
+    /// geometry rather than the weak form: the weak form sees a stiff tether's tension only
+    /// through stretches of the order of the track noise (its `S d` column is then mostly
+    /// noise), and proposes a far, soft anchor instead. Here the anchor is the centre of the
+    /// circle that best fits the particle's tracked positions (algebraic fit), the length its
+    /// radius, the field the least-squares fit of the tangential accelerations (second
+    /// differences less the current model's, along the circle: a taut tether's tension has
+    /// no tangential part), and the stiffness the one that stretches the tether by one track
+    /// noise under the field (kept where the integration is stable). Returns the proposals
+    /// (field, tether) and the circle's RMS misfit over its radius; `None` when the path is no
+    /// arc (too few points, a line, an anchor on the path).
+    pub fn circle_pair(&self, current: &Current, particle: usize) -> Option<(Vec<Proposal>, f64)> {
+        let obs = self.obs;
+        let family = &current.family;
+        if family.effects.contains(&Effect::Gravity) || family.effects.contains(&Effect::Tether { particle })
+        {
+            return None;
+        }
+        let (centre, radius, misfit) = self.circle_of(particle)?;
+        // The field from the tangential accelerations, the current model's removed.
+        let model = family.model(&current.fit.params, None);
+        let dt = obs.frame_dt();
+        let mut a = nalgebra::Matrix2::<f64>::zeros();
+        let mut b = nalgebra::Vector2::<f64>::zeros();
+        for k in 1..obs.frame_count().saturating_sub(1) {
+            let (Some(p0), Some(p1), Some(p2)) = (
+                obs.positions[k - 1].get(particle).copied().flatten(),
+                obs.positions[k].get(particle).copied().flatten(),
+                obs.positions[k + 1].get(particle).copied().flatten(),
+            ) else {
+                continue;
+            };
+            let mut known = Vec2::zeros();
+            if let Some(st) = obs.state(k) {
+                let mut st = st;
+                let _ = family.model(&current.fit.params, Some(&mut st));
+                let mut acc = vec![Vec2::zeros(); model.particle_count()];
+                model.accelerations(&st, &mut acc);
+                known = acc.get(particle).copied().unwrap_or_else(Vec2::zeros);
+            }
+            let acc = (p2 - 2.0 * p1 + p0) / (dt * dt) - known;
+            let u = (p1 - centre) / (p1 - centre).norm().max(f64::MIN_POSITIVE);
+            let t = Vec2::new(-u.y, u.x);
+            let tv = nalgebra::Vector2::new(t.x, t.y);
+            a += tv * tv.transpose();
+            b += tv * acc.dot(&t);
+        }
+        let g = a.try_inverse()? * b;
+        let field = Vec2::new(g[0], g[1]);
+        if !(field.x.is_finite() && field.y.is_finite()) {
+            return None;
+        }
+        let mass = family.structure.particles.get(particle).map_or(1.0, |p| p.mass);
+        let substep = family.structure.integration_parameters().dt();
+        let stable = 0.25 * mass / (substep * substep);
+        let sigma = super::search::noise_floor(obs.noise, self.scales.length);
+        let stiffness = (mass * field.norm() / (2.0 * sigma))
+            .min(stable)
+            .max(self.scales.stiffness * 1e-3);
+        let proposal = |effect: Effect, init: Vec<f64>| Proposal {
+            effect,
+            init,
+            screen: None,
+            score_test: None,
+            jolts: Vec::new(),
+        };
+        Some((
+            vec![
+                proposal(Effect::Gravity, vec![field.x, field.y]),
+                proposal(
+                    Effect::Tether { particle },
+                    vec![centre.x, centre.y, radius, stiffness],
+                ),
+            ],
+            misfit,
+        ))
+    }
+
+    /// The circle that best fits `particle`'s tracked positions (algebraic fit): its centre,
+    /// radius (px) and RMS misfit over the radius; `None` when the path is no swinging arc
+    /// (fewer than six points, the centre within the path's spread, a misfit above a tenth of
+    /// it, or no swing: the angle about the centre must turn back at an interior frame, by
+    /// more than five track noises on both sides, as a pendulum's does every half period and a
+    /// tumbling body's curved path need not).
+    pub fn circle_of(&self, particle: usize) -> Option<(Vec2, f64, f64)> {
+        let obs = self.obs;
+        let xs: Vec<(usize, Vec2)> = (0..obs.frame_count())
+            .filter_map(|k| Some((k, obs.positions[k].get(particle).copied()??)))
+            .collect();
+        if xs.len() < 6 {
+            return None;
+        }
+        let mean = xs.iter().map(|(_, x)| x).sum::<Vec2>() / xs.len() as f64;
+        // Kasa fit: x² + y² = 2 a x + 2 b y + c, centred on the mean for conditioning.
+        let mut m = nalgebra::Matrix3::<f64>::zeros();
+        let mut r = nalgebra::Vector3::<f64>::zeros();
+        for (_, x) in &xs {
+            let d = x - mean;
+            let row = nalgebra::Vector3::new(2.0 * d.x, 2.0 * d.y, 1.0);
+            m += row * row.transpose();
+            r += row * d.norm_squared();
+        }
+        let sol = m.try_inverse()? * r;
+        let centre = mean + Vec2::new(sol[0], sol[1]);
+        let radius2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
+        if !(radius2 > 0.0 && radius2.is_finite()) {
+            return None;
+        }
+        let radius = radius2.sqrt();
+        let misfit = (xs
+            .iter()
+            .map(|(_, x)| ((x - centre).norm() - radius).powi(2))
+            .sum::<f64>()
+            / xs.len() as f64)
+            .sqrt();
+        let extent = xs.iter().map(|(_, x)| (x - mean).norm()).fold(0.0, f64::max);
+        // An arc: the particle stays off its centre, and the circle fits far better than the
+        // particle's own spread.
+        if !(radius > extent && misfit < 0.1 * extent) {
+            return None;
+        }
+        let angles: Vec<f64> = xs
+            .iter()
+            .map(|(_, x)| (x.x - centre.x).atan2(centre.y - x.y))
+            .collect();
+        let turn = 5.0 * noise_floor(obs.noise, self.scales.length) / radius;
+        let last = angles.len() - 1;
+        let swings = |extreme: usize| {
+            extreme > 0
+                && extreme < last
+                && (angles[extreme] - angles[0]).abs() > turn
+                && (angles[extreme] - angles[last]).abs() > turn
+        };
+        let (imax, imin) = angles.iter().enumerate().fold((0, 0), |(a, b), (k, v)| {
+            (
+                if *v > angles[a] { k } else { a },
+                if *v < angles[b] { k } else { b },
+            )
+        });
+        if !(swings(imax) || swings(imin)) {
+            return None;
+        }
+        Some((centre, radius, misfit / radius))
+    }
+
+    /// A tether the tracks cannot tell from an inextensible one, taken as rigid: with a field
+    /// in the model, effect `k` of `with` (a tether) is refitted with its stiffness held at
+    /// the value that stretches it by a tenth of the track noise under the field (no more
+    /// than the integration keeps stable), from the fit's anchor with the length at its
+    /// stretched value and from the circle of the particle's path. The rigid fit is returned
+    /// when the cost it adds (held-out frames; fitted ones without them), in units of the
+    /// fit's residual variance, is below one parameter's penalty `ln N`: the elastic
+    /// tether's stiffness then does not pay for itself.
+    pub fn rigid_tether(&self, with: &Current, k: usize) -> Option<Current> {
+        let family = &with.family;
+        let Effect::Tether { particle } = *family.effects.get(k)? else {
+            return None;
+        };
+        if family.is_pinned(k, 3) {
+            return None;
+        }
+        let g = family.effects.iter().position(|e| *e == Effect::Gravity)?;
+        let go = family.effect_offset(g);
+        let field = Vec2::new(with.fit.params[go], with.fit.params[go + 1]).norm();
+        let o = family.effect_offset(k);
+        let p: Vec<f64> = with.fit.params[o..o + 4].to_vec();
+        let mass = family.structure.particles.get(particle).map_or(1.0, |q| q.mass);
+        let substep = family.structure.integration_parameters().dt();
+        let stable = 0.25 * mass / (substep * substep);
+        let sigma = noise_floor(self.obs.noise, self.scales.length);
+        let rigid = (mass * field / (2.0 * 0.1 * sigma)).min(stable);
+        if !(rigid > p[3] && p[3] > 0.0 && field > 0.0) {
+            return None;
+        }
+        let mut pinned = family.clone();
+        pinned.pins.push((k, 3, rigid));
+        let stretch = |s: f64| mass * field / (2.0 * s);
+        let mut start = with.fit.params.clone();
+        start[o + 2] = (p[2] + stretch(p[3]) - stretch(rigid)).max(1e-3);
+        start[o + 3] = rigid;
+        let mut best = self.fit(&pinned, &start, &with.fit.state, true);
+        if let Some((centre, radius, _)) = self.circle_of(particle) {
+            let mut circle = start.clone();
+            circle[o] = centre.x;
+            circle[o + 1] = centre.y;
+            circle[o + 2] = (radius - stretch(rigid)).max(1e-3);
+            if let Some(b) = self.fit(&pinned, &circle, &with.fit.state, false) {
+                if best
+                    .as_ref()
+                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
+                {
+                    best = Some(b);
+                }
+            }
+        }
+        let best = best?;
+        let held = self.held_count(family);
+        let (n, added) = if held > 0 {
+            (held, best.held_cost - with.held_cost)
+        } else {
+            (
+                with.fit.residual_count,
+                best.fit.sum_squares - with.fit.sum_squares,
+            )
+        };
+        let variance = self.noise_variance(with);
+        (added.is_finite() && added / variance < (n.max(2) as f64).ln()).then_some(best)
+    }
+
     /// The anchor of a tether on `particle` that best explains the fitted rows, with the
     /// tether's stiffness and rest length solved linearly at each trial anchor.
     fn search_anchor(&self, family: &Family, base: &[&[f64]], particle: usize) -> Vec2 {
@@ -382,6 +700,55 @@ impl Context<'_> {
         fitted.max(self.obs.noise * self.obs.noise)
     }
 
+    /// Returns true if and only if the fit's residual variance is within
+    /// [`EXPLAINED_VARIANCE_RATIO`] times the squared track noise (see [`noise_floor`]).
+    pub fn explained(&self, current: &Current) -> bool {
+        let p = current.family.dim() + 4 * current.family.free.len();
+        let n = current.fit.residual_count;
+        let floor = noise_floor(self.obs.noise, self.scales.length);
+        n > p && current.fit.sum_squares / ((n - p) as f64) <= EXPLAINED_VARIANCE_RATIO * floor * floor
+    }
+
+    /// `current` without its effect `k`: the family without it and the fit's values without
+    /// its parameters (not refitted; the held-out cost is kept).
+    pub fn without(&self, current: &Current, k: usize) -> Current {
+        let family = &current.family;
+        let o = family.effect_offset(k);
+        let width = family.effects[k].parameter_count();
+        let mut params = current.fit.params.clone();
+        params.drain(o..o + width);
+        let mut fit = current.fit.clone();
+        fit.params = params;
+        Current {
+            family: family.without_effect(k),
+            fit,
+            held_cost: current.held_cost,
+        }
+    }
+
+    /// A swap: `proposals` verified in `current` without its effect `removed`, and scored
+    /// against `current` itself (the parameters the swap adds less those it removes).
+    pub fn verify_swap(&self, current: &Current, removed: usize, proposals: &[Proposal]) -> Verified {
+        let reduced = self.without(current, removed);
+        let mut v = self.verify(&reduced, proposals);
+        let k_removed = current.family.effects[removed].parameter_count();
+        let mut evidence = self.evidence(current, v.current.as_ref(), proposals);
+        let held = self.held_count(&current.family);
+        let n = if held > 0 {
+            held
+        } else {
+            current.fit.residual_count
+        };
+        // A swap pays for one parameter more than it adds net: the choice of which effect
+        // to take out is itself fitted (and an effect swapped for itself, refitted, must
+        // gain that much to be worth a round).
+        evidence.penalty += (1.0 - k_removed as f64) * (n.max(2) as f64).ln();
+        evidence.score = evidence.noise_variance.and_then(|var| evidence.score_on(var));
+        v.evidence = evidence;
+        v.removes = Some(removed);
+        v
+    }
+
     /// Multi-step verification of proposals (one effect, or a wall with a smooth effect
     /// that needs it) against `current`: fitted from the current fit plus the proposals'
     /// starting values and from the weak-form joint estimate, keeping the better fit.
@@ -417,6 +784,7 @@ impl Context<'_> {
             proposals: proposals.to_vec(),
             current: best,
             evidence,
+            removes: None,
         }
     }
 
@@ -447,6 +815,18 @@ impl Context<'_> {
         };
         evidence.score = variance.and_then(|v| evidence.score_on(v));
         evidence
+    }
+}
+
+/// The track noise used as a yardstick, px: the measured noise, or where the tracks are exact
+/// (a simulation's, noise 0) a millionth of the data's length scale (a fit converges no
+/// closer than that).
+pub fn noise_floor(noise: f64, length: f64) -> f64 {
+    let floor = 1e-6 * length.max(1.0);
+    if noise.is_finite() {
+        noise.max(floor)
+    } else {
+        floor
     }
 }
 

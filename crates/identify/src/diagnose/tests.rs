@@ -597,3 +597,5 @@ fn a_short_toss_of_eleven_frames_gets_its_field() {
     let c = diagnose_case("toss", truth.clone(), &truth.structure(), 1);
     c.names_exactly(&["uniform field (gravity)"]).gravity();
 }
+
+mod issue_21;
