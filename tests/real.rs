@@ -155,3 +155,46 @@ fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
     println!("bouncing ball: multi-step RMS {base:.2} -> {last:.2} px");
     assert!(last < base / 5.0, "multi-step RMS {base:.2} -> {last:.2} px");
 }
+
+/// The real pendulum (`pendulum-scale`) from its pixels, with a structure naming the bob alone:
+/// a uniform field and a tether to a fixed point above the bob (a pendulum), with g/L within
+/// 3 % of the reference's 9.69 s^-2, and nothing else. Before, a grid line through the bob cut
+/// its track in two and the diagnosis named a field of 536 585 px/s^2 pointing up.
+#[test]
+fn the_real_pendulum_is_a_field_and_a_tether_above_the_bob() {
+    let Some(real) = real_dir("pendulum-scale") else {
+        return;
+    };
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    physfit()
+        .arg("-q")
+        .arg("run")
+        .arg("--frames")
+        .arg(real.join("frames"))
+        .arg("--structure")
+        .arg(real.join("structure.toml"))
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
+    let findings = report["findings"].as_array().expect("findings");
+    let mut names: Vec<&str> = findings.iter().filter_map(|f| f["effect"].as_str()).collect();
+    names.sort_unstable();
+    assert_eq!(names, ["gravity", "missing_spring"], "{findings:?}");
+    let field = findings.iter().find(|f| f["effect"] == "gravity").expect("field");
+    let tether = findings.iter().find(|f| f["effect"] == "missing_spring").expect("tether");
+    let (gx, gy) = (parameter(field, "gravity_x"), parameter(field, "gravity_y"));
+    let (ax, ay) = (parameter(tether, "anchor_x"), parameter(tether, "anchor_y"));
+    let length = parameter(tether, "length");
+    let g_over_l = gx.hypot(gy) / length;
+    println!("field ({gx:.1}, {gy:.1}) px/s^2, anchor ({ax:.1}, {ay:.1}) px, length {length:.1} px, g/L {g_over_l:.3} s^-2");
+    assert!(gy > 0.0 && gx.abs() < 0.05 * gy, "the field points down: ({gx}, {gy})");
+    assert!((g_over_l / 9.69 - 1.0).abs() < 0.03, "g/L {g_over_l} s^-2, reference 9.69");
+    // Above the bob's lowest point (y about 207) by about the length, near the middle of the swing.
+    assert!(ay < 207.0 - 0.9 * length && ay > 207.0 - 1.1 * length, "anchor ({ax}, {ay})");
+    assert!((ax - 154.0).abs() < 10.0, "anchor ({ax}, {ay})");
+}
