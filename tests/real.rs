@@ -186,15 +186,27 @@ fn the_real_pendulum_is_a_field_and_a_tether_above_the_bob() {
     names.sort_unstable();
     assert_eq!(names, ["gravity", "missing_spring"], "{findings:?}");
     let field = findings.iter().find(|f| f["effect"] == "gravity").expect("field");
-    let tether = findings.iter().find(|f| f["effect"] == "missing_spring").expect("tether");
+    let tether = findings
+        .iter()
+        .find(|f| f["effect"] == "missing_spring")
+        .expect("tether");
     let (gx, gy) = (parameter(field, "gravity_x"), parameter(field, "gravity_y"));
     let (ax, ay) = (parameter(tether, "anchor_x"), parameter(tether, "anchor_y"));
     let length = parameter(tether, "length");
     let g_over_l = gx.hypot(gy) / length;
     println!("field ({gx:.1}, {gy:.1}) px/s^2, anchor ({ax:.1}, {ay:.1}) px, length {length:.1} px, g/L {g_over_l:.3} s^-2");
-    assert!(gy > 0.0 && gx.abs() < 0.05 * gy, "the field points down: ({gx}, {gy})");
-    assert!((g_over_l / 9.69 - 1.0).abs() < 0.03, "g/L {g_over_l} s^-2, reference 9.69");
+    assert!(
+        gy > 0.0 && gx.abs() < 0.05 * gy,
+        "the field points down: ({gx}, {gy})"
+    );
+    assert!(
+        (g_over_l / 9.69 - 1.0).abs() < 0.03,
+        "g/L {g_over_l} s^-2, reference 9.69"
+    );
     // Above the bob's lowest point (y about 207) by about the length, near the middle of the swing.
-    assert!(ay < 207.0 - 0.9 * length && ay > 207.0 - 1.1 * length, "anchor ({ax}, {ay})");
+    assert!(
+        ay < 207.0 - 0.9 * length && ay > 207.0 - 1.1 * length,
+        "anchor ({ax}, {ay})"
+    );
     assert!((ax - 154.0).abs() < 10.0, "anchor ({ax}, {ay})");
 }

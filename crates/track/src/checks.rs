@@ -132,17 +132,25 @@ pub fn check_tracks(
 /// NaN where either region is empty or the disc holds no signal.
 pub fn skirts(signal: &[f32], width: usize, height: usize, points: &[[f64; 2]], radius: f64) -> Vec<f64> {
     let outer = 2.0 * radius + 1.0;
-    let inner = radius + 1.0;
+    let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
+    // The points sorted by x, so each finds its neighbours within two outer radii by a range.
+    let mut by_x: Vec<usize> = (0..points.len()).collect();
+    by_x.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
+    let xs: Vec<f64> = by_x.iter().map(|&i| points[i][0]).collect();
+    let mut others: Vec<[f64; 2]> = Vec::new();
     points
         .iter()
         .enumerate()
         .map(|(i, p)| {
-            let others: Vec<&[f64; 2]> = points
-                .iter()
-                .enumerate()
-                .filter(|&(j, q)| j != i && (q[0] - p[0]).hypot(q[1] - p[1]) < 2.0 * outer)
-                .map(|(_, q)| q)
-                .collect();
+            others.clear();
+            let lo = xs.partition_point(|&x| x < p[0] - 2.0 * outer);
+            let hi = xs.partition_point(|&x| x <= p[0] + 2.0 * outer);
+            others.extend(
+                by_x[lo..hi]
+                    .iter()
+                    .filter(|&&j| j != i && (points[j][1] - p[1]).abs() < 2.0 * outer)
+                    .map(|&j| points[j]),
+            );
             let (x0, x1) = (
                 (p[0] - outer).floor().max(0.0),
                 (p[0] + outer).ceil().min(width as f64 - 1.0),
@@ -156,18 +164,20 @@ pub fn skirts(signal: &[f32], width: usize, height: usize, points: &[[f64; 2]], 
             }
             let (mut core, mut nc, mut ring, mut nr) = (0.0, 0usize, 0.0, 0usize);
             for y in y0 as usize..=y1 as usize {
+                let dy = y as f64 - p[1];
                 for x in x0 as usize..=x1 as usize {
-                    let (fx, fy) = (x as f64, y as f64);
-                    let d = (fx - p[0]).hypot(fy - p[1]);
-                    let v = f64::from(signal[y * width + x]);
-                    if d <= radius {
-                        core += v;
+                    let dx = x as f64 - p[0];
+                    let d2 = dx * dx + dy * dy;
+                    if d2 <= radius2 {
+                        core += f64::from(signal[y * width + x]);
                         nc += 1;
-                    } else if d > inner
-                        && d <= outer
-                        && others.iter().all(|q| (fx - q[0]).hypot(fy - q[1]) > d)
+                    } else if d2 > inner2
+                        && d2 <= outer2
+                        && others
+                            .iter()
+                            .all(|q| (x as f64 - q[0]).powi(2) + (y as f64 - q[1]).powi(2) > d2)
                     {
-                        ring += v;
+                        ring += f64::from(signal[y * width + x]);
                         nr += 1;
                     }
                 }

@@ -858,27 +858,36 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
     let background = estimation.background;
     let frame = *estimation.frames.first()?;
     let (width, height) = frame.size();
-    let found: Vec<Vec<ScaleBlob>> = scale::ladder(width, height)
-        .into_par_iter()
-        .map(|radius| {
-            let blobs = estimation.workers.with(|w| {
-                w.finder
-                    .blobs(background, frame, &unfiltered(background, radius))
-                    .blobs
-            });
-            blobs
-                .iter()
-                .map(|b| ScaleBlob {
-                    x: b.x as f64,
-                    y: b.y as f64,
-                    peak: f64::from(b.peak),
-                    radius,
-                    snr: f64::from(b.peak) / band_noise(radius, background.noise_sigma.max(1e-6)),
-                })
-                .collect()
-        })
-        .collect();
-    let kept = scale::strongest(found.into_iter().flatten().collect());
+    let at = |radius: f64| -> Vec<ScaleBlob> {
+        let blobs = estimation.workers.with(|w| {
+            w.finder
+                .blobs(background, frame, &unfiltered(background, radius))
+                .blobs
+        });
+        blobs
+            .iter()
+            .map(|b| ScaleBlob {
+                x: b.x as f64,
+                y: b.y as f64,
+                peak: f64::from(b.peak),
+                radius,
+                snr: f64::from(b.peak) / band_noise(radius, background.noise_sigma.max(1e-6)),
+            })
+            .collect()
+    };
+    // Two radii at a time (one a thread); without named particles the climb stops where
+    // nothing answers as strongly as the strongest blobs do below.
+    let mut found: Vec<ScaleBlob> = Vec::new();
+    for pair in scale::ladder(width, height).chunks(2) {
+        let level: Vec<Vec<ScaleBlob>> = pair.par_iter().map(|&r| at(r)).collect();
+        let level: Vec<ScaleBlob> = level.into_iter().flatten().collect();
+        let stop = starts.is_none() && scale::beyond_every_scale(&found, &level);
+        found.extend(level);
+        if stop {
+            break;
+        }
+    }
+    let kept = scale::strongest(found);
     match starts {
         Some(starts) => {
             let mut radii: Vec<f64> = nearest_each(&kept, starts, |b| [b.x, b.y])
@@ -891,8 +900,11 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
     }
 }
 
-/// The skirts ([`crate::skirts`]) of the detected points of `table` in the sample frames of
-/// the window, by particle: frame and skirt each.
+/// Sample frames the skirts are measured in, at most.
+const SKIRT_FRAMES: usize = 8;
+
+/// The skirts ([`crate::skirts`]) of the detected points of `table` in up to
+/// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
 fn sample_skirts(
     table: &TrackTable,
     frames: &WindowFrames<'_>,
@@ -902,10 +914,16 @@ fn sample_skirts(
     workers: &Workers,
 ) -> Result<BTreeMap<String, Vec<(usize, f64)>>, TrackError> {
     let first = frames.paths.first().map_or(0, |p| p.0);
+    // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
+    // and each costs a pass over its points' rings.
+    let samples: Vec<usize> = (0..frames.paths.len())
+        .filter(|&i| frames.sample_of[i].is_some())
+        .collect();
+    let every = samples.len().div_ceil(SKIRT_FRAMES).max(1);
+    let chosen: Vec<usize> = samples.iter().step_by(every).map(|&i| i + first).collect();
     let mut by_frame: BTreeMap<usize, Vec<&TrackPoint>> = BTreeMap::new();
     for p in &table.points {
-        if p.flag == PointFlag::Detected && frames.sample_of.get(p.frame - first).is_some_and(Option::is_some)
-        {
+        if p.flag == PointFlag::Detected && chosen.binary_search(&p.frame).is_ok() {
             by_frame.entry(p.frame).or_default().push(p);
         }
     }

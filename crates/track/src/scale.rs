@@ -89,6 +89,22 @@ pub(crate) fn strongest(mut blobs: Vec<ScaleBlob>) -> Vec<ScaleBlob> {
     kept
 }
 
+/// Returns true if and only if the blobs of the next radii, `level`, lie beyond the scale of
+/// every particle of the blobs found so far, `below`: they are found at more than twice the
+/// radius of the strongest blob below and none answers half as strongly. Above its own scale
+/// a particle's answer falls as the square of the ratio of the scales (a quarter at twice its
+/// scale), so the particles below have all peaked; a particle of a larger scale that answers
+/// less than half as strongly as the strongest one weighs less than a quarter as much in
+/// [`typical_radius`].
+pub(crate) fn beyond_every_scale(below: &[ScaleBlob], level: &[ScaleBlob]) -> bool {
+    let Some(strongest) = below.iter().max_by(|a, b| a.peak.total_cmp(&b.peak)) else {
+        return false;
+    };
+    let smallest = level.iter().map(|b| b.radius).fold(f64::INFINITY, f64::min);
+    let peak = level.iter().map(|b| b.peak).fold(0.0, f64::max);
+    smallest > 2.0 * strongest.radius && peak < 0.5 * strongest.peak
+}
+
 /// The median radius of `kept` blobs, each weighing its squared signal-to-noise ratio (the
 /// information it carries): the few noise peaks and specks that pass the detector's
 /// threshold at small radii, at five noise deviations, weigh little beside particles that
@@ -233,6 +249,24 @@ mod tests {
         // The rim stronger than the whole: the whole overlaps it.
         let strong_rim = ScaleBlob { peak: 60.0, ..rim };
         assert_eq!(strongest(vec![big, strong_rim]), vec![strong_rim]);
+    }
+
+    #[test]
+    fn the_climb_stops_beyond_every_particles_scale_only() {
+        let blob = |radius: f64, peak: f64| ScaleBlob {
+            x: 0.0,
+            y: 0.0,
+            peak,
+            radius,
+            snr: peak,
+        };
+        let below = [blob(2.0, 50.0), blob(4.0, 100.0)];
+        assert!(!beyond_every_scale(&[], &[blob(2.0, 1.0)]));
+        // Weak answers at more than twice the strongest's radius: stop.
+        assert!(beyond_every_scale(&below, &[blob(9.0, 30.0), blob(10.8, 20.0)]));
+        // Still near its scale, or a larger particle answering strongly: go on.
+        assert!(!beyond_every_scale(&below, &[blob(7.0, 30.0)]));
+        assert!(!beyond_every_scale(&below, &[blob(9.0, 60.0)]));
     }
 
     #[test]
