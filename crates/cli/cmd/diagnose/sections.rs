@@ -95,6 +95,9 @@ pub fn verdict(d: &Diagnosis) -> String {
             }
         ));
     }
+    for u in &d.undecided {
+        s.push_str(&format!("- **Not enough data**: {}.\n", u.text));
+    }
     s
 }
 

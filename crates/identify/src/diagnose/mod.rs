@@ -35,6 +35,7 @@ mod shooting;
 mod support;
 #[cfg(test)]
 mod tests;
+mod undecided;
 mod verdict;
 mod weak;
 
@@ -43,8 +44,8 @@ pub use effect::Effect;
 pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
-    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen, Verdict,
-    VerdictParticle,
+    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen,
+    Undecided, Verdict, VerdictParticle,
 };
 pub use support::Support;
 pub use verdict::EXPLAINED_RMS_RATIO;
@@ -59,7 +60,7 @@ use serde::Serialize;
 use crate::{IdentifyError, Observations, Observer};
 use family::{DataScales, Family};
 use search::{smooth_candidates, wall_proposals, Context, Current, Proposal};
-use shooting::Shot;
+use shooting::{Shot, ShotFit};
 use weak::WeakForm;
 
 /// Settings of [`diagnose`].
@@ -605,29 +606,99 @@ fn diagnose_inner(
             &(),
         )
     };
-    let final_fit = refit(&current).unwrap_or_else(|| {
+    let mut final_fit = refit(&current).unwrap_or_else(|| {
         warnings
             .push("the final refit on all frames failed; the fit on the fitted frames is reported".into());
         current.fit.clone()
     });
     let base_fit = refit(&base).unwrap_or_else(|| base.fit.clone());
+    let assemble = |family: &Family, fit: &ShotFit, accepted: &[(Proposal, report::Evidence, usize)]| {
+        outcome::assemble(outcome::Inputs {
+            structure,
+            obs: &obs,
+            sequence,
+            scales: &scales,
+            base_family: &family0,
+            base_fit: &base_fit,
+            final_family: family,
+            final_fit: fit,
+            anchor: all_shot.anchor,
+            accepted,
+            jolts: &jolt_list,
+            supports: &supports,
+            weak: &weak,
+            seed: options.seed,
+        })
+    };
+    // 6. Findings the tracks cannot decide leave the model (see `undecided`).
+    let mut undecided_list = Vec::new();
+    let mut outcome = assemble(&current.family, &final_fit, &accepted);
+    loop {
+        if outcome.findings.len() != current.family.effects.len() {
+            break;
+        }
+        let n = final_fit.residual_count;
+        let p = current.family.dim() + 4 * current.family.free.len();
+        let variance = if n > p {
+            (final_fit.sum_squares / (n - p) as f64).max(obs.noise * obs.noise)
+        } else {
+            f64::INFINITY
+        };
+        let ln_n = (n.max(2) as f64).ln();
+        let mut out: Option<(usize, Current, ShotFit, report::Undecided)> = None;
+        for (k, f) in outcome.findings.iter().enumerate() {
+            if f.identified || current.family.effects[k] == Effect::Wall || !variance.is_finite() {
+                continue;
+            }
+            let held = Current {
+                family: current.family.clone(),
+                fit: final_fit.clone(),
+                held_cost: 0.0,
+            };
+            let reduced = ctx.without(&held, k);
+            let Some(fit) = refit(&reduced) else { continue };
+            let width = current.family.effects[k].parameter_count();
+            let Some((bias, added)) = undecided::bias_cost(&all_shot, &reduced.family, &fit, width) else {
+                continue;
+            };
+            // The finding stays only if it beats the bias on the information criterion.
+            let worth = (bias - final_fit.sum_squares) / variance - (width as f64 - added as f64) * ln_n;
+            if worth.is_nan()
+                || worth > 0.0
+                || out.as_ref().is_some_and(|o| fit.sum_squares >= o.2.sum_squares)
+            {
+                continue;
+            }
+            let text = format!(
+                "not enough data: {} is not identified, and a smooth track bias of {added} parameters \
+                 (polynomials in time) added to the model without it leaves {bias:.4} px² where the \
+                 finding leaves {:.4} px² (without either {:.4} px²): the tracks cannot tell the \
+                 finding from a tracking bias; candidates: {} or a tracking bias",
+                f.label, final_fit.sum_squares, fit.sum_squares, f.label
+            );
+            let entry = report::Undecided {
+                finding: f.clone(),
+                cost_with: final_fit.sum_squares,
+                cost_without: fit.sum_squares,
+                cost_bias: bias,
+                bias_parameters: added,
+                variance,
+                text,
+            };
+            let mut reduced = reduced;
+            reduced.fit = fit.clone();
+            out = Some((k, reduced, fit, entry));
+        }
+        let Some((k, reduced, fit, entry)) = out else {
+            break;
+        };
+        accepted.remove(k);
+        current = reduced;
+        final_fit = fit;
+        undecided_list.push(entry);
+        outcome = assemble(&current.family, &final_fit, &accepted);
+    }
     let tq = Instant::now();
-    let outcome = outcome::assemble(outcome::Inputs {
-        structure,
-        obs: &obs,
-        sequence,
-        scales: &scales,
-        base_family: &family0,
-        base_fit: &base_fit,
-        final_family: &current.family,
-        final_fit: &final_fit,
-        anchor: all_shot.anchor,
-        accepted: &accepted,
-        jolts: &jolt_list,
-        supports: &supports,
-        weak: &weak,
-        seed: options.seed,
-    });
     if std::env::var_os("PHYSFIT_DEBUG").is_some() {
         eprintln!(
             " assemble {:.2}s (total {:.2}s)",
@@ -658,6 +729,7 @@ fn diagnose_inner(
         residuals: outcome.residuals,
         verdict,
         replaced,
+        undecided: undecided_list,
         search: report::SearchSummary {
             rounds: round,
             stop_reason: stop,

@@ -90,6 +90,26 @@ impl Evidence {
     }
 }
 
+/// A finding the tracks cannot decide: not identified, and the model without it plus a
+/// smooth track bias of the same size explains the tracks about as well.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Undecided {
+    /// The finding as it was fitted (with `identified` false and its note).
+    pub finding: Finding,
+    /// Multi-step sum of squares over the analysed frames with the finding, px².
+    pub cost_with: f64,
+    /// The same without the finding, px².
+    pub cost_without: f64,
+    /// Without the finding, plus a polynomial track bias in time, px².
+    pub cost_bias: f64,
+    /// Degrees of freedom the bias adds (at least the finding's parameter count).
+    pub bias_parameters: usize,
+    /// Residual variance the costs are judged in, px².
+    pub variance: f64,
+    /// Why the finding left the model.
+    pub text: String,
+}
+
 /// An effect accepted in an earlier round and taken out later: replaced by a better
 /// explanation (a swap), or made redundant by the effects that joined after it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -362,6 +382,8 @@ pub struct Diagnosis {
     pub verdict: Verdict,
     /// redundant).
     pub replaced: Vec<Replaced>,
+    /// Findings the tracks cannot decide ("not enough data"), taken out of the model.
+    pub undecided: Vec<Undecided>,
     /// How the greedy search ended.
     pub search: SearchSummary,
     /// What went wrong or was worked around.
