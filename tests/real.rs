@@ -26,6 +26,30 @@ fn real_dir(name: &str) -> Option<PathBuf> {
     }
 }
 
+/// `physfit run` on the real recording in `real` (its frames and structure) with `extra`
+/// arguments: the temporary folder (kept alive by the caller), the output folder and
+/// `report.json`.
+fn run_real(real: &Path, extra: &[&str]) -> (tempfile::TempDir, PathBuf, Value) {
+    let dir = tempdir();
+    let out = dir.path().join("out");
+    physfit()
+        .arg("-q")
+        .arg("run")
+        .arg("--frames")
+        .arg(real.join("frames"))
+        .arg("--structure")
+        .arg(real.join("structure.toml"))
+        .arg("--out")
+        .arg(&out)
+        .args(extra)
+        .assert()
+        .success();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
+    (dir, out, report)
+}
+
 /// The named parameter of a finding.
 fn parameter(finding: &Value, name: &str) -> f64 {
     finding["parameters"]
@@ -40,22 +64,7 @@ fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
     let Some(real) = real_dir("bouncing-ball") else {
         return;
     };
-    let dir = tempdir();
-    let out = dir.path().join("out");
-    physfit()
-        .arg("-q")
-        .arg("run")
-        .arg("--frames")
-        .arg(real.join("frames"))
-        .arg("--structure")
-        .arg(real.join("structure.toml"))
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
-    let report: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
-            .expect("report.json is JSON");
+    let (_dir, out, report) = run_real(&real, &[]);
     let findings = report["findings"].as_array().expect("findings");
     let names: Vec<&str> = findings.iter().filter_map(|f| f["effect"].as_str()).collect();
     println!("bouncing ball: findings {names:?}");
@@ -165,22 +174,7 @@ fn the_real_pendulum_is_a_field_and_a_tether_above_the_bob() {
     let Some(real) = real_dir("pendulum-scale") else {
         return;
     };
-    let dir = tempdir();
-    let out = dir.path().join("out");
-    physfit()
-        .arg("-q")
-        .arg("run")
-        .arg("--frames")
-        .arg(real.join("frames"))
-        .arg("--structure")
-        .arg(real.join("structure.toml"))
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
-    let report: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
-            .expect("report.json is JSON");
+    let (_dir, _, report) = run_real(&real, &[]);
     let findings = report["findings"].as_array().expect("findings");
     let mut names: Vec<&str> = findings.iter().filter_map(|f| f["effect"].as_str()).collect();
     names.sort_unstable();
@@ -221,24 +215,7 @@ fn the_ball_toss_is_a_field_and_nothing_else() {
     let Some(real) = real_dir("ball-toss") else {
         return;
     };
-    let dir = tempdir();
-    let out = dir.path().join("out");
-    physfit()
-        .arg("-q")
-        .arg("run")
-        .arg("--frames")
-        .arg(real.join("frames"))
-        .arg("--structure")
-        .arg(real.join("structure.toml"))
-        .arg("--out")
-        .arg(&out)
-        .arg("--window")
-        .arg("2..12")
-        .assert()
-        .success();
-    let report: Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).expect("report.json"))
-            .expect("report.json is JSON");
+    let (_dir, _, report) = run_real(&real, &["--window", "2..12"]);
     let findings = report["findings"].as_array().expect("findings");
     let names: Vec<&str> = findings.iter().filter_map(|f| f["effect"].as_str()).collect();
     assert_eq!(names, ["gravity"], "{findings:?}");

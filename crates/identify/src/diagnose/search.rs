@@ -231,38 +231,69 @@ impl Context<'_> {
         out
     }
 
-    /// Screens every smooth candidate not in `current` (see the module doc), best first.
-    pub fn screen(&self, current: &Current, candidates: &[Effect]) -> Vec<Proposal> {
-        let weak = self.weak;
-        let train = self.train_rows();
-        let held = self.held_rows();
-        let family = &current.family;
-        let cols = self.effect_columns(family, &current.fit.params);
-        let mut base: Vec<&[f64]> = weak.bond_columns().iter().map(|c| c.as_slice()).collect();
-        for c in &cols {
+    /// The weak-form columns of the bond values followed by `effects`' (each effect's columns,
+    /// from [`Context::effect_columns`]).
+    fn base_columns<'c>(&'c self, effects: &'c [Vec<Vec<f64>>]) -> Vec<&'c [f64]> {
+        let mut base: Vec<&[f64]> = self.weak.bond_columns().iter().map(|c| c.as_slice()).collect();
+        for c in effects {
             base.extend(c.iter().map(|v| v.as_slice()));
         }
-        // Score on held-out rows; without any, on the fitted rows.
-        let judge: &[usize] = if held.is_empty() { &train } else { &held };
-        let ssr = |cols: &[&[f64]]| {
-            let theta = solve(cols, &weak.rhs, &train);
-            let r = residuals(cols, &theta, &weak.rhs);
-            (judge.iter().map(|&i| r[i] * r[i]).sum::<f64>(), theta)
+        base
+    }
+
+    /// The rows screens are scored on: the held-out rows, or the fitted rows without any.
+    fn judge_rows(&self) -> Vec<usize> {
+        let held = self.held_rows();
+        if held.is_empty() {
+            self.train_rows()
+        } else {
+            held
+        }
+    }
+
+    /// The weak-form system of `cols` solved on the fitted rows: the squared residual on the
+    /// `judge` rows and the solution.
+    fn screen_cost(&self, cols: &[&[f64]], judge: &[usize]) -> (f64, Vec<f64>) {
+        let theta = solve(cols, &self.weak.rhs, &self.train_rows());
+        let r = residuals(cols, &theta, &self.weak.rhs);
+        (judge.iter().map(|&i| r[i] * r[i]).sum::<f64>(), theta)
+    }
+
+    /// A smooth candidate's weak-form columns beside `base`, with a tether's anchor searched
+    /// against `base`; `None` for an effect that is not smooth or has no columns.
+    fn candidate_columns(
+        &self,
+        family: &Family,
+        base: &[&[f64]],
+        effect: Effect,
+    ) -> Option<(Option<Vec2>, Vec<Vec<f64>>)> {
+        if !effect.is_smooth() {
+            return None;
+        }
+        let anchor = match effect {
+            Effect::Tether { particle } => Some(self.search_anchor(family, base, particle)),
+            _ => None,
         };
+        let extra = self.weak.effect_columns(family, effect, anchor);
+        (!extra.is_empty()).then_some((anchor, extra))
+    }
+
+    /// Screens every smooth candidate not in `current` (see the module doc), best first.
+    pub fn screen(&self, current: &Current, candidates: &[Effect]) -> Vec<Proposal> {
+        let family = &current.family;
+        let cols = self.effect_columns(family, &current.fit.params);
+        let base = self.base_columns(&cols);
+        let judge = self.judge_rows();
+        let ssr = |cols: &[&[f64]]| self.screen_cost(cols, &judge);
         let (before, _) = ssr(&base);
         let mut out = Vec::new();
         for &effect in candidates {
-            if family.effects.contains(&effect) || !effect.is_smooth() {
+            if family.effects.contains(&effect) {
                 continue;
             }
-            let anchor = match effect {
-                Effect::Tether { particle } => Some(self.search_anchor(family, &base, particle)),
-                _ => None,
+            let Some((anchor, extra)) = self.candidate_columns(family, &base, effect) else {
+                continue;
             };
-            let extra = weak.effect_columns(family, effect, anchor);
-            if extra.is_empty() {
-                continue;
-            }
             let mut all = base.clone();
             all.extend(extra.iter().map(|v| v.as_slice()));
             let (after, theta) = ssr(&all);
@@ -305,19 +336,10 @@ impl Context<'_> {
             return Vec::new();
         }
         let weak = self.weak;
-        let train = self.train_rows();
-        let held = self.held_rows();
         let cols = self.effect_columns(family, &current.fit.params);
-        let mut base: Vec<&[f64]> = weak.bond_columns().iter().map(|c| c.as_slice()).collect();
-        for c in &cols {
-            base.extend(c.iter().map(|v| v.as_slice()));
-        }
-        let judge: &[usize] = if held.is_empty() { &train } else { &held };
-        let ssr = |cols: &[&[f64]]| {
-            let theta = solve(cols, &weak.rhs, &train);
-            let r = residuals(cols, &theta, &weak.rhs);
-            (judge.iter().map(|&i| r[i] * r[i]).sum::<f64>(), theta)
-        };
+        let base = self.base_columns(&cols);
+        let judge = self.judge_rows();
+        let ssr = |cols: &[&[f64]]| self.screen_cost(cols, &judge);
         let (before, _) = ssr(&base);
         let partner_cols = weak.effect_columns(family, partner, None);
         if partner_cols.is_empty() {
@@ -329,17 +351,12 @@ impl Context<'_> {
         let (partner_after, _) = ssr(&with_partner);
         let mut out = Vec::new();
         for &effect in candidates {
-            if effect == partner || family.effects.contains(&effect) || !effect.is_smooth() {
+            if effect == partner || family.effects.contains(&effect) {
                 continue;
             }
-            let anchor = match effect {
-                Effect::Tether { particle } => Some(self.search_anchor(family, &with_partner, particle)),
-                _ => None,
+            let Some((anchor, extra)) = self.candidate_columns(family, &with_partner, effect) else {
+                continue;
             };
-            let extra = weak.effect_columns(family, effect, anchor);
-            if extra.is_empty() {
-                continue;
-            }
             let mut all = with_partner.clone();
             all.extend(extra.iter().map(|v| v.as_slice()));
             let (after, theta) = ssr(&all);
