@@ -146,8 +146,8 @@ impl Case {
         self
     }
 
-    /// The value of parameter `name` of the finding labelled `label`.
-    fn value(&self, label: &str, name: &str) -> f64 {
+    /// The finding labelled `label` and its parameter `name`.
+    fn parameter(&self, label: &str, name: &str) -> (&Finding, &FittedValue) {
         let f = self
             .d
             .findings
@@ -159,6 +159,12 @@ impl Case {
             .iter()
             .find(|p| p.name == name)
             .unwrap_or_else(|| panic!("{}: {label} has no {name}", self.name));
+        (f, p)
+    }
+
+    /// The value of parameter `name` of the finding labelled `label`.
+    fn value(&self, label: &str, name: &str) -> f64 {
+        let (_, p) = self.parameter(label, name);
         assert!(
             p.std_error.is_some_and(|e| e.is_finite() && e >= 0.0),
             "{}: {label} {name} has no standard error",

@@ -54,17 +54,7 @@ impl Case {
     /// A value that is either fitted (with a standard error) or held (a rigid tether's
     /// stiffness, without one, and said so in the finding's note).
     fn held_or_fitted(&self, label: &str, name: &str) -> f64 {
-        let f = self
-            .d
-            .findings
-            .iter()
-            .find(|f| f.label == label)
-            .unwrap_or_else(|| panic!("{}: no {label}", self.name));
-        let p = f
-            .parameters
-            .iter()
-            .find(|p| p.name == name)
-            .unwrap_or_else(|| panic!("{}: {label} has no {name}", self.name));
+        let (f, p) = self.parameter(label, name);
         if p.std_error.is_none() {
             assert!(
                 f.note.as_deref().is_some_and(|n| n.contains("rigid")),
