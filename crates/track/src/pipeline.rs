@@ -263,8 +263,16 @@ fn track_paths(
             })
             .collect();
         let reach = 2.0 * sizes.radius + 1.0;
+        // Named particles are particles wherever they start, whatever the median says: one
+        // that barely moves is in the median like a static object (seven discs of a small
+        // rendered frame, 0.7-5 px over the recording, took the per-pixel model and were
+        // tracked 1 px off). Structure under a start in every sample is not the scene's.
+        let with_starts: Vec<Vec<[f64; 2]>> = found
+            .iter()
+            .map(|f| [f.as_slice(), starts.unwrap_or_default()].concat())
+            .collect();
         if options.background == BackgroundChoice::Auto
-            && background.static_structure_fraction(&samples, &found, reach) <= STRUCTURED_LIMIT
+            && background.static_structure_fraction(&samples, &with_starts, reach) <= STRUCTURED_LIMIT
         {
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
