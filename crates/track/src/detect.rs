@@ -470,7 +470,19 @@ fn find_blobs_in_rows(
                 out.too_large_count += 1;
                 continue;
             }
-            if !extent_at_border && extent < MIN_AREA_RATIO * expected.extent {
+            // A particle cut by the border shows the part of its extent inside the frame.
+            let visible = if extent_at_border {
+                visible_fraction(
+                    peak.x as f64,
+                    peak.y as f64,
+                    (expected.extent / std::f64::consts::PI).sqrt(),
+                    width,
+                    height,
+                )
+            } else {
+                1.0
+            };
+            if extent < MIN_AREA_RATIO * expected.extent * visible {
                 out.too_small_count += 1;
                 continue;
             }
@@ -485,6 +497,31 @@ fn find_blobs_in_rows(
         });
     }
     out
+}
+
+/// The fraction of a disc of radius `r` (px) centred at `(x, y)` that lies inside a `width` x
+/// `height` frame (pixel centres at integers, so the frame spans -0.5 to width - 0.5), from a
+/// 16 x 16 grid of points over the disc's bounding square.
+fn visible_fraction(x: f64, y: f64, r: f64, width: usize, height: usize) -> f64 {
+    const N: usize = 16;
+    let (mut inside, mut all) = (0usize, 0usize);
+    for i in 0..N {
+        for j in 0..N {
+            let px = x - r + (i as f64 + 0.5) * 2.0 * r / N as f64;
+            let py = y - r + (j as f64 + 0.5) * 2.0 * r / N as f64;
+            if (px - x).powi(2) + (py - y).powi(2) > r * r {
+                continue;
+            }
+            all += 1;
+            let within = px >= -0.5 && py >= -0.5 && px <= width as f64 - 0.5 && py <= height as f64 - 0.5;
+            inside += usize::from(within);
+        }
+    }
+    if all == 0 {
+        1.0
+    } else {
+        inside as f64 / all as f64
+    }
 }
 
 /// Pixels tested together by the quick rejections of background.
@@ -1514,6 +1551,15 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn visible_fraction_of_a_disc_at_the_border() {
+        assert!((visible_fraction(50.0, 50.0, 4.0, 100, 100) - 1.0).abs() < 1e-12);
+        // Centred on the frame's edge (x = -0.5): half the disc.
+        assert!((visible_fraction(-0.5, 50.0, 4.0, 100, 100) - 0.5).abs() < 0.03);
+        // In a corner: a quarter.
+        assert!((visible_fraction(-0.5, -0.5, 4.0, 100, 100) - 0.25).abs() < 0.03);
     }
 
     #[test]

@@ -441,6 +441,19 @@ fn track_paths(
         )?;
     }
     warnings.extend(link_warnings);
+    // Without a structure, a track of one point inside the recording (not at its first or
+    // last frame) is a noise peak that passed the detector, not a particle: a particle is
+    // seen in the frames around it (trackpy's users drop such stubs by hand).
+    if options.named_start.is_none() {
+        let stubs = one_frame_tracks(&table, (first, last));
+        if !stubs.is_empty() {
+            table.points.retain(|p| !stubs.contains(&p.particle));
+            warnings.push(format!(
+                "{} track(s) of a single point inside the recording dropped as noise peaks",
+                stubs.len()
+            ));
+        }
+    }
     // Tracks that contradict themselves: named particles not followed are an error (their
     // tracks would be wrong); unnamed ones are warned of.
     let skirts = sample_skirts(&table, &frames, &background, &params, radius, &workers)?;
@@ -906,6 +919,17 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
         }
         None => scale::typical_radius(&kept),
     }
+}
+
+/// The tracks of `table` with a single point, in a frame strictly inside `frames` (first and
+/// last, inclusive).
+fn one_frame_tracks(table: &TrackTable, frames: (usize, usize)) -> std::collections::BTreeSet<String> {
+    table
+        .by_particle()
+        .into_iter()
+        .filter(|(_, points)| points.len() == 1 && points[0].frame > frames.0 && points[0].frame < frames.1)
+        .map(|(id, _)| id.to_string())
+        .collect()
 }
 
 /// Sample frames the skirts are measured in, at most.

@@ -156,6 +156,48 @@ pub fn issue_settings(width: u32, height: u32, noise: f64, seed: u64) -> RenderS
     }
 }
 
+/// Free random walks of `count` discs of radius `radius` (px) over a `size` x `size` px frame,
+/// the kind trackpy's users record: each particle keeps its own speed (0.5-3 px a frame) in a
+/// fresh random direction every frame; a step that would bring two discs closer than
+/// `2 radius + 1` px, or a disc within a pixel of the border, is drawn again (up to ten times,
+/// then the particle stays put). Particles wander anywhere and pass close by each other.
+pub fn free_walk(count: usize, size: f64, radius: f64, frames: usize, seed: u64) -> Truth {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let apart = 2.0 * radius + 1.0;
+    let (lo, hi) = (radius + 1.0, size - 1.0 - radius - 1.0);
+    let clear = |pos: &[Vec2], q: Vec2, skip: usize, gap: f64| {
+        pos.iter()
+            .enumerate()
+            .all(|(j, p)| j == skip || (p - q).norm() >= gap)
+    };
+    let mut pos: Vec<Vec2> = Vec::with_capacity(count);
+    while pos.len() < count {
+        let q = Vec2::new(rng.gen_range(lo..hi), rng.gen_range(lo..hi));
+        if clear(&pos, q, usize::MAX, apart + 2.0) {
+            pos.push(q);
+        }
+    }
+    let speed: Vec<f64> = (0..count).map(|_| rng.gen_range(0.5..3.0)).collect();
+    let mut out = vec![pos.clone()];
+    for _ in 1..frames {
+        for i in 0..count {
+            for _ in 0..10 {
+                let a = std::f64::consts::TAU * rng.gen::<f64>();
+                let q = pos[i] + speed[i] * Vec2::new(a.cos(), a.sin());
+                if (lo..=hi).contains(&q.x) && (lo..=hi).contains(&q.y) && clear(&pos, q, i, apart) {
+                    pos[i] = q;
+                    break;
+                }
+            }
+        }
+        out.push(pos.clone());
+    }
+    Truth {
+        names: (0..count).map(|i| format!("p{i}")).collect(),
+        frames: out,
+    }
+}
+
 /// Random walks of isolated particles: one per cell of a `cols x rows` grid of `cell` px
 /// cells, each stepping a random distance up to `max_step` px per frame in a random
 /// direction and reflected to stay within `cell / 2 - clearance` px of its cell centre,
