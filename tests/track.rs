@@ -197,3 +197,55 @@ fn run_on_a_scene_writes_tracks_fit_and_report() {
         assert!(e.abs() < 0.01, "{p}");
     }
 }
+
+/// Discs of radius 9 px tracked with a radius of 3 px given: the detector finds parts of each
+/// disc. With the structure, `physfit track` must refuse (non-zero exit, an error naming the
+/// particles and the remedy) and write no tracks; left to estimate the radius, it follows
+/// every disc (before the scale-space start, radius 9 gave recall 0 with exit 0).
+#[test]
+fn track_refuses_named_tracks_that_follow_parts_of_the_particles() {
+    let dir = tempdir();
+    let mut scene = std::fs::read_to_string(scenes_dir().join("paper3.toml")).unwrap();
+    scene = scene.replacen("frames = 400", "frames = 40", 1);
+    scene = scene.replacen("radius = 5.0", "radius = 9.0", 1);
+    assert!(
+        scene.contains("radius = 9.0"),
+        "the scene draws discs of radius 9"
+    );
+    let scene_path = crate::util::write(dir.path(), "paper3.toml", &scene);
+    physfit()
+        .arg("-q")
+        .arg("render")
+        .arg(&scene_path)
+        .arg("--out")
+        .arg(dir.path())
+        .assert()
+        .success();
+    let tracks = dir.path().join("tracks.csv");
+    let track = |radius: Option<&str>| {
+        let mut cmd = physfit();
+        cmd.arg("track")
+            .arg(dir.path().join("frames"))
+            .arg("--out")
+            .arg(&tracks)
+            .arg("--structure")
+            .arg(dir.path().join("structure.toml"))
+            .arg("--truth")
+            .arg(dir.path().join("truth.csv"));
+        if let Some(r) = radius {
+            cmd.arg("--radius").arg(r);
+        }
+        cmd.assert()
+    };
+    track(Some("3"))
+        .failure()
+        .stderr(predicate::str::contains(
+            "its signal reaches well beyond the radius 3.00 px",
+        ))
+        .stderr(predicate::str::contains("no tracks written"));
+    assert!(!tracks.exists(), "no tracks file after the refusal");
+    track(None)
+        .success()
+        .stdout(predicate::str::contains("| recall | 1.0000"))
+        .stdout(predicate::str::contains("identity switches | 0"));
+}
