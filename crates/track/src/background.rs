@@ -517,7 +517,8 @@ impl Background {
     }
 
     /// [`Background::signal`] into a reused buffer, of a frame or of a file's 8-bit grey
-    /// samples (read as their levels, the same signal to the bit). A frame with another
+    /// samples (read as their levels, the same signal to the bit), with the blind pixels
+    /// filled (see [`Background::find_blind`]). A frame with another
     /// channel count than the background's is converted first (grey repeated into red, green
     /// and blue; colour averaged into grey).
     pub fn signal_into<'a>(&self, frame: impl Into<FrameView<'a>>, out: &mut Vec<f32>) {
@@ -530,6 +531,7 @@ impl Background {
             out.resize(width * height, 0.0);
         }
         self.signal_range(view, 0..width * height, out);
+        self.blind.fill(out);
     }
 
     /// `frame` with the background's channel count: as it is, or converted into `converted`

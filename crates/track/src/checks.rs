@@ -17,11 +17,11 @@ use std::collections::BTreeMap;
 use crate::track_table::{PointFlag, TrackTable};
 
 /// Largest skirt (see the module doc) of a particle whose radius is the one in use.
-pub const MAX_SKIRT: f64 = 0.25;
+pub(crate) const MAX_SKIRT: f64 = 0.25;
 
 /// Why a track does not follow one particle.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Concern {
+pub(crate) enum Concern {
     /// The particle's signal reaches well beyond the radius in use.
     Larger {
         /// Its skirt (see the module doc): the ring's mean signal over the disc's.
@@ -42,11 +42,11 @@ pub enum Concern {
 
 /// A track's concern.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TrackConcern {
+pub(crate) struct TrackConcern {
     /// The track's particle.
-    pub particle: String,
+    pub(crate) particle: String,
     /// What is wrong.
-    pub concern: Concern,
+    pub(crate) concern: Concern,
 }
 
 impl std::fmt::Display for TrackConcern {
@@ -89,7 +89,7 @@ fn list(frames: &[usize]) -> String {
 /// The concerns of every track of `table` for particles of radius `radius` (px), with the
 /// skirts of their points measured in some frames (`skirts[particle]`: frame and skirt each,
 /// from [`skirts`]).
-pub fn check_tracks(
+pub(crate) fn check_tracks(
     table: &TrackTable,
     radius: f64,
     skirts: &BTreeMap<String, Vec<(usize, f64)>>,
@@ -130,7 +130,13 @@ pub fn check_tracks(
 /// the mean signal over the pixels between `radius + 1` and `2 radius + 1` px from the point
 /// that are nearer to it than to any other point, over the mean signal within `radius` of it;
 /// NaN where either region is empty or the disc holds no signal.
-pub fn skirts(signal: &[f32], width: usize, height: usize, points: &[[f64; 2]], radius: f64) -> Vec<f64> {
+pub(crate) fn skirts(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    points: &[[f64; 2]],
+    radius: f64,
+) -> Vec<f64> {
     let outer = 2.0 * radius + 1.0;
     let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
     // The points sorted by x, so each finds its neighbours within two outer radii by a range.

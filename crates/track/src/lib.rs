@@ -27,7 +27,6 @@ pub use appearance::*;
 pub use assignment::*;
 pub use background::*;
 pub use blind::BlindPixels;
-pub use checks::{check_tracks, skirts, Concern, TrackConcern, MAX_SKIRT};
 pub use detect::*;
 pub use error::TrackError;
 pub use frames::*;

@@ -6,21 +6,22 @@
 //! from the components at that radius. Frames are decoded, filtered and located in
 //! parallel; linking is sequential.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
+use crate::checks::{check_tracks, skirts};
 use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    band_noise, check_tracks, estimate_background, find_blobs_forming, find_blobs_with_scratch,
-    link_detections, list_frames, refine_centroids_with_scratch, skirts, Ambiguity, AmbiguityKind,
-    Background, BackgroundChoice, BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters,
-    Detection, Frame, FrameDecoder, FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch,
-    PointFlag, Scratch, TrackError, TrackPoint, TrackTable,
+    band_noise, estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections,
+    list_frames, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
+    BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder,
+    FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, Scratch, TrackError,
+    TrackPoint, TrackTable,
 };
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -456,7 +457,7 @@ fn track_paths(
     }
     // Tracks that contradict themselves: named particles not followed are an error (their
     // tracks would be wrong); unnamed ones are warned of.
-    let skirts = sample_skirts(&table, &frames, &background, &params, radius, &workers)?;
+    let skirts = sample_skirts(&table, &frames, &background, radius, &workers)?;
     let concerns = check_tracks(&table, radius, &skirts);
     if !concerns.is_empty() {
         if options.named_start.is_some() {
@@ -590,14 +591,20 @@ impl Finder {
             )
         } else {
             // Blind pixels are filled from their neighbours, so the signal is formed whole first.
-            background.signal_range(frame, 0..width * height, &mut self.signal);
-            background.blind.fill(&mut self.signal);
+            background.signal_into(frame, &mut self.signal);
             find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
         };
         if levelled {
             background.remove_gain(frame, &mut self.signal);
         }
         blobs
+    }
+
+    /// The gain-corrected signal of `frame` alone, without finding its blobs (left in
+    /// `self.signal`, as [`Finder::find`] leaves it).
+    fn levelled_signal(&mut self, background: &Background, frame: FrameView<'_>) {
+        background.signal_into(frame, &mut self.signal);
+        background.remove_gain(frame, &mut self.signal);
     }
 
     /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
@@ -923,7 +930,7 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
 
 /// The tracks of `table` with a single point, in a frame strictly inside `frames` (first and
 /// last, inclusive).
-fn one_frame_tracks(table: &TrackTable, frames: (usize, usize)) -> std::collections::BTreeSet<String> {
+fn one_frame_tracks(table: &TrackTable, frames: (usize, usize)) -> BTreeSet<String> {
     table
         .by_particle()
         .into_iter()
@@ -935,13 +942,12 @@ fn one_frame_tracks(table: &TrackTable, frames: (usize, usize)) -> std::collecti
 /// Sample frames the skirts are measured in, at most.
 const SKIRT_FRAMES: usize = 8;
 
-/// The skirts ([`crate::skirts`]) of the detected points of `table` in up to
+/// The skirts ([`skirts`]) of the detected points of `table` in up to
 /// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
 fn sample_skirts(
     table: &TrackTable,
     frames: &WindowFrames<'_>,
     background: &Background,
-    params: &DetectParameters,
     radius: f64,
     workers: &Workers,
 ) -> Result<BTreeMap<String, Vec<(usize, f64)>>, TrackError> {
@@ -965,7 +971,7 @@ fn sample_skirts(
             workers.with(|w| {
                 let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
                 let (width, height) = frame.size();
-                w.finder.find(background, frame, params, true);
+                w.finder.levelled_signal(background, frame);
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
                 let s = skirts(&w.finder.signal, width, height, &at, radius);
                 Ok(points
