@@ -4,21 +4,31 @@ use predicates::prelude::*;
 
 use crate::util::{physfit, read_xy, scenes_dir, tempdir};
 
-#[test]
-fn track_names_particles_after_the_structure_and_matches_the_truth() {
-    let dir = tempdir();
+/// Renders the first 40 frames of `scenes/paper3.toml` (plenty here, and quick) with discs of
+/// `radius` px into `dir`.
+fn render_paper3(dir: &std::path::Path, radius: f64) {
     let mut scene = std::fs::read_to_string(scenes_dir().join("paper3.toml")).unwrap();
-    // 40 frames are plenty here and keep the test quick.
     scene = scene.replacen("frames = 400", "frames = 40", 1);
-    let scene_path = crate::util::write(dir.path(), "paper3.toml", &scene);
+    scene = scene.replacen("radius = 5.0", &format!("radius = {radius:.1}"), 1);
+    assert!(
+        scene.contains(&format!("radius = {radius:.1}")),
+        "the scene draws discs of radius {radius}"
+    );
+    let scene_path = crate::util::write(dir, "paper3.toml", &scene);
     physfit()
         .arg("-q")
         .arg("render")
         .arg(&scene_path)
         .arg("--out")
-        .arg(dir.path())
+        .arg(dir)
         .assert()
         .success();
+}
+
+#[test]
+fn track_names_particles_after_the_structure_and_matches_the_truth() {
+    let dir = tempdir();
+    render_paper3(dir.path(), 5.0);
     let tracks = dir.path().join("tracks.csv");
     physfit()
         .arg("track")
@@ -205,22 +215,7 @@ fn run_on_a_scene_writes_tracks_fit_and_report() {
 #[test]
 fn track_refuses_named_tracks_that_follow_parts_of_the_particles() {
     let dir = tempdir();
-    let mut scene = std::fs::read_to_string(scenes_dir().join("paper3.toml")).unwrap();
-    scene = scene.replacen("frames = 400", "frames = 40", 1);
-    scene = scene.replacen("radius = 5.0", "radius = 9.0", 1);
-    assert!(
-        scene.contains("radius = 9.0"),
-        "the scene draws discs of radius 9"
-    );
-    let scene_path = crate::util::write(dir.path(), "paper3.toml", &scene);
-    physfit()
-        .arg("-q")
-        .arg("render")
-        .arg(&scene_path)
-        .arg("--out")
-        .arg(dir.path())
-        .assert()
-        .success();
+    render_paper3(dir.path(), 9.0);
     let tracks = dir.path().join("tracks.csv");
     let track = |radius: Option<&str>| {
         let mut cmd = physfit();

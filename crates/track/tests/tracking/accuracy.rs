@@ -3,7 +3,7 @@
 //! RMS error per axis must match or beat trackpy 0.7's at every noise level, with default
 //! options (no tuning).
 
-use physfit_track::{BackgroundModel, TrackOptions};
+use physfit_track::{BackgroundModel, TrackOptions, TrackOutcome, TrackTable};
 
 use crate::common::{free_walk, grid_walk, issue_settings, render_to, score, track, TempDir};
 
@@ -85,23 +85,8 @@ fn hovering_particles_over_ten_noisy_frames_are_not_taken_for_the_background() {
         let dir = TempDir::new("hovering");
         render_to(&truth, &issue_settings(512, 512, 20.0, seed), dir.path());
         let out = track(dir.path(), &TrackOptions::default());
-        let s = score(&out, &truth.table(512, 512));
-        println!(
-            "seed {seed}: rms x {:.4} y {:.4} px, recall {}, switches {}, background {:?}, radius {:.2}",
-            s.rms_x, s.rms_y, s.recall, s.id_switches, out.stats.background, out.stats.radius
-        );
-        assert_eq!(out.stats.background, BackgroundModel::Constant, "seed {seed}");
-        assert_eq!(
-            s.matched_count, s.truth_count,
-            "seed {seed}: every particle found"
-        );
-        assert_eq!(s.id_switches, 0, "seed {seed}");
-        assert!(
-            s.rms_x < 0.06 && s.rms_y < 0.06,
-            "seed {seed}: rms {} {} px (noise 20 gives about 0.044)",
-            s.rms_x,
-            s.rms_y
-        );
+        // Noise 20 gives about 0.044 px.
+        followed_against_a_constant_level(seed, &out, &truth.table(512, 512), 0.06);
         assert!(
             (out.stats.radius - 4.0).abs() < 0.2,
             "seed {seed}: radius {}",
@@ -132,24 +117,30 @@ fn named_particles_that_barely_move_are_not_taken_for_the_background() {
                 ..TrackOptions::default()
             },
         );
-        let s = score(&out, &truth.table(90, 90));
-        println!(
-            "seed {seed}: rms x {:.4} y {:.4} px, recall {}, switches {}, background {:?}, radius {:.2}",
-            s.rms_x, s.rms_y, s.recall, s.id_switches, out.stats.background, out.stats.radius
-        );
-        assert_eq!(out.stats.background, BackgroundModel::Constant, "seed {seed}");
-        assert_eq!(
-            s.matched_count, s.truth_count,
-            "seed {seed}: every particle found"
-        );
-        assert_eq!(s.id_switches, 0, "seed {seed}");
-        assert!(
-            s.rms_x < 0.1 && s.rms_y < 0.1,
-            "seed {seed}: rms {} {} px",
-            s.rms_x,
-            s.rms_y
-        );
+        followed_against_a_constant_level(seed, &out, &truth.table(90, 90), 0.1);
     }
+}
+
+/// Asserts `out` measured its particles against a constant background level and followed
+/// every particle of `truth` in every frame, without a switch, within `rms` px per axis.
+fn followed_against_a_constant_level(seed: u64, out: &TrackOutcome, truth: &TrackTable, rms: f64) {
+    let s = score(out, truth);
+    println!(
+        "seed {seed}: rms x {:.4} y {:.4} px, recall {}, switches {}, background {:?}, radius {:.2}",
+        s.rms_x, s.rms_y, s.recall, s.id_switches, out.stats.background, out.stats.radius
+    );
+    assert_eq!(out.stats.background, BackgroundModel::Constant, "seed {seed}");
+    assert_eq!(
+        s.matched_count, s.truth_count,
+        "seed {seed}: every particle found"
+    );
+    assert_eq!(s.id_switches, 0, "seed {seed}");
+    assert!(
+        s.rms_x < rms && s.rms_y < rms,
+        "seed {seed}: rms {} {} px",
+        s.rms_x,
+        s.rms_y
+    );
 }
 
 /// Unnamed linking of the movies trackpy's users make: 100 discs of radius 4 px random-walking
