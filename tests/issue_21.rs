@@ -9,7 +9,7 @@ use std::path::Path;
 
 use serde_json::Value;
 
-use crate::util::{physfit, tempdir, write};
+use crate::util::{physfit, simulate, tempdir, write};
 
 /// The tokens of `text` (runs of letters) that spell a non-finite number.
 fn non_finite_tokens(text: &str) -> Vec<String> {
@@ -240,14 +240,7 @@ restitution = 0.7
 "#,
     );
     let truth = d.join("truth.csv");
-    physfit()
-        .arg("-q")
-        .arg("simulate")
-        .arg(&scene)
-        .arg("--out")
-        .arg(&truth)
-        .assert()
-        .success();
+    simulate(&scene, &truth);
     let structure = write(d, "ball.toml", BALL);
     let (stdout, json) = diagnose(&truth, &structure, &d.join("exact"));
     assert!(
@@ -289,14 +282,7 @@ restitution = 0.6
 "#,
     );
     let exact = d.join("drop24-exact.csv");
-    physfit()
-        .arg("-q")
-        .arg("simulate")
-        .arg(&scene)
-        .arg("--out")
-        .arg(&exact)
-        .assert()
-        .success();
+    simulate(&scene, &exact);
     let mut seed = 24;
     let positions: Vec<(f64, f64)> = crate::util::read_xy(&exact)
         .into_iter()

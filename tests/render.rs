@@ -2,7 +2,7 @@
 
 use predicates::prelude::*;
 
-use crate::util::{physfit, read_xy, tempdir, write};
+use crate::util::{physfit, read_xy, simulate, tempdir, write};
 
 const TWO_DISCS: &str = r#"
 name = "two"
@@ -121,13 +121,7 @@ fn render_is_deterministic_for_a_seed() {
 fn simulate_matches_render_truth() {
     let dir = tempdir();
     let scene = write(dir.path(), "two.toml", TWO_DISCS);
-    physfit()
-        .arg("simulate")
-        .arg(&scene)
-        .arg("--out")
-        .arg(dir.path().join("t.csv"))
-        .assert()
-        .success();
+    simulate(&scene, &dir.path().join("t.csv"));
     physfit()
         .arg("render")
         .arg(&scene)

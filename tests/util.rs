@@ -24,6 +24,18 @@ pub fn tempdir() -> tempfile::TempDir {
         .expect("temporary folder")
 }
 
+/// Runs `physfit -q simulate SCENE --out OUT` and asserts it succeeds.
+pub fn simulate(scene: &Path, out: &Path) {
+    physfit()
+        .arg("-q")
+        .arg("simulate")
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .assert()
+        .success();
+}
+
 /// Writes `text` to `dir/name` and returns the path.
 pub fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
