@@ -463,7 +463,8 @@ fn track_paths(
         if options.named_start.is_some() {
             let mut concerns: Vec<String> = concerns.iter().map(|c| c.to_string()).collect();
             concerns.push(format!(
-                "no tracks written: if the particles are larger or smaller than {radius:.2} px in radius, give it with --radius"
+                "no tracks written: if the particles are larger or smaller than {radius:.2} px in radius, give it with \
+                 --radius; if they are held or hidden in the first frames (a hand), start after that with --window"
             ));
             return Err(TrackError::NotFollowed { concerns });
         }
