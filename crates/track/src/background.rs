@@ -284,7 +284,19 @@ impl Background {
     /// hover cover the same pixels in many frames and leave part of themselves in a plain
     /// median (17 grey levels of a 120-level spot in the gaussian-blobs fixture), which then
     /// biases every centroid near there. A constant background is left as it is.
-    pub fn exclude_particles(&mut self, samples: &[FrameView<'_>], particles: &[Vec<[f64; 2]>], reach: f64) {
+    ///
+    /// Pixels within `reach` of a `named` particle's start (px) that no sample shows clear of
+    /// a particle are the particle's own (a large ball that barely moves covers them in every
+    /// frame): they are filled from the clear pixels around them
+    /// ([`crate::inpaint::harmonic_fill`]). Elsewhere such pixels keep the median of the
+    /// farthest samples: unnamed, a speck always found may be the scene's own texture.
+    pub fn exclude_particles(
+        &mut self,
+        samples: &[FrameView<'_>],
+        particles: &[Vec<[f64; 2]>],
+        named: &[[f64; 2]],
+        reach: f64,
+    ) {
         if self.model != BackgroundModel::PerPixel
             || samples.len() != particles.len()
             || samples.len() < CLEAR_SAMPLES
@@ -307,11 +319,15 @@ impl Background {
             })
         };
         let (clip_offset, direction) = (self.clip_offset, self.direction.clone());
-        self.image
+        let near_named = near_any_particle(&[named.to_vec()], reach, w, h);
+        // Pixels near a named start that no sample shows clear, by row.
+        let covered: Vec<Vec<usize>> = self
+            .image
             .par_chunks_mut(c * w)
             .zip(near_any.par_chunks(w))
             .enumerate()
-            .for_each(|(y, (row, near_row))| {
+            .map(|(y, (row, near_row))| {
+                let mut covered = Vec::new();
                 let mut order: Vec<(f64, usize)> = Vec::with_capacity(samples.len());
                 let mut buf: Vec<f32> = Vec::with_capacity(samples.len());
                 for (x, px) in row.chunks_exact_mut(c).enumerate().filter(|(x, _)| near_row[*x]) {
@@ -325,6 +341,9 @@ impl Background {
                     );
                     // The clear samples, or the farthest few when too few are clear.
                     if order.iter().filter(|o| o.0 > reach).count() < CLEAR_SAMPLES {
+                        if near_named[pixel] {
+                            covered.push(pixel);
+                        }
                         order.sort_by(|a, b| b.0.total_cmp(&a.0));
                         order.truncate(CLEAR_SAMPLES);
                     } else {
@@ -336,7 +355,14 @@ impl Background {
                         *v = median_of(&mut buf) + clip_offset as f32 * direction[ch];
                     }
                 }
-            });
+                covered
+            })
+            .collect();
+        let mut unknown = vec![false; w * h];
+        for &i in covered.iter().flatten() {
+            unknown[i] = true;
+        }
+        crate::inpaint::harmonic_fill(&mut self.image, w, h, c, &unknown);
         self.reference_gain = samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
         self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     }
@@ -941,8 +967,8 @@ mod tests {
                 bg.static_structure_fraction(&views(&frames), &found, 3.0)
                     .to_bits()
             );
-            from_bytes.exclude_particles(&bytes, &found, 3.0);
-            bg.exclude_particles(&views(&frames), &found, 3.0);
+            from_bytes.exclude_particles(&bytes, &found, &[], 3.0);
+            bg.exclude_particles(&views(&frames), &found, &[], 3.0);
             assert_eq!(from_bytes, bg, "{choice:?}");
             for (k, frame) in frames.iter().enumerate() {
                 let view = decoder
@@ -1197,7 +1223,7 @@ mod tests {
             "the plain median keeps the spot"
         );
         let found: Vec<Vec<[f64; 2]>> = (0..7).map(|k| vec![[at(k).0 as f64, at(k).1 as f64]]).collect();
-        bg.exclude_particles(&views(&samples), &found, 5.0);
+        bg.exclude_particles(&views(&samples), &found, &[], 5.0);
         assert!(
             (bg.image[centre] - gradient(centre)).abs() < 1e-3,
             "the median of the three frames whose spot is farthest: {}",

@@ -6,10 +6,15 @@
 //!   radius in use is too small for the particles, the detector finds parts of each, and the
 //!   ring around each part holds the rest of the particle. For each track, the median over the
 //!   sample frames of the ring's mean signal over the disc's (each ring pixel counted for the
-//!   nearest point only, so touching neighbours do not count) is its *skirt*; a skirt above
-//!   [`MAX_SKIRT`] says the particle is larger than the radius. Measured: 0.00-0.03 on discs,
-//!   Gaussian spots and the real recordings followed; 0.5-0.9 where discs of radius 9 px were
-//!   tracked at 3.7 px.
+//!   nearest point only, so touching neighbours do not count) is its *skirt*. Measured:
+//!   0.00-0.03 on discs, small Gaussian spots and the real recordings followed; 0.5-0.9 where
+//!   discs of radius 9 px were tracked at 3.7 px. A Gaussian spot's own skirt is large (0.29
+//!   at its half-maximum radius, 0.38 at 0.87 of it, 0.40-0.49 at 0.68 of it, where the
+//!   radius of gyration puts a large one) but even all round it; a flat disc tracked below
+//!   half its radius has a skirt of 1, and a track on the edge of a disc or the rim of a
+//!   ring has the rest of the particle to one side. So a skirt above [`MAX_SKIRT`], or
+//!   above [`LOPSIDED_SKIRT`] and lopsided by more than [`MAX_LOPSIDED`], says the particle
+//!   is larger than the radius.
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
 
 use std::collections::BTreeMap;
@@ -17,7 +22,30 @@ use std::collections::BTreeMap;
 use crate::track_table::{PointFlag, TrackTable};
 
 /// Largest skirt (see the module doc) of a particle whose radius is the one in use.
-pub(crate) const MAX_SKIRT: f64 = 0.25;
+pub(crate) const MAX_SKIRT: f64 = 0.6;
+
+/// Skirt above which a lopsided one (see [`MAX_LOPSIDED`]) says the track follows a part of
+/// a particle: a centred particle's ring holds its own skirt evenly around it.
+pub(crate) const LOPSIDED_SKIRT: f64 = 0.2;
+
+/// Largest lopsidedness of a followed particle's skirt: the magnitude of the ring's signal
+/// summed as vectors pointing away from the point, over the sum of its magnitudes (0 for a
+/// ring holding the same signal all round, 1 for all of it in one direction). A track on the
+/// rim of a ring-shaped particle has the rest of the rim curving away to one side (0.2 for
+/// a ring of radii 13.5-19 px followed at 5 px), one on the edge of a large disc has the
+/// disc to one side (0.5-0.9); a centred particle's is zero but for the noise (about
+/// `sigma / (mean ring signal sqrt(2 n))` over `n` ring pixels: 0.015 for a Gaussian spot
+/// of radius 10 px and contrast 100 under noise 20).
+pub(crate) const MAX_LOPSIDED: f64 = 0.12;
+
+/// A particle's skirt in one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Skirt {
+    /// The ring's mean signal over the disc's.
+    pub(crate) level: f64,
+    /// How much of the ring's signal lies to one side (see [`MAX_LOPSIDED`]), in [0, 1].
+    pub(crate) lopsided: f64,
+}
 
 /// Why a track does not follow one particle.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,6 +54,8 @@ pub(crate) enum Concern {
     Larger {
         /// Its skirt (see the module doc): the ring's mean signal over the disc's.
         skirt: f64,
+        /// How much of the ring's signal lies to one side (median over `frames`).
+        lopsided: f64,
         /// The radius in use, px.
         radius: f64,
         /// Sample frames it was measured in.
@@ -53,17 +83,24 @@ impl std::fmt::Display for TrackConcern {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let p = &self.particle;
         match &self.concern {
-            Concern::Larger { skirt, radius, frames } => write!(
+            Concern::Larger {
+                skirt,
+                lopsided,
+                radius,
+                frames,
+            } => write!(
                 f,
                 "{p}: its signal reaches well beyond the radius {radius:.2} px in use (the ring from {:.1} to {:.1} px \
-                 around it holds {:.0} % of its centre's level, median over frames {}; under {:.0} % when the track follows \
-                 one particle of this size): the particle is larger than that and was found as parts, or the track follows \
-                 other objects",
+                 around it holds {:.0} % of its centre's level, {:.0} % of it to one side, median over frames {}; under \
+                 {:.0} %, or under {:.0} % when lopsided, where the track follows one particle of this size): the \
+                 particle is larger than that and was found as parts, or the track follows other objects",
                 radius + 1.0,
                 2.0 * radius + 1.0,
                 100.0 * skirt,
+                100.0 * lopsided,
                 list(frames),
-                100.0 * MAX_SKIRT
+                100.0 * MAX_SKIRT,
+                100.0 * LOPSIDED_SKIRT
             ),
             Concern::MostlyUnseen { detected, frames } => write!(
                 f,
@@ -92,7 +129,7 @@ fn list(frames: &[usize]) -> String {
 pub(crate) fn check_tracks(
     table: &TrackTable,
     radius: f64,
-    skirts: &BTreeMap<String, Vec<(usize, f64)>>,
+    skirts: &BTreeMap<String, Vec<(usize, Skirt)>>,
 ) -> Vec<TrackConcern> {
     let mut out = Vec::new();
     for (particle, points) in table.by_particle() {
@@ -110,13 +147,16 @@ pub(crate) fn check_tracks(
         let Some(measured) = skirts.get(particle).filter(|m| !m.is_empty()) else {
             continue;
         };
-        let mut values: Vec<f64> = measured.iter().map(|m| m.1).collect();
+        let mut values: Vec<f64> = measured.iter().map(|m| m.1.level).collect();
         let skirt = crate::appearance::median(&mut values);
-        if skirt > MAX_SKIRT {
+        let mut sides: Vec<f64> = measured.iter().map(|m| m.1.lopsided).collect();
+        let lopsided = crate::appearance::median(&mut sides);
+        if skirt > MAX_SKIRT || (skirt > LOPSIDED_SKIRT && lopsided > MAX_LOPSIDED) {
             out.push(TrackConcern {
                 particle: particle.to_string(),
                 concern: Concern::Larger {
                     skirt,
+                    lopsided,
                     radius,
                     frames: measured.iter().map(|m| m.0).collect(),
                 },
@@ -128,15 +168,16 @@ pub(crate) fn check_tracks(
 
 /// The skirt of each of `points` (px) in one frame's `signal` (`width * height`, grey levels):
 /// the mean signal over the pixels between `radius + 1` and `2 radius + 1` px from the point
-/// that are nearer to it than to any other point, over the mean signal within `radius` of it;
-/// NaN where either region is empty or the disc holds no signal.
+/// that are nearer to it than to any other point, over the mean signal within `radius` of it,
+/// and how lopsided the ring's signal is; `None` where either region is empty or the disc
+/// holds no signal.
 pub(crate) fn skirts(
     signal: &[f32],
     width: usize,
     height: usize,
     points: &[[f64; 2]],
     radius: f64,
-) -> Vec<f64> {
+) -> Vec<Option<Skirt>> {
     let outer = 2.0 * radius + 1.0;
     let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
     // The points sorted by x, so each finds its neighbours within two outer radii by a range.
@@ -166,9 +207,10 @@ pub(crate) fn skirts(
                 (p[1] + outer).ceil().min(height as f64 - 1.0),
             );
             if !(x0 <= x1 && y0 <= y1) {
-                return f64::NAN;
+                return None;
             }
             let (mut core, mut nc, mut ring, mut nr) = (0.0, 0usize, 0.0, 0usize);
+            let (mut side, mut magnitude) = ([0.0f64; 2], 0.0f64);
             for y in y0 as usize..=y1 as usize {
                 let dy = y as f64 - p[1];
                 for x in x0 as usize..=x1 as usize {
@@ -183,15 +225,27 @@ pub(crate) fn skirts(
                             .iter()
                             .all(|q| (x as f64 - q[0]).powi(2) + (y as f64 - q[1]).powi(2) > d2)
                     {
-                        ring += f64::from(signal[y * width + x]);
+                        let v = f64::from(signal[y * width + x]);
+                        ring += v;
                         nr += 1;
+                        let d = d2.sqrt();
+                        side[0] += v * dx / d;
+                        side[1] += v * dy / d;
+                        magnitude += v.abs();
                     }
                 }
             }
             if nc == 0 || nr == 0 || core <= 0.0 {
-                return f64::NAN;
+                return None;
             }
-            (ring / nr as f64) / (core / nc as f64)
+            Some(Skirt {
+                level: (ring / nr as f64) / (core / nc as f64),
+                lopsided: if magnitude > 0.0 {
+                    side[0].hypot(side[1]) / magnitude
+                } else {
+                    0.0
+                },
+            })
         })
         .collect()
 }
@@ -219,13 +273,47 @@ mod tests {
         let img = discs(80, 60, &centres, 9.0);
         // At the discs' own radius, touching neighbours at 20 px do not count.
         for s in skirts(&img, 80, 60, &centres, 9.0) {
-            assert!(s < 0.01, "{s}");
+            assert!(s.unwrap().level < 0.01, "{s:?}");
         }
         // Parts of the discs at 3.7 px: the rest of each disc lies in the ring.
         let parts = [[26.0, 30.0], [50.0, 33.0]];
         for s in skirts(&img, 80, 60, &parts, 3.7) {
-            assert!(s > 0.3, "{s}");
+            assert!(s.unwrap().level > 0.3, "{s:?}");
         }
+    }
+
+    #[test]
+    fn a_gaussian_spot_has_an_even_skirt_and_a_rings_rim_a_lopsided_one() {
+        // A Gaussian spot of half-maximum radius 20 px, followed at 17.4 px (0.87 of it):
+        // a large skirt, all round; it must pass. A ring (radii 13.5-19 px) followed on its
+        // rim at 5 px: a skirt as large, to one side; it must be caught.
+        let (w, h) = (160usize, 160usize);
+        let spot: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let r = ((i % w) as f64 - 80.0).hypot((i / w) as f64 - 80.0);
+                (100.0 * 0.5f64.powf((r / 20.0).powi(2))) as f32
+            })
+            .collect();
+        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4)[0].unwrap();
+        assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
+        assert!(s.lopsided < 0.05, "{s:?}");
+        let ring: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let r = ((i % w) as f64 - 80.0).hypot((i / w) as f64 - 80.0);
+                if (13.5..=19.0).contains(&r) {
+                    100.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0)[0].unwrap();
+        assert!(s.level > LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
+        let t = TrackTable {
+            points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
+        };
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert_eq!(check_tracks(&t, 5.0, &measured).len(), 1);
     }
 
     #[test]
@@ -233,17 +321,24 @@ mod tests {
         let mut t = TrackTable {
             points: (0..20).map(|k| TrackPoint::new(k, "a", k as f64, 0.0)).collect(),
         };
+        let even = |level: f64| Skirt { level, lopsided: 0.0 };
         let mut skirts = BTreeMap::new();
-        skirts.insert("a".to_string(), vec![(0, 0.1), (5, 0.6), (10, 0.5)]);
+        skirts.insert(
+            "a".to_string(),
+            vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.7))],
+        );
         let c = check_tracks(&t, 4.0, &skirts);
         assert_eq!(c.len(), 1);
-        assert!(matches!(c[0].concern, Concern::Larger { skirt, .. } if (skirt - 0.5).abs() < 1e-12));
+        assert!(matches!(c[0].concern, Concern::Larger { skirt, .. } if (skirt - 0.7).abs() < 1e-12));
         assert!(
             c[0].to_string().starts_with("a: its signal reaches well beyond"),
             "{}",
             c[0]
         );
-        skirts.insert("a".to_string(), vec![(0, 0.1), (5, 0.6), (10, 0.05)]);
+        skirts.insert(
+            "a".to_string(),
+            vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.05))],
+        );
         assert!(check_tracks(&t, 4.0, &skirts).is_empty());
         for p in t.points.iter_mut().skip(9) {
             p.flag = PointFlag::Interpolated;

@@ -13,6 +13,7 @@ mod disjoint_sets;
 mod error;
 mod frames;
 mod group_by_key;
+mod inpaint;
 mod link;
 mod locate;
 mod pipeline;

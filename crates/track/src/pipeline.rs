@@ -13,7 +13,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
-use crate::checks::{check_tracks, skirts};
+use crate::checks::{check_tracks, skirts, Skirt};
 use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
@@ -96,8 +96,12 @@ pub struct TrackStats {
     pub ambiguities: Vec<Ambiguity>,
     /// Measured pixel noise, grey levels.
     pub noise_sigma: f64,
-    /// Particle radius used, px.
+    /// Particle radius used, px: the smallest of [`TrackStats::radii`].
     pub radius: f64,
+    /// Radius of each size of particle told apart, px, smallest first: one entry unless
+    /// named particles of sizes far apart (see [`crate::track_folder`]) were tracked each at
+    /// its own size.
+    pub radii: Vec<f64>,
     /// True if and only if the radius was estimated from the frames.
     pub radius_estimated: bool,
     /// Background model chosen.
@@ -131,7 +135,7 @@ impl std::fmt::Display for TrackStats {
         )?;
         write!(
             f,
-            "background {} ({}), pixel noise {:.2} grey levels, radius {:.2} px ({}), median position error {:.4} px",
+            "background {} ({}), pixel noise {:.2} grey levels, radius {:.2}{} px ({}), median position error {:.4} px",
             match self.background {
                 BackgroundModel::Constant => "constant",
                 BackgroundModel::PerPixel => "per-pixel median",
@@ -139,6 +143,12 @@ impl std::fmt::Display for TrackStats {
             if self.dark_on_light { "dark on light" } else { "bright on dark" },
             self.noise_sigma,
             self.radius,
+            if self.radii.len() > 1 {
+                let others: Vec<String> = self.radii[1..].iter().map(|r| format!("{r:.2}")).collect();
+                format!(" and {}", others.join(", "))
+            } else {
+                String::new()
+            },
             if self.radius_estimated { "estimated" } else { "given" },
             self.median_ep
         )
@@ -237,7 +247,7 @@ fn track_paths(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
-    let mut sizes = Sizes::measure(
+    let mut classes = SizeClass::measure_all(
         &background,
         &views(&sample_frames),
         options.radius,
@@ -250,20 +260,38 @@ fn track_paths(
     // radius and a pixel, where a disc or a blurred spot has left less than a grey level).
     if background.model == BackgroundModel::PerPixel {
         let samples = views(&sample_frames);
+        // Named particles that barely move are in the per-pixel median: against it they show
+        // as crescents. Their sizes are measured against a flat level, where they show whole.
+        let hovering: Vec<[f64; 2]> = match starts {
+            Some(starts) if options.radius.is_none() => {
+                let flat = estimate_background(&samples, BackgroundChoice::Constant);
+                let hovering = hovering_starts(&background, &flat, &samples, starts, &workers);
+                if !hovering.is_empty() {
+                    classes = SizeClass::measure_all(&flat, &samples, None, Some(starts), &workers);
+                }
+                hovering
+            }
+            _ => Vec::new(),
+        };
         let found: Vec<Vec<[f64; 2]>> = samples
             .par_iter()
             .map(|&frame| {
                 workers.with(|w| {
-                    w.finder
-                        .blobs(&background, frame, &sizes.params)
-                        .blobs
+                    classes
                         .iter()
-                        .map(|b| [b.x as f64, b.y as f64])
+                        .flat_map(|c| {
+                            w.finder
+                                .blobs(&background, frame, &c.sizes.params)
+                                .blobs
+                                .iter()
+                                .map(|b| [b.x as f64, b.y as f64])
+                                .collect::<Vec<_>>()
+                        })
                         .collect()
                 })
             })
             .collect();
-        let reach = 2.0 * sizes.radius + 1.0;
+        let reach = 2.0 * largest_radius(&classes) + 1.0;
         // Named particles are particles wherever they start, whatever the median says: one
         // that barely moves is in the median like a static object (seven discs of a small
         // rendered frame, 0.7-5 px over the recording, took the per-pixel model and were
@@ -278,9 +306,15 @@ fn track_paths(
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
             background = estimate_background(&samples, BackgroundChoice::Constant);
-            sizes = Sizes::measure(&background, &samples, options.radius, starts, &workers);
+            classes = SizeClass::measure_all(&background, &samples, options.radius, starts, &workers);
         } else {
-            background.exclude_particles(&samples, &found, reach);
+            // Hovering particles cover their start in every sample.
+            let with_hovering: Vec<Vec<[f64; 2]>> =
+                found.iter().map(|f| [f.as_slice(), &hovering].concat()).collect();
+            background.exclude_particles(&samples, &with_hovering, &hovering, reach);
+            if !hovering.is_empty() {
+                classes = SizeClass::measure_all(&background, &samples, None, starts, &workers);
+            }
             // The views borrow the sample frames, which the frames after the first may join.
             drop(samples);
             if starts.is_none() && options.radius.is_none() {
@@ -307,18 +341,22 @@ fn track_paths(
                         moving_blobs(
                             &background,
                             three.map(|j| sample_frames[j].view()),
-                            sizes.radius,
+                            largest_radius(&classes),
                             &mut w.finder,
                         )
                     });
                     if !moving.is_empty() {
-                        sizes = Sizes::measure(
-                            &background,
-                            &views(&sample_frames),
-                            None,
-                            Some(&moving),
-                            &workers,
-                        );
+                        classes = vec![SizeClass {
+                            members: None,
+                            sizes: Sizes::measure(
+                                &background,
+                                &views(&sample_frames),
+                                None,
+                                Some(&moving),
+                                None,
+                                &workers,
+                            ),
+                        }];
                         moving_starts = Some(moving);
                     }
                 }
@@ -331,20 +369,41 @@ fn track_paths(
     if background.model == BackgroundModel::PerPixel {
         let size_starts = starts.or(moving_starts.as_deref());
         let samples = views(&sample_frames);
-        if let Some(contrast) = particle_contrast(&background, samples[0], &sizes, size_starts, &workers) {
-            background.find_blind(contrast, sizes.radius.ceil() as usize);
+        // The contrast of the size of most particles.
+        let most = classes
+            .iter()
+            .max_by_key(|c| c.members.as_ref().map_or(usize::MAX, Vec::len))
+            .expect("one size class at least");
+        let most_starts = size_starts.map(|s| most.starts(s));
+        if let Some(contrast) = particle_contrast(
+            &background,
+            samples[0],
+            &most.sizes,
+            most_starts.as_deref(),
+            &workers,
+        ) {
+            background.find_blind(contrast, largest_radius(&classes).ceil() as usize);
             if !background.blind.is_empty() {
-                sizes = Sizes::measure(&background, &samples, options.radius, size_starts, &workers);
+                classes = if moving_starts.is_some() {
+                    vec![SizeClass {
+                        members: None,
+                        sizes: Sizes::measure(
+                            &background,
+                            &samples,
+                            options.radius,
+                            size_starts,
+                            None,
+                            &workers,
+                        ),
+                    }]
+                } else {
+                    SizeClass::measure_all(&background, &samples, options.radius, starts, &workers)
+                };
             }
         }
     }
-    let Sizes {
-        radius,
-        radius_estimated,
-        params,
-    } = sizes;
     let background = background;
-    let window = locate_window(radius);
+    let radius_estimated = classes[0].sizes.radius_estimated;
 
     let frames = WindowFrames {
         paths: &paths,
@@ -353,32 +412,40 @@ fn track_paths(
         reference,
         size,
     };
-    // Locate every frame, in parallel.
+    // Locate every frame, in parallel: once for each size of particle.
     let done = std::sync::atomic::AtomicUsize::new(0);
     let total = paths.len();
-    let located: Result<Vec<FrameDetections>, TrackError> = paths
+    let located: Result<Vec<Vec<FrameDetections>>, TrackError> = paths
         .par_iter()
         .enumerate()
         .map(|(i, (k, _))| {
             workers.with(|w| {
                 let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
-                let detections = w.finder.locate(&background, frame, &params, window);
+                let each = classes
+                    .iter()
+                    .map(|c| FrameDetections {
+                        frame: *k,
+                        detections: w.finder.locate(&background, frame, &c.sizes.params, c.window()),
+                    })
+                    .collect();
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(n, total);
-                Ok(FrameDetections {
-                    frame: *k,
-                    detections,
-                })
+                Ok(each)
             })
         })
         .collect();
-    let located = located?;
+    // By size class, then frame.
+    let mut by_class: Vec<Vec<FrameDetections>> = vec![Vec::with_capacity(total); classes.len()];
+    for each in located? {
+        for (class, f) in by_class.iter_mut().zip(each) {
+            class.push(f);
+        }
+    }
 
     let mut warnings = Vec::new();
-    let empty: Vec<usize> = located
-        .iter()
-        .filter(|f| f.detections.is_empty())
-        .map(|f| f.frame)
+    let empty: Vec<usize> = (0..total)
+        .filter(|&i| by_class.iter().all(|c| c[i].detections.is_empty()))
+        .map(|i| by_class[0][i].frame)
         .collect();
     if !empty.is_empty() {
         warnings.push(format!(
@@ -387,88 +454,114 @@ fn track_paths(
             frame_list(&empty)
         ));
     }
-    let detection_count = located.iter().map(|f| f.detections.len()).sum();
-    let mut eps: Vec<f64> = located
+    let detection_count = by_class.iter().flatten().map(|f| f.detections.len()).sum();
+    let mut eps: Vec<f64> = by_class
         .iter()
+        .flatten()
         .flat_map(|f| f.detections.iter().map(|d| d.ep))
         .filter(|e| e.is_finite())
         .collect();
 
-    let linked = link_detections(
-        &located,
-        &LinkOptions {
-            named_start: options.named_start.clone(),
-            radius,
-            width: size.0,
-            height: size.1,
-            memory: options.memory,
-        },
-    );
+    let mut table = TrackTable::default();
+    let mut ambiguities = Vec::new();
     let mut relocated = Relocated::default();
-    let LinkOutcome {
-        mut table,
-        mut ambiguities,
-        warnings: link_warnings,
-    } = linked;
-    // With the particle count known, the points of particles that shared a blob are placed
-    // again from the image, jointly, and the motion judges once more which is which (see
-    // `crate::shared`).
-    if let Some(named) = options.named_start.as_deref() {
-        // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
-        // paged its buffers in again).
-        let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-            workers.with(|w| {
-                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                let mut signal = Vec::new();
-                background.signal_into(frame, &mut signal);
-                background.remove_gain(frame, &mut signal);
-                Ok(signal)
-            })
-        };
-        relocated = relocate_shared(
-            &mut table.points,
-            &mut ambiguities,
-            &Starts {
-                positions: named,
-                frame: first,
-            },
-            &SharedBlobs {
-                signal_of: &signal_of,
+    let mut concerns = Vec::new();
+    for (class, located) in classes.iter().zip(&by_class) {
+        let named = options.named_start.as_deref().map(|n| class.starts(n));
+        let linked = link_detections(
+            located,
+            &LinkOptions {
+                named_start: named.clone(),
+                radius: class.sizes.radius,
                 width: size.0,
                 height: size.1,
-                radius,
-                window,
+                memory: options.memory,
             },
-        )?;
-    }
-    warnings.extend(link_warnings);
-    // Without a structure, a track of one point inside the recording (not at its first or
-    // last frame) is a noise peak that passed the detector, not a particle: a particle is
-    // seen in the frames around it (trackpy's users drop such stubs by hand).
-    if options.named_start.is_none() {
-        let stubs = one_frame_tracks(&table, (first, last));
-        if !stubs.is_empty() {
-            table.points.retain(|p| !stubs.contains(&p.particle));
-            warnings.push(format!(
-                "{} track(s) of a single point inside the recording dropped as noise peaks",
-                stubs.len()
-            ));
+        );
+        let LinkOutcome {
+            table: mut class_table,
+            ambiguities: mut class_ambiguities,
+            warnings: link_warnings,
+        } = linked;
+        // With the particle count known, the points of particles that shared a blob are placed
+        // again from the image, jointly, and the motion judges once more which is which (see
+        // `crate::shared`).
+        if let Some(named) = named.as_deref() {
+            // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
+            // paged its buffers in again).
+            let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
+                workers.with(|w| {
+                    let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                    let mut signal = Vec::new();
+                    background.signal_into(frame, &mut signal);
+                    background.remove_gain(frame, &mut signal);
+                    Ok(signal)
+                })
+            };
+            let r = relocate_shared(
+                &mut class_table.points,
+                &mut class_ambiguities,
+                &Starts {
+                    positions: named,
+                    frame: first,
+                },
+                &SharedBlobs {
+                    signal_of: &signal_of,
+                    width: size.0,
+                    height: size.1,
+                    radius: class.sizes.radius,
+                    window: class.window(),
+                },
+            )?;
+            relocated.moved += r.moved;
+            relocated.renamed += r.renamed;
         }
+        warnings.extend(link_warnings);
+        // Without a structure, a track of one point inside the recording (not at its first or
+        // last frame) is a noise peak that passed the detector, not a particle: a particle is
+        // seen in the frames around it (trackpy's users drop such stubs by hand).
+        if options.named_start.is_none() {
+            let stubs = one_frame_tracks(&class_table, (first, last));
+            if !stubs.is_empty() {
+                class_table.points.retain(|p| !stubs.contains(&p.particle));
+                warnings.push(format!(
+                    "{} track(s) of a single point inside the recording dropped as noise peaks",
+                    stubs.len()
+                ));
+            }
+        }
+        // Tracks that contradict themselves: named particles not followed are an error (their
+        // tracks would be wrong); unnamed ones are warned of.
+        let skirts = sample_skirts(&class_table, &frames, &background, class.sizes.radius, &workers)?;
+        concerns.extend(
+            check_tracks(&class_table, class.sizes.radius, &skirts)
+                .iter()
+                .map(|c| (c.to_string(), class.sizes.radius)),
+        );
+        table.points.extend(class_table.points);
+        ambiguities.extend(class_ambiguities);
     }
-    // Tracks that contradict themselves: named particles not followed are an error (their
-    // tracks would be wrong); unnamed ones are warned of.
-    let skirts = sample_skirts(&table, &frames, &background, radius, &workers)?;
-    let concerns = check_tracks(&table, radius, &skirts);
+    if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
+        // Frame, then the structure's order, as one class's tracks are.
+        let order: BTreeMap<&str, usize> = named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
+        let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
+        table
+            .points
+            .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
+        ambiguities.sort_by_key(|a| (a.first_frame, a.last_frame));
+    }
     if !concerns.is_empty() {
         if options.named_start.is_some() {
-            let mut concerns: Vec<String> = concerns.iter().map(|c| c.to_string()).collect();
+            let radii: Vec<String> = classes.iter().map(|c| format!("{:.2}", c.sizes.radius)).collect();
+            let mut concerns: Vec<String> = concerns.into_iter().map(|c| c.0).collect();
             concerns.push(format!(
-                "no tracks written: if the particles are larger or smaller than {radius:.2} px in radius, give it with \
-                 --radius; if they are held or hidden in the first frames (a hand), start after that with --window"
+                "no tracks written: if the particles are larger or smaller than {} px in radius, give it with \
+                 --radius; if they are held or hidden in the first frames (a hand), start after that with --window",
+                radii.join(" or ")
             ));
             return Err(TrackError::NotFollowed { concerns });
         }
-        warnings.extend(concerns.iter().map(|c| c.to_string()));
+        warnings.extend(concerns.into_iter().map(|c| c.0));
     }
     warnings.extend(
         ambiguities
@@ -492,7 +585,11 @@ fn track_paths(
         reordered_count: relocated.renamed,
         ambiguities,
         noise_sigma: background.noise_sigma,
-        radius,
+        radius: classes
+            .iter()
+            .map(|c| c.sizes.radius)
+            .fold(f64::INFINITY, f64::min),
+        radii: classes.iter().map(|c| c.sizes.radius).collect(),
         radius_estimated,
         background: background.model,
         dark_on_light: background.is_dark_on_light(),
@@ -502,8 +599,21 @@ fn track_paths(
         table,
         warnings,
         stats,
-        detections: located,
+        detections: merge_classes(by_class),
     })
+}
+
+/// One frame list of detections from each size class's (all of one length, in frame order):
+/// each frame's detections of every class, smallest size first.
+fn merge_classes(by_class: Vec<Vec<FrameDetections>>) -> Vec<FrameDetections> {
+    let mut classes = by_class.into_iter();
+    let mut merged = classes.next().unwrap_or_default();
+    for class in classes {
+        for (into, f) in merged.iter_mut().zip(class) {
+            into.detections.extend(f.detections);
+        }
+    }
+    merged
 }
 
 /// The frames of the tracked window: the samples already decoded, the others read from their
@@ -778,6 +888,7 @@ impl Sizes {
         samples: &[FrameView<'_>],
         given: Option<f64>,
         starts: Option<&[[f64; 2]]>,
+        scale: Option<f64>,
         workers: &Workers,
     ) -> Sizes {
         let estimation = Estimation {
@@ -787,7 +898,7 @@ impl Sizes {
         };
         let (radius, radius_estimated) = match given {
             Some(r) => (r, false),
-            None => (estimate_radius(&estimation, starts), true),
+            None => (estimate_radius(&estimation, starts, scale), true),
         };
         let expected = expected_size(&estimation, radius, starts);
         Sizes {
@@ -800,6 +911,144 @@ impl Sizes {
             },
         }
     }
+}
+
+/// Ratio of two size classes' measured radii below which they are one size after all (the
+/// scale space split them; the measured radii are within a blurred edge of each other).
+const SAME_SIZE: f64 = 1.3;
+
+/// Particles of one size and the detector's sizes for them. Named particles whose scales
+/// lie far apart (a ball 2.5 times its neighbour's size) are each found, located and linked
+/// at their own size: at one radius the larger is found as parts, or the smaller drowns in
+/// the noise of a window fit for the larger.
+struct SizeClass {
+    /// The named particles of this size (indices into the named starts, in order); `None`:
+    /// every particle (one size, named or not).
+    members: Option<Vec<usize>>,
+    sizes: Sizes,
+}
+
+impl SizeClass {
+    /// The size classes of a recording: one, unless named particles' scales in the first
+    /// estimation frame fall into groups far apart ([`scale::size_groups`]), each then measured
+    /// on its own particles; classes whose measured radii come out within [`SAME_SIZE`] of
+    /// each other are measured again as one. A `given` radius makes one class.
+    fn measure_all(
+        background: &Background,
+        samples: &[FrameView<'_>],
+        given: Option<f64>,
+        starts: Option<&[[f64; 2]]>,
+        workers: &Workers,
+    ) -> Vec<SizeClass> {
+        let one = |scale: Option<f64>| {
+            vec![SizeClass {
+                members: None,
+                sizes: Sizes::measure(background, samples, given, starts, scale, workers),
+            }]
+        };
+        let Some(starts) = starts.filter(|s| s.len() > 1 && given.is_none()) else {
+            return one(None);
+        };
+        let estimation = Estimation {
+            background,
+            workers,
+            frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
+        };
+        let scales = scale_of_each(&estimation, starts);
+        let groups = scale::size_groups(&scales);
+        let group_scale = |g: &[usize]| -> Option<f64> {
+            let mut r: Vec<f64> = g.iter().filter_map(|&i| scales[i]).collect();
+            (!r.is_empty()).then(|| median(&mut r))
+        };
+        if groups.len() < 2 {
+            return one(group_scale(&groups[0]));
+        }
+        let mut classes: Vec<SizeClass> = groups
+            .iter()
+            .map(|g| {
+                let own: Vec<[f64; 2]> = g.iter().map(|&i| starts[i]).collect();
+                SizeClass {
+                    members: Some(g.clone()),
+                    sizes: Sizes::measure(background, samples, None, Some(&own), group_scale(g), workers),
+                }
+            })
+            .collect();
+        classes.sort_by(|a, b| a.sizes.radius.total_cmp(&b.sizes.radius));
+        let apart = classes
+            .windows(2)
+            .all(|w| w[1].sizes.radius > SAME_SIZE * w[0].sizes.radius);
+        if apart {
+            classes
+        } else {
+            one(None)
+        }
+    }
+
+    /// This class's entries of `all` (one per named particle, in order).
+    fn starts<T: Clone>(&self, all: &[T]) -> Vec<T> {
+        match &self.members {
+            None => all.to_vec(),
+            Some(m) => m.iter().map(|&i| all[i].clone()).collect(),
+        }
+    }
+
+    /// Centroid window radius for this class, px ([`locate_window`]).
+    fn window(&self) -> f64 {
+        locate_window(self.sizes.radius)
+    }
+}
+
+/// A named particle whose scale-space answer against a flat level is this many times its
+/// answer against the per-pixel median hovers in that median.
+const HOVER_RATIO: f64 = 1.5;
+
+/// The starts of the named particles that hover in the per-pixel median of `per_pixel`:
+/// near each start, the strongest scale-space answer (see [`crate::scale`]) in the first
+/// sample against the `flat` level is more than [`HOVER_RATIO`] times the one against the
+/// median (or the median shows nothing there). A particle that moves shows whole against
+/// both; one that stays put is half or wholly in the median and shows only its leading and
+/// trailing edges against it.
+fn hovering_starts(
+    per_pixel: &Background,
+    flat: &Background,
+    samples: &[FrameView<'_>],
+    starts: &[[f64; 2]],
+    workers: &Workers,
+) -> Vec<[f64; 2]> {
+    let frames = &samples[..samples.len().min(RADIUS_SAMPLES)];
+    let answers = |background: &Background| -> Vec<Option<ScaleBlob>> {
+        let estimation = Estimation {
+            background,
+            workers,
+            frames,
+        };
+        let kept = scale_blobs(&estimation, false).unwrap_or_default();
+        starts
+            .iter()
+            .map(|s| {
+                nearest_each(&kept, std::slice::from_ref(s), |b| [b.x, b.y])
+                    .first()
+                    .filter(|b| (b.x - s[0]).hypot(b.y - s[1]) <= scale::OWN_RADIUS_OF_PEAK * b.radius + 1.0)
+                    .map(|b| **b)
+            })
+            .collect()
+    };
+    let (against_median, against_flat) = (answers(per_pixel), answers(flat));
+    starts
+        .iter()
+        .zip(against_median.iter().zip(&against_flat))
+        .filter(|(_, (m, f))| match (m, f) {
+            (_, None) => false,
+            (None, Some(_)) => true,
+            (Some(m), Some(f)) => f.peak > HOVER_RATIO * m.peak,
+        })
+        .map(|(s, _)| *s)
+        .collect()
+}
+
+/// The largest radius of `classes`, px.
+fn largest_radius(classes: &[SizeClass]) -> f64 {
+    classes.iter().map(|c| c.sizes.radius).fold(0.0, f64::max)
 }
 
 /// The frames the particle sizes are estimated on.
@@ -840,9 +1089,11 @@ impl Estimation<'_> {
 /// [`Estimation::over_frames`] searches.
 /// On real video the blobs are mostly texture specks and clutter, and their median is not
 /// the particles' size; the structure's start positions say which blobs are particles.
-fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 {
+fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>, scale: Option<f64>) -> f64 {
     let background = estimation.background;
-    let mut radius = scale_start(estimation, starts).unwrap_or(START_RADIUS);
+    let mut radius = scale
+        .or_else(|| scale_start(estimation, starts))
+        .unwrap_or(START_RADIUS);
     for _ in 0..RADIUS_ROUNDS {
         let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
             found
@@ -884,6 +1135,36 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> f64 
 /// particle nearest each start; otherwise the typical scale of every particle found
 /// ([`scale::typical_radius`]). `None` when no particle is found at any scale.
 fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f64> {
+    let kept = scale_blobs(estimation, starts.is_none())?;
+    match starts {
+        Some(starts) => {
+            let mut radii: Vec<f64> = nearest_each(&kept, starts, |b| [b.x, b.y])
+                .into_iter()
+                .map(|b| b.radius)
+                .collect();
+            (!radii.is_empty()).then(|| median(&mut radii))
+        }
+        None => scale::typical_radius(&kept),
+    }
+}
+
+/// The scale of the blob nearest each start in the first estimation frame, px (`None` where
+/// no blob answered at any scale).
+fn scale_of_each(estimation: &Estimation, starts: &[[f64; 2]]) -> Vec<Option<f64>> {
+    let Some(kept) = scale_blobs(estimation, false) else {
+        return vec![None; starts.len()];
+    };
+    let nearest = nearest_each(&kept, starts, |b| [b.x, b.y]);
+    if nearest.len() < starts.len() {
+        return vec![None; starts.len()];
+    }
+    nearest.into_iter().map(|b| Some(b.radius)).collect()
+}
+
+/// Each particle's strongest answer over the ladder of scales in the first estimation frame
+/// ([`scale::strongest`]); the climb stops beyond every particle's scale when `stop_early`.
+/// `None` without frames.
+fn scale_blobs(estimation: &Estimation, stop_early: bool) -> Option<Vec<ScaleBlob>> {
     let background = estimation.background;
     let frame = *estimation.frames.first()?;
     let (width, height) = frame.size();
@@ -910,23 +1191,13 @@ fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f
     for pair in scale::ladder(width, height).chunks(2) {
         let level: Vec<Vec<ScaleBlob>> = pair.par_iter().map(|&r| at(r)).collect();
         let level: Vec<ScaleBlob> = level.into_iter().flatten().collect();
-        let stop = starts.is_none() && scale::beyond_every_scale(&found, &level);
+        let stop = stop_early && scale::beyond_every_scale(&found, &level);
         found.extend(level);
         if stop {
             break;
         }
     }
-    let kept = scale::strongest(found);
-    match starts {
-        Some(starts) => {
-            let mut radii: Vec<f64> = nearest_each(&kept, starts, |b| [b.x, b.y])
-                .into_iter()
-                .map(|b| b.radius)
-                .collect();
-            (!radii.is_empty()).then(|| median(&mut radii))
-        }
-        None => scale::typical_radius(&kept),
-    }
+    Some(scale::strongest(found))
 }
 
 /// The tracks of `table` with a single point, in a frame strictly inside `frames` (first and
@@ -951,7 +1222,7 @@ fn sample_skirts(
     background: &Background,
     radius: f64,
     workers: &Workers,
-) -> Result<BTreeMap<String, Vec<(usize, f64)>>, TrackError> {
+) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
     let first = frames.paths.first().map_or(0, |p| p.0);
     // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
     // and each costs a pass over its points' rings.
@@ -966,7 +1237,7 @@ fn sample_skirts(
             by_frame.entry(p.frame).or_default().push(p);
         }
     }
-    let measured: Vec<Vec<(String, usize, f64)>> = by_frame
+    let measured: Vec<Vec<(String, usize, Skirt)>> = by_frame
         .into_par_iter()
         .map(|(k, points)| {
             workers.with(|w| {
@@ -978,13 +1249,12 @@ fn sample_skirts(
                 Ok(points
                     .iter()
                     .zip(s)
-                    .filter(|(_, s)| s.is_finite())
-                    .map(|(p, s)| (p.particle.clone(), k, s))
+                    .filter_map(|(p, s)| s.map(|s| (p.particle.clone(), k, s)))
                     .collect())
             })
         })
         .collect::<Result<_, TrackError>>()?;
-    let mut out: BTreeMap<String, Vec<(usize, f64)>> = BTreeMap::new();
+    let mut out: BTreeMap<String, Vec<(usize, Skirt)>> = BTreeMap::new();
     for (particle, k, s) in measured.into_iter().flatten() {
         out.entry(particle).or_default().push((k, s));
     }

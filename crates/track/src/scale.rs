@@ -44,7 +44,7 @@ const LARGEST_OF_SIDE: f64 = 1.0 / 6.0;
 /// its strongest answer. Computed for the band-pass's continuous form: the answer peaks at
 /// 0.94 of a flat disc's radius, 0.80 of a shaded sphere's, 1.08 of a ring's outer radius
 /// and 1.10 of a Gaussian spot's half-maximum radius; 1 / 0.8 covers them all.
-const OWN_RADIUS_OF_PEAK: f64 = 1.25;
+pub(crate) const OWN_RADIUS_OF_PEAK: f64 = 1.25;
 
 /// The detector radii the scan tries for a `width` x `height` frame, px: one for each box
 /// half-width the detector can use (see [`crate::box_half_width`]: the radius whose box has
@@ -122,6 +122,42 @@ pub(crate) fn typical_radius(kept: &[ScaleBlob]) -> Option<f64> {
         }
     }
     None
+}
+
+/// Ratio of consecutive particle scales (sorted) above which named particles are told apart
+/// as two sizes: the ladder's step is 1.2, and one size's particles answer at most a step or
+/// two apart (a blurred edge, a neighbour close by), while recordings that mix sizes hold
+/// ratios of 2 and more.
+const SIZE_GAP: f64 = 1.6;
+
+/// The named particles grouped by size: `radii[i]` is the scale of particle `i` (`None` when
+/// nothing answered near it). Sorted by scale, a new group starts wherever a scale exceeds
+/// the one before by more than [`SIZE_GAP`]; particles of no scale join the group of most
+/// members.
+/// Groups in increasing scale, each in increasing particle order; one group (possibly
+/// empty) when every scale is within the gap of its neighbour.
+pub(crate) fn size_groups(radii: &[Option<f64>]) -> Vec<Vec<usize>> {
+    let mut order: Vec<(usize, f64)> = radii
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.map(|r| (i, r)))
+        .collect();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut groups: Vec<Vec<usize>> = vec![Vec::new()];
+    for (k, &(i, r)) in order.iter().enumerate() {
+        if k > 0 && r > SIZE_GAP * order[k - 1].1 {
+            groups.push(Vec::new());
+        }
+        groups.last_mut().expect("one group at least").push(i);
+    }
+    let unknown: Vec<usize> = (0..radii.len()).filter(|&i| radii[i].is_none()).collect();
+    if let Some(largest) = groups.iter_mut().max_by_key(|g| g.len()) {
+        largest.extend(unknown);
+    }
+    for g in &mut groups {
+        g.sort_unstable();
+    }
+    groups
 }
 
 #[cfg(test)]
@@ -267,6 +303,22 @@ mod tests {
         // Still near its scale, or a larger particle answering strongly: go on.
         assert!(!beyond_every_scale(&below, &[blob(7.0, 30.0)]));
         assert!(!beyond_every_scale(&below, &[blob(9.0, 60.0)]));
+    }
+
+    #[test]
+    fn named_particles_split_into_sizes_only_at_a_wide_gap() {
+        // One size (scales a ladder step or two apart): one group.
+        assert_eq!(
+            size_groups(&[Some(4.0), Some(4.8), Some(5.7)]),
+            vec![vec![0, 1, 2]]
+        );
+        // Two sizes 2.5 times apart, interleaved; a particle of no scale joins the group of most members.
+        assert_eq!(
+            size_groups(&[Some(10.0), Some(4.0), None, Some(11.5), Some(4.4), Some(3.9)]),
+            vec![vec![1, 2, 4, 5], vec![0, 3]]
+        );
+        assert_eq!(size_groups(&[None, None]), vec![vec![0, 1]]);
+        assert_eq!(size_groups(&[]), vec![Vec::<usize>::new()]);
     }
 
     #[test]
