@@ -273,24 +273,27 @@ fn track_paths(
             }
             _ => Vec::new(),
         };
-        let found: Vec<Vec<[f64; 2]>> = samples
-            .par_iter()
-            .map(|&frame| {
-                workers.with(|w| {
-                    classes
-                        .iter()
-                        .flat_map(|c| {
-                            w.finder
-                                .blobs(&background, frame, &c.sizes.params)
-                                .blobs
-                                .iter()
-                                .map(|b| [b.x as f64, b.y as f64])
-                                .collect::<Vec<_>>()
-                        })
-                        .collect()
+        let found_blobs = |background: &Background, classes: &[SizeClass]| -> Vec<Vec<[f64; 2]>> {
+            samples
+                .par_iter()
+                .map(|&frame| {
+                    workers.with(|w| {
+                        classes
+                            .iter()
+                            .flat_map(|c| {
+                                w.finder
+                                    .blobs(background, frame, &c.sizes.params)
+                                    .blobs
+                                    .iter()
+                                    .map(|b| [b.x as f64, b.y as f64])
+                                    .collect::<Vec<_>>()
+                            })
+                            .collect()
+                    })
                 })
-            })
-            .collect();
+                .collect()
+        };
+        let mut found = found_blobs(&background, &classes);
         let reach = 2.0 * largest_radius(&classes) + 1.0;
         // Named particles are particles wherever they start, whatever the median says: one
         // that barely moves is in the median like a static object (seven discs of a small
@@ -308,12 +311,25 @@ fn track_paths(
             background = estimate_background(&samples, BackgroundChoice::Constant);
             classes = SizeClass::measure_all(&background, &samples, options.radius, starts, &workers);
         } else {
-            // Hovering particles cover their start in every sample.
-            let with_hovering: Vec<Vec<[f64; 2]>> =
-                found.iter().map(|f| [f.as_slice(), &hovering].concat()).collect();
-            background.exclude_particles(&samples, &with_hovering, &hovering, reach);
-            if !hovering.is_empty() {
+            // Hovering particles cover their start in every sample; pixels near a named start
+            // that no sample shows clear are the particle's own. Particles half in the median
+            // show smaller than they are, so named ones are measured again on the median
+            // without them, and excluded again, until their size settles.
+            let mut reach = reach;
+            for round in 0..EXCLUSION_ROUNDS {
+                let with_hovering: Vec<Vec<[f64; 2]>> =
+                    found.iter().map(|f| [f.as_slice(), &hovering].concat()).collect();
+                background.exclude_particles(&samples, &with_hovering, starts.unwrap_or_default(), reach);
+                if starts.is_none() || options.radius.is_some() || round + 1 == EXCLUSION_ROUNDS {
+                    break;
+                }
+                let before = largest_radius(&classes);
                 classes = SizeClass::measure_all(&background, &samples, None, starts, &workers);
+                if (largest_radius(&classes) - before).abs() <= SETTLED_SIZE * before {
+                    break;
+                }
+                found = found_blobs(&background, &classes);
+                reach = 2.0 * largest_radius(&classes) + 1.0;
             }
             // The views borrow the sample frames, which the frames after the first may join.
             drop(samples);
@@ -997,6 +1013,12 @@ impl SizeClass {
         locate_window(self.sizes.radius)
     }
 }
+
+/// Most rounds of excluding named particles from the per-pixel median and measuring them
+/// again.
+const EXCLUSION_ROUNDS: usize = 4;
+/// Relative change of the largest radius at which those rounds stop.
+const SETTLED_SIZE: f64 = 0.05;
 
 /// A named particle whose scale-space answer against a flat level is this many times its
 /// answer against the per-pixel median hovers in that median.
