@@ -78,6 +78,9 @@ pub struct Background {
     /// The brightest background value, grey levels: the scale against which a change of
     /// gain is judged significant (see [`Background::remove_gain`]).
     pub brightest: f64,
+    /// Pixel noise measured from differences of consecutive samples, grey levels (sets the
+    /// threshold of the colour direction).
+    pub temporal_noise: f64,
     /// Mean of the clipped noise added to the background (along `direction`) where most of
     /// the background's noise is clipped at black or white, grey levels; 0 otherwise.
     pub clip_offset: f64,
@@ -209,6 +212,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         image,
         direction: vec![1.0; channels],
         noise_sigma: sigma_t,
+        temporal_noise: sigma_t,
         structured_fraction,
         sample_count: k,
         reference_gain: 1.0,
@@ -217,65 +221,91 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         structure_threshold: tau,
         blind: BlindPixels::default(),
     };
-    // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
-    // successive frames' samples fall on other columns).
-    let stride = (k * width * height / NOISE_SAMPLES).max(1) | 1;
-    bg.direction = colour_direction(samples, &bg, (6.0 * sigma_t).max(3.0) as f32, stride);
-    // The lowest signal a pixel can show: its value at the clip level (0 where particles
-    // are brighter in a channel, 255 where darker).
-    let clip: Vec<f32> = bg
-        .direction
-        .iter()
-        .map(|&u| if u >= 0.0 { 0.0 } else { 255.0 })
-        .collect();
-    let mut negatives: Vec<f32> = Vec::new();
-    let mut sampled: Vec<f32> = Vec::new();
-    let mut clipped = 0usize;
-    for (s, f) in samples.iter().enumerate() {
-        // 8-bit frames hold whole levels, so the signal takes values one level apart and
-        // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
-        // deterministic dither spread evenly over one level makes the distribution
-        // continuous again: its spread is then that of the quantised noise itself.
-        for i in (s % stride..width * height).step_by(stride) {
-            let (v, lo) = (bg.signal_at(&f.pixel(i)[..channels], i), bg.signal_at(&clip, i));
-            let d = v + dither(i);
-            if d < 0.0 {
-                negatives.push(-d);
-                clipped += usize::from(v <= lo + 0.5);
-            }
-            sampled.push(d);
-        }
-    }
-    if 2 * clipped < negatives.len() {
-        bg.noise_sigma = if negatives.len() >= 16 {
-            (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
-        } else {
-            MIN_NOISE
-        };
-    } else {
-        // Most of the background's negative half is clipped (a black background under
-        // noise): the noise the filters see is that of the clipped distribution, whose mean
-        // sits above the level. Both come from the sampled signal by iterated 5-sigma
-        // clipping, started from the upper quartile's spread (above the truth when
-        // particles crowd the frame, so the clipping converges from above).
-        let (offset, sigma) = clipped_mean_and_sigma(&mut sampled);
-        bg.noise_sigma = sigma.max(MIN_NOISE);
-        bg.clip_offset = offset;
-        for (l, u) in bg.level.iter_mut().zip(&bg.direction) {
-            *l += offset as f32 * u;
-        }
-        for px in bg.image.chunks_exact_mut(channels) {
-            for (b, u) in px.iter_mut().zip(&bg.direction) {
-                *b += offset as f32 * u;
-            }
-        }
-    }
+    bg.measure_signal(samples);
     bg.reference_gain = samples.iter().map(|&f| bg.frame_gain(f)).sum::<f64>() / k as f64;
     bg.brightest = f64::from(bg.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     bg
 }
 
 impl Background {
+    /// The particles' colour direction, the signal's noise and the clip offset, measured on
+    /// `samples` against the current background image (`sigma_t`: the temporal noise, grey
+    /// levels, which sets the colour threshold). A clip offset already added to the image is
+    /// taken out first, so this may run again once the image changes
+    /// ([`Background::exclude_particles`]).
+    fn measure_signal(&mut self, samples: &[FrameView<'_>]) {
+        let sigma_t = self.temporal_noise;
+        let (width, height, channels) = (self.width, self.height, self.channels);
+        if self.clip_offset != 0.0 {
+            let offset = self.clip_offset as f32;
+            for (l, u) in self.level.iter_mut().zip(&self.direction) {
+                *l -= offset * u;
+            }
+            for px in self.image.chunks_exact_mut(channels) {
+                for (b, u) in px.iter_mut().zip(&self.direction) {
+                    *b -= offset * u;
+                }
+            }
+            self.clip_offset = 0.0;
+        }
+        // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
+        // successive frames' samples fall on other columns).
+        let stride = (samples.len() * width * height / NOISE_SAMPLES).max(1) | 1;
+        self.direction = colour_direction(samples, self, (6.0 * sigma_t).max(3.0) as f32, stride);
+        // The lowest signal a pixel can show: its value at the clip level (0 where particles
+        // are brighter in a channel, 255 where darker).
+        let clip: Vec<f32> = self
+            .direction
+            .iter()
+            .map(|&u| if u >= 0.0 { 0.0 } else { 255.0 })
+            .collect();
+        let mut negatives: Vec<f32> = Vec::new();
+        let mut sampled: Vec<f32> = Vec::new();
+        let mut clipped = 0usize;
+        for (s, f) in samples.iter().enumerate() {
+            // 8-bit frames hold whole levels, so the signal takes values one level apart and
+            // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
+            // deterministic dither spread evenly over one level makes the distribution
+            // continuous again: its spread is then that of the quantised noise itself.
+            for i in (s % stride..width * height).step_by(stride) {
+                let (v, lo) = (
+                    self.signal_at(&f.pixel(i)[..channels], i),
+                    self.signal_at(&clip, i),
+                );
+                let d = v + dither(i);
+                if d < 0.0 {
+                    negatives.push(-d);
+                    clipped += usize::from(v <= lo + 0.5);
+                }
+                sampled.push(d);
+            }
+        }
+        if 2 * clipped < negatives.len() {
+            self.noise_sigma = if negatives.len() >= 16 {
+                (quantile(&mut negatives, 0.5) as f64 * 1.4826).max(MIN_NOISE)
+            } else {
+                MIN_NOISE
+            };
+        } else {
+            // Most of the background's negative half is clipped (a black background under
+            // noise): the noise the filters see is that of the clipped distribution, whose mean
+            // sits above the level. Both come from the sampled signal by iterated 5-sigma
+            // clipping, started from the upper quartile's spread (above the truth when
+            // particles crowd the frame, so the clipping converges from above).
+            let (offset, sigma) = clipped_mean_and_sigma(&mut sampled);
+            self.noise_sigma = sigma.max(MIN_NOISE);
+            self.clip_offset = offset;
+            for (l, u) in self.level.iter_mut().zip(&self.direction) {
+                *l += offset as f32 * u;
+            }
+            for px in self.image.chunks_exact_mut(channels) {
+                for (b, u) in px.iter_mut().zip(&self.direction) {
+                    *b += offset as f32 * u;
+                }
+            }
+        }
+    }
+
     /// Re-estimates a per-pixel background without the particles: each pixel's median is
     /// taken over the sample frames in which no particle (`particles[j]`: positions found in
     /// `samples[j]`, px) lies within `reach` px of it, or, where fewer than
@@ -362,7 +392,12 @@ impl Background {
         for &i in covered.iter().flatten() {
             unknown[i] = true;
         }
-        crate::inpaint::harmonic_fill(&mut self.image, w, h, c, &unknown);
+        if covered.iter().any(|c| !c.is_empty()) {
+            crate::inpaint::harmonic_fill(&mut self.image, w, h, c, &unknown);
+            // A particle in the median made its colour ambiguous (dark where it arrives,
+            // light where it left) and the noise look larger: both are measured again.
+            self.measure_signal(samples);
+        }
         self.reference_gain = samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
         self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
     }
