@@ -418,7 +418,6 @@ fn track_paths(
             }
         }
     }
-    let background = background;
     let radius_estimated = classes[0].sizes.radius_estimated;
 
     let frames = WindowFrames {
@@ -428,36 +427,25 @@ fn track_paths(
         reference,
         size,
     };
-    // Locate every frame, in parallel: once for each size of particle.
-    let done = std::sync::atomic::AtomicUsize::new(0);
+    let stage = Stage {
+        frames: &frames,
+        workers: &workers,
+        options,
+        size,
+        first,
+        last,
+    };
+    let pass = stage.locate_and_link(&background, &classes, progress)?;
+    let background = background;
+    let Pass {
+        located: by_class,
+        table,
+        ambiguities,
+        warnings: mut pass_warnings,
+        relocated,
+        concerns,
+    } = pass;
     let total = paths.len();
-    let located: Result<Vec<Vec<FrameDetections>>, TrackError> = paths
-        .par_iter()
-        .enumerate()
-        .map(|(i, (k, _))| {
-            workers.with(|w| {
-                let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
-                let each = classes
-                    .iter()
-                    .map(|c| FrameDetections {
-                        frame: *k,
-                        detections: w.finder.locate(&background, frame, &c.sizes.params, c.window()),
-                    })
-                    .collect();
-                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                progress(n, total);
-                Ok(each)
-            })
-        })
-        .collect();
-    // By size class, then frame.
-    let mut by_class: Vec<Vec<FrameDetections>> = vec![Vec::with_capacity(total); classes.len()];
-    for each in located? {
-        for (class, f) in by_class.iter_mut().zip(each) {
-            class.push(f);
-        }
-    }
-
     let mut warnings = Vec::new();
     let empty: Vec<usize> = (0..total)
         .filter(|&i| by_class.iter().all(|c| c[i].detections.is_empty()))
@@ -470,6 +458,7 @@ fn track_paths(
             frame_list(&empty)
         ));
     }
+    warnings.append(&mut pass_warnings);
     let detection_count = by_class.iter().flatten().map(|f| f.detections.len()).sum();
     let mut eps: Vec<f64> = by_class
         .iter()
@@ -477,95 +466,6 @@ fn track_paths(
         .flat_map(|f| f.detections.iter().map(|d| d.ep))
         .filter(|e| e.is_finite())
         .collect();
-
-    let mut table = TrackTable::default();
-    let mut ambiguities = Vec::new();
-    let mut relocated = Relocated::default();
-    let mut concerns = Vec::new();
-    for (class, located) in classes.iter().zip(&by_class) {
-        let named = options.named_start.as_deref().map(|n| class.starts(n));
-        let linked = link_detections(
-            located,
-            &LinkOptions {
-                named_start: named.clone(),
-                radius: class.sizes.radius,
-                width: size.0,
-                height: size.1,
-                memory: options.memory,
-            },
-        );
-        let LinkOutcome {
-            table: mut class_table,
-            ambiguities: mut class_ambiguities,
-            warnings: link_warnings,
-        } = linked;
-        // With the particle count known, the points of particles that shared a blob are placed
-        // again from the image, jointly, and the motion judges once more which is which (see
-        // `crate::shared`).
-        if let Some(named) = named.as_deref() {
-            // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
-            // paged its buffers in again).
-            let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
-                workers.with(|w| {
-                    let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                    let mut signal = Vec::new();
-                    background.signal_into(frame, &mut signal);
-                    background.remove_gain(frame, &mut signal);
-                    Ok(signal)
-                })
-            };
-            let r = relocate_shared(
-                &mut class_table.points,
-                &mut class_ambiguities,
-                &Starts {
-                    positions: named,
-                    frame: first,
-                },
-                &SharedBlobs {
-                    signal_of: &signal_of,
-                    width: size.0,
-                    height: size.1,
-                    radius: class.sizes.radius,
-                    window: class.window(),
-                },
-            )?;
-            relocated.moved += r.moved;
-            relocated.renamed += r.renamed;
-        }
-        warnings.extend(link_warnings);
-        // Without a structure, a track of one point inside the recording (not at its first or
-        // last frame) is a noise peak that passed the detector, not a particle: a particle is
-        // seen in the frames around it (trackpy's users drop such stubs by hand).
-        if options.named_start.is_none() {
-            let stubs = one_frame_tracks(&class_table, (first, last));
-            if !stubs.is_empty() {
-                class_table.points.retain(|p| !stubs.contains(&p.particle));
-                warnings.push(format!(
-                    "{} track(s) of a single point inside the recording dropped as noise peaks",
-                    stubs.len()
-                ));
-            }
-        }
-        // Tracks that contradict themselves: named particles not followed are an error (their
-        // tracks would be wrong); unnamed ones are warned of.
-        let skirts = sample_skirts(&class_table, &frames, &background, class.sizes.radius, &workers)?;
-        concerns.extend(
-            check_tracks(&class_table, class.sizes.radius, &skirts)
-                .iter()
-                .map(|c| (c.to_string(), class.sizes.radius)),
-        );
-        table.points.extend(class_table.points);
-        ambiguities.extend(class_ambiguities);
-    }
-    if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
-        // Frame, then the structure's order, as one class's tracks are.
-        let order: BTreeMap<&str, usize> = named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
-        let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
-        table
-            .points
-            .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
-        ambiguities.sort_by_key(|a| (a.first_frame, a.last_frame));
-    }
     if !concerns.is_empty() {
         if options.named_start.is_some() {
             let radii: Vec<String> = classes.iter().map(|c| format!("{:.2}", c.sizes.radius)).collect();
@@ -630,6 +530,178 @@ fn merge_classes(by_class: Vec<Vec<FrameDetections>>) -> Vec<FrameDetections> {
         }
     }
     merged
+}
+
+/// What one pass of locating and linking found.
+struct Pass {
+    /// Every frame's detections, by size class then frame.
+    located: Vec<Vec<FrameDetections>>,
+    table: TrackTable,
+    ambiguities: Vec<Ambiguity>,
+    warnings: Vec<String>,
+    relocated: Relocated,
+    /// Each track's concern, with the radius of its class, px.
+    concerns: Vec<(String, f64)>,
+}
+
+/// The inputs every pass of locating and linking shares.
+struct Stage<'a> {
+    frames: &'a WindowFrames<'a>,
+    workers: &'a Workers,
+    options: &'a TrackOptions,
+    /// Frame width and height, px.
+    size: (usize, usize),
+    /// First and last frame of the window.
+    first: usize,
+    last: usize,
+}
+
+impl Stage<'_> {
+    /// Locates every frame against `background` (in parallel, once for each size class) and
+    /// links each class's detections, then places again the points of named particles that
+    /// shared a blob and checks the tracks.
+    fn locate_and_link(
+        &self,
+        background: &Background,
+        classes: &[SizeClass],
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Pass, TrackError> {
+        let Stage {
+            frames,
+            workers,
+            options,
+            size,
+            first,
+            last,
+        } = *self;
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let total = frames.paths.len();
+        let located: Result<Vec<Vec<FrameDetections>>, TrackError> = frames
+            .paths
+            .par_iter()
+            .enumerate()
+            .map(|(i, (k, _))| {
+                workers.with(|w| {
+                    let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
+                    let each = classes
+                        .iter()
+                        .map(|c| FrameDetections {
+                            frame: *k,
+                            detections: w.finder.locate(background, frame, &c.sizes.params, c.window()),
+                        })
+                        .collect();
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    progress(n, total);
+                    Ok(each)
+                })
+            })
+            .collect();
+        // By size class, then frame.
+        let mut by_class: Vec<Vec<FrameDetections>> = vec![Vec::with_capacity(total); classes.len()];
+        for each in located? {
+            for (class, f) in by_class.iter_mut().zip(each) {
+                class.push(f);
+            }
+        }
+        let mut warnings = Vec::new();
+        let mut table = TrackTable::default();
+        let mut ambiguities = Vec::new();
+        let mut relocated = Relocated::default();
+        let mut concerns = Vec::new();
+        for (class, located) in classes.iter().zip(&by_class) {
+            let named = options.named_start.as_deref().map(|n| class.starts(n));
+            let linked = link_detections(
+                located,
+                &LinkOptions {
+                    named_start: named.clone(),
+                    radius: class.sizes.radius,
+                    width: size.0,
+                    height: size.1,
+                    memory: options.memory,
+                },
+            );
+            let LinkOutcome {
+                table: mut class_table,
+                ambiguities: mut class_ambiguities,
+                warnings: link_warnings,
+            } = linked;
+            // With the particle count known, the points of particles that shared a blob are placed
+            // again from the image, jointly, and the motion judges once more which is which (see
+            // `crate::shared`).
+            if let Some(named) = named.as_deref() {
+                // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
+                // paged its buffers in again).
+                let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
+                    workers.with(|w| {
+                        let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                        let mut signal = Vec::new();
+                        background.signal_into(frame, &mut signal);
+                        background.remove_gain(frame, &mut signal);
+                        Ok(signal)
+                    })
+                };
+                let r = relocate_shared(
+                    &mut class_table.points,
+                    &mut class_ambiguities,
+                    &Starts {
+                        positions: named,
+                        frame: first,
+                    },
+                    &SharedBlobs {
+                        signal_of: &signal_of,
+                        width: size.0,
+                        height: size.1,
+                        radius: class.sizes.radius,
+                        window: class.window(),
+                    },
+                )?;
+                relocated.moved += r.moved;
+                relocated.renamed += r.renamed;
+            }
+            warnings.extend(link_warnings);
+            // Without a structure, a track of one point inside the recording (not at its first or
+            // last frame) is a noise peak that passed the detector, not a particle: a particle is
+            // seen in the frames around it (trackpy's users drop such stubs by hand).
+            if options.named_start.is_none() {
+                let stubs = one_frame_tracks(&class_table, (first, last));
+                if !stubs.is_empty() {
+                    class_table.points.retain(|p| !stubs.contains(&p.particle));
+                    warnings.push(format!(
+                        "{} track(s) of a single point inside the recording dropped as noise peaks",
+                        stubs.len()
+                    ));
+                }
+            }
+            // Tracks that contradict themselves: named particles not followed are an error (their
+            // tracks would be wrong); unnamed ones are warned of.
+            let skirts = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            concerns.extend(
+                check_tracks(&class_table, class.sizes.radius, &skirts)
+                    .iter()
+                    .map(|c| (c.to_string(), class.sizes.radius)),
+            );
+            table.points.extend(class_table.points);
+            ambiguities.extend(class_ambiguities);
+        }
+        if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
+            // Frame, then the structure's order, as one class's tracks are.
+            let order: BTreeMap<&str, usize> =
+                named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
+            let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
+            table
+                .points
+                .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
+            ambiguities.sort_by_key(|a| (a.first_frame, a.last_frame));
+        }
+        Ok(Pass {
+            located: by_class,
+            table,
+            ambiguities,
+            warnings,
+            relocated,
+            concerns,
+        })
+    }
 }
 
 /// The frames of the tracked window: the samples already decoded, the others read from their
