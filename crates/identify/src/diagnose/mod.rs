@@ -35,6 +35,7 @@ mod shooting;
 mod support;
 #[cfg(test)]
 mod tests;
+mod transfer;
 mod undecided;
 mod verdict;
 mod weak;
@@ -45,7 +46,7 @@ pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
     ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen,
-    Undecided, Verdict, VerdictParticle,
+    SegmentTransfer, Transfer, Undecided, Verdict, VerdictParticle,
 };
 pub use support::Support;
 pub use verdict::EXPLAINED_RMS_RATIO;
@@ -232,6 +233,12 @@ fn diagnose_inner(
         supports.insert(0, s.clone());
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
+    // Transfer segments: a few typical periods each (twice the test window), within half the
+    // analysed frames.
+    let segments = transfer::Segments::new(&shot, &excluded, (2 * w).min(frames / 2), scales.length);
+    if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+        eprintln!(" test window {w}, transfer segments {segments:?}");
+    }
     let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
     let ctx = Context {
         obs: &obs,
@@ -500,24 +507,27 @@ fn diagnose_inner(
                 round_rejects.push(rejected_entry(&family0, p, None, round));
             }
         }
-        let best = verified
-            .first()
-            .filter(|v| v.evidence.score.is_some_and(|s| s > 0.0))
-            .cloned();
-        for v in verified.iter().skip(usize::from(best.is_some())) {
-            if v.proposals.len() == 1 {
-                round_rejects.push(rejected_entry(
-                    &family0,
-                    &v.proposals[0],
-                    Some(v.evidence.clone()),
-                    round,
-                ));
+        // The best that transfers to other observed start states (see `transfer`).
+        let chosen = transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified);
+        let best = chosen.map(|i| verified[i].clone());
+        let mut one_path = false;
+        for (i, v) in verified.iter().enumerate() {
+            let fails = v.evidence.transfer.as_ref().is_some_and(report::Transfer::fails);
+            one_path |= fails;
+            if Some(i) != chosen && (v.proposals.len() == 1 || fails) {
+                for p in &v.proposals {
+                    round_rejects.push(rejected_entry(&family0, p, Some(v.evidence.clone()), round));
+                }
             }
         }
         let Some(best) = best else {
             merge_rejects(&mut rejected, round_rejects);
             stop = if ctx.explained(&current) {
                 "the residual is at the noise level and no candidate earns its place".into()
+            } else if one_path {
+                "the candidates that fit better fit one path only (they fail transfer to other \
+                 observed start states, see rejected); no other pays for its parameters"
+                    .into()
             } else {
                 "no candidate, alone, paired with the field or in place of an accepted effect, \
                  removes enough held-out cost to pay for its parameters"
@@ -568,6 +578,7 @@ fn diagnose_inner(
             if alt.fit.sum_squares < current.fit.sum_squares {
                 current = alt;
                 evidence = ctx.evidence(&current, Some(&next), &best.proposals);
+                evidence.transfer = best.evidence.transfer.clone();
             }
         }
         if !evidence.score.is_some_and(|s| s > 0.0) {
@@ -828,12 +839,19 @@ fn rejected_entry(
         penalty: 0.0,
         score: None,
         parameter_count: p.effect.parameter_count(),
+        transfer: None,
     });
+    let reason = evidence
+        .transfer
+        .as_ref()
+        .filter(|t| t.fails())
+        .map(|t| format!("fits one path only: {}", t.text));
     report::RejectedCandidate {
         effect: p.effect.name().into(),
         label: p.effect.label(&structure_family.structure),
         round,
         evidence,
+        reason,
     }
 }
 

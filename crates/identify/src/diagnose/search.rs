@@ -829,6 +829,7 @@ impl Context<'_> {
             penalty: k as f64 * (n.max(2) as f64).ln(),
             score: None,
             parameter_count: k,
+            transfer: None,
         };
         evidence.score = variance.and_then(|v| evidence.score_on(v));
         evidence
