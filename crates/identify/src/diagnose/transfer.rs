@@ -493,25 +493,25 @@ mod tests {
         }
     }
 
-    /// One ball, no bonds, 60 frames/s.
-    const BALL: &str = r#"
-        name = "ball"
-        [recording]
-        fps = 60.0
-        frames = 240
-        [[particles]]
-        id = "ball"
-        mass = 1.0
-        position = [100.0, 300.0]
-        velocity = [150.0, -400.0]
-        [physics]
-        gravity = [0.0, 400.0]
-        drag = 0.5
-    "#;
+    /// One particle `id` of unit mass at (100, `y`) px with `velocity` (px/s), no bonds,
+    /// 240 frames at 60 frames/s, with the scene-file `physics` table's body.
+    fn one_particle(id: &str, y: f64, velocity: [f64; 2], physics: &str) -> Scene {
+        let text = format!(
+            "name = \"{id}\"\nrecording = {{ fps = 60.0, frames = 240 }}\n\
+             particles = [{{ id = \"{id}\", mass = 1.0, position = [100.0, {y}], velocity = {velocity:?} }}]\n\
+             [physics]\n{physics}\n"
+        );
+        Scene::from_toml_str(&text, id).unwrap_or_else(|e| panic!("{e}"))
+    }
 
     #[test]
     fn a_concealed_field_and_drag_transfer() {
-        let truth = Scene::from_toml_str(BALL, "ball").unwrap_or_else(|e| panic!("{e}"));
+        let truth = one_particle(
+            "ball",
+            300.0,
+            [150.0, -400.0],
+            "gravity = [0.0, 400.0]\ndrag = 0.5",
+        );
         let structure = truth.structure();
         let t = tracks(&truth, 0.05, 3);
         let obs = Observations::from_tracks(&t, &structure, None).unwrap_or_else(|e| panic!("{e}"));
@@ -555,20 +555,7 @@ mod tests {
     fn a_tether_with_strong_quadratic_drag_forgets_its_launch() {
         // A puck sliding to rest under dry friction (uniform deceleration 400 px/s^2), then
         // at rest: a stiff tether at the stop point with strong quadratic drag follows it.
-        let structure = Scene::from_toml_str(
-            r#"
-            name = "puck"
-            [recording]
-            fps = 60.0
-            frames = 240
-            [[particles]]
-            id = "puck"
-            mass = 1.0
-            position = [100.0, 200.0]
-            "#,
-            "puck",
-        )
-        .unwrap_or_else(|e| panic!("{e}"));
+        let structure = one_particle("puck", 200.0, [0.0, 0.0], "");
         let (x0, v0, a) = (Vec2::new(100.0, 200.0), Vec2::new(480.0, 180.0), 400.0);
         let stop = v0.norm() / a;
         let stop_point = x0 + v0 * (0.5 * stop);
