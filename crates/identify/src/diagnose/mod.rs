@@ -440,37 +440,9 @@ fn diagnose_inner(
         // tether imitating a pendulum's field and tether): each is taken out, the best single
         // and pair screened in its place, and verified against the current model.
         let addition_pays = verified.iter().any(|v| v.evidence.score.is_some_and(|s| s > 0.0));
-        if !addition_pays && !ctx.explained(&current) {
-            for k in 0..current.family.effects.len() {
-                let removed = current.family.effects[k];
-                if !removed.is_smooth() {
-                    continue;
-                }
-                let reduced = ctx.without(&current, k);
-                let mut options: Vec<Vec<Proposal>> = Vec::new();
-                if let Some(p) = ctx
-                    .screen(&reduced, &candidates)
-                    .into_iter()
-                    .find(|p| p.screen.is_some_and(|s| s > 0.0))
-                {
-                    options.push(vec![p]);
-                }
-                if let Some(pair) = ctx
-                    .screen_pairs(&reduced, &candidates, Effect::Gravity)
-                    .into_iter()
-                    .find(|p| p[0].screen.is_some_and(|s| s > 0.0))
-                {
-                    options.push(pair);
-                }
-                for o in options {
-                    let v = ctx.verify_swap(&current, k, &o);
-                    if debug {
-                        let effects: Vec<Effect> = o.iter().map(|p| p.effect).collect();
-                        eprintln!("   swap {removed:?} -> {effects:?}: {:?}", v.evidence);
-                    }
-                    verified.push(v);
-                }
-            }
+        let swapped = !addition_pays && !ctx.explained(&current);
+        if swapped {
+            verified.extend(ctx.verify_swaps(&current, &candidates));
         }
         if debug {
             for v in &verified {
@@ -478,28 +450,7 @@ fn diagnose_inner(
                 eprintln!("   verified {effects:?}: {:?}", v.evidence);
             }
         }
-        // Candidates are ranked against each other on one yardstick: the held-out cost each
-        // removes over the smallest residual variance among them, minus its penalty. Each
-        // candidate's own score divides by its own residual variance, which favours the one
-        // with more parameters (a distant tether imitating a uniform field) by far more than
-        // its penalty when the cost removed is large.
-        let common = verified
-            .iter()
-            .filter_map(|v| v.evidence.noise_variance)
-            .fold(f64::INFINITY, f64::min);
-        let rank = |v: &search::Verified| {
-            v.evidence
-                .score
-                .and(v.evidence.score_on(common))
-                .unwrap_or(f64::NEG_INFINITY)
-        };
-        // An explanation that fits at the noise level beats one that does not, whatever
-        // their scores (a far tether imitating a field can remove much cost and still leave
-        // a residual many times the noise).
-        let fits = |v: &search::Verified| {
-            v.evidence.score.is_some_and(|s| s > 0.0) && v.current.as_ref().is_some_and(|c| ctx.explained(c))
-        };
-        verified.sort_by(|a, b| fits(b).cmp(&fits(a)).then(rank(b).total_cmp(&rank(a))));
+        ctx.rank(&mut verified);
         // Record this round's losers (and unverified screened ones).
         let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
         for p in &screened {
@@ -508,7 +459,19 @@ fn diagnose_inner(
             }
         }
         // The best that transfers to other observed start states (see `transfer`).
-        let chosen = transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified);
+        let mut chosen = transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified);
+        // Additions that paid but fit one path only leave room for a swap, as when none pays.
+        let one_path_only = verified
+            .iter()
+            .any(|v| v.evidence.transfer.as_ref().is_some_and(report::Transfer::fails));
+        if chosen.is_none() && one_path_only && !swapped && !ctx.explained(&current) {
+            let first = verified.len();
+            verified.extend(ctx.verify_swaps(&current, &candidates));
+            ctx.rank(&mut verified[first..]);
+            chosen =
+                transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified[first..])
+                    .map(|i| first + i);
+        }
         let best = chosen.map(|i| verified[i].clone());
         let mut one_path = false;
         for (i, v) in verified.iter().enumerate() {

@@ -72,8 +72,9 @@ impl Segments {
     /// Up to [`TRANSFER_SEGMENTS`] starts spread evenly over the frames of `shot`, each where
     /// every particle is tracked over the velocity fit's frames and none of them is
     /// `excluded` (jolts, supports: a velocity across a bounce is no start state), with
-    /// segments of `length` frames (fewer at the end of the recording); `None` when fewer
-    /// than two starts qualify.
+    /// segments of `length` frames (fewer at the end of the recording); `length_scale` (px,
+    /// the data's) sets the noise floor of exact tracks (see [`noise_floor`]). `None` when
+    /// fewer than two starts qualify.
     pub fn new(shot: &Shot<'_>, excluded: &[bool], length: usize, length_scale: f64) -> Option<Segments> {
         let obs = shot.obs;
         let frames = obs.frame_count();
@@ -119,7 +120,11 @@ impl Segments {
         starts.sort_by_key(|s| s.0);
         let smooth_ends = starts
             .iter()
-            .map(|(k, _)| (k + half..frames).find(|&j| excluded[j]).unwrap_or(frames))
+            .map(|(k, _)| {
+                (k + half..frames)
+                    .find(|&j| excluded.get(j).copied().unwrap_or(true))
+                    .unwrap_or(frames)
+            })
             .collect();
         (starts.len() >= 2).then(|| Segments {
             starts,
