@@ -298,3 +298,62 @@ restitution = 0.6
     assert!(json["findings"].as_array().is_some_and(Vec::is_empty), "{stdout}");
     assert_eq!(json["verdict"]["explained"], Value::Bool(true), "{stdout}");
 }
+
+/// Seeded Gaussian noise of standard deviation `sigma` (Box-Muller on [`jitter`]'s sequence).
+fn gaussian(seed: &mut u64, sigma: f64) -> f64 {
+    let u1 = 0.5 * (jitter(seed, 1.0) + 1.0);
+    let u2 = 0.5 * (jitter(seed, 1.0) + 1.0);
+    sigma * (-2.0 * u1.max(1e-300).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+#[test]
+fn a_puck_sliding_to_rest_is_not_explained_by_a_tether_and_quadratic_drag() {
+    // Dry (Coulomb) friction, which the model cannot express: a uniform deceleration of
+    // 400 px/s^2 to rest after 1.28 s, then at rest, tracked at 60 frames/s. A stiff tether at
+    // the stop point with strong quadratic drag once fitted it to the noise level ("explained"):
+    // such a model forgets how it was launched, so it fits this one path only.
+    let dir = tempdir();
+    let d = dir.path();
+    let structure = write(d, "ball.toml", BALL);
+    for (k, sigma) in [0.05, 0.01].into_iter().enumerate() {
+        let mut seed = 7 + k as u64;
+        let (v0, a) = ((480.0f64, 180.0f64), 400.0);
+        let speed = v0.0.hypot(v0.1);
+        let stop = speed / a;
+        let positions: Vec<(f64, f64)> = (0..240)
+            .map(|j| {
+                let t = (j as f64 / 60.0).min(stop);
+                let s = speed * t - 0.5 * a * t * t;
+                (
+                    100.0 + v0.0 / speed * s + gaussian(&mut seed, sigma),
+                    200.0 + v0.1 / speed * s + gaussian(&mut seed, sigma),
+                )
+            })
+            .collect();
+        let tracks = ball_csv(d, &format!("puck{k}.csv"), &positions);
+        let (stdout, json) = diagnose(&tracks, &structure, &d.join(format!("puck{k}")));
+        let findings = json["findings"].as_array().cloned().unwrap_or_default();
+        let tether = findings.iter().any(|f| f["tether"] == Value::Bool(true));
+        let quadratic = findings.iter().any(|f| f["effect"] == "quadratic_drag");
+        assert!(
+            !(tether && quadratic),
+            "noise {sigma}: a tether with quadratic drag explains dry friction:\n{stdout}"
+        );
+        assert_eq!(
+            json["verdict"]["explained"],
+            Value::Bool(false),
+            "noise {sigma}:\n{stdout}"
+        );
+        // What is named transfers (or the segments cannot tell), with the figures.
+        for f in &findings {
+            let t = &f["evidence"]["transfer"];
+            assert_ne!(t["transfers"], Value::Bool(false), "noise {sigma}: {f}");
+        }
+        for r in json["rejected"].as_array().cloned().unwrap_or_default() {
+            if let Some(reason) = r["reason"].as_str() {
+                assert!(reason.starts_with("fits one path only: "), "{reason}");
+                assert!(reason.contains("px RMS with it"), "{reason}");
+            }
+        }
+    }
+}

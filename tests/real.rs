@@ -128,9 +128,15 @@ fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
         ny < -0.99,
         "a horizontal floor whose normal points up: ({nx}, {ny})"
     );
+    // The floor is placed no better than the model fits: friction at the bounces, which the
+    // model cannot express (issue 22), leaves a residual of several px that the wall's line
+    // shares (it tilts a little to take some of the horizontal loss).
+    let last = report["final"]["costs"]["multi_step"]["rms"]
+        .as_f64()
+        .expect("final rms");
     assert!(
-        (floor_y - lowest).abs() < 3.0,
-        "floor {floor_y:.1} px, lowest point {lowest:.1} px"
+        (floor_y - lowest).abs() < 3.0 + 2.0 * last,
+        "floor {floor_y:.1} px, lowest point {lowest:.1} px (final RMS {last:.2} px)"
     );
     assert!(
         restitution > 0.3 && restitution < 0.95,
@@ -158,11 +164,28 @@ fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
     let base = report["base"]["costs"]["multi_step"]["rms"]
         .as_f64()
         .expect("base rms");
-    let last = report["final"]["costs"]["multi_step"]["rms"]
-        .as_f64()
-        .expect("final rms");
     println!("bouncing ball: multi-step RMS {base:.2} -> {last:.2} px");
     assert!(last < base / 5.0, "multi-step RMS {base:.2} -> {last:.2} px");
+
+    // The field and the floor, and nothing standing in for the friction at the bounces: a
+    // quadratic drag or a tether fitted there fails transfer to other observed start states.
+    // The remainder is stated as not explained, against the noise.
+    let mut sorted = names.clone();
+    sorted.sort_unstable();
+    assert_eq!(sorted, ["gravity", "wall"], "{findings:?}");
+    let verdict = &report["verdict"];
+    assert_eq!(verdict["explained"], Value::Bool(false), "{verdict}");
+    let text = verdict["text"].as_str().unwrap_or_default();
+    assert!(
+        text.starts_with("not explained: ") && text.contains("px RMS against a noise of"),
+        "{text}"
+    );
+    println!("bouncing ball: {text}");
+    for r in report["rejected"].as_array().cloned().unwrap_or_default() {
+        if let Some(reason) = r["reason"].as_str() {
+            println!("bouncing ball: rejected {}: {reason}", r["label"]);
+        }
+    }
 }
 
 /// The real pendulum (`pendulum-scale`) from its pixels, with a structure naming the bob alone:

@@ -148,6 +148,12 @@ pub fn findings(d: &Diagnosis) -> String {
             &rows,
         ));
         for f in &d.findings {
+            if let Some(t) = &f.evidence.transfer {
+                s.push_str(&format!(
+                    "\n- {}, judged from other start states: {}.",
+                    f.label, t.text
+                ));
+            }
             if let Some(note) = &f.note {
                 s.push_str(&format!(
                     "\n- {}{}: {note}.",
@@ -181,6 +187,14 @@ pub fn findings(d: &Diagnosis) -> String {
             &["candidate", "round", "screen score", "score test", "score"],
             &rows,
         ));
+        for r in &d.rejected {
+            if let Some(reason) = &r.reason {
+                s.push_str(&format!("\n- rejected: {} {reason}.", r.label));
+            }
+        }
+        if d.rejected.iter().any(|r| r.reason.is_some()) {
+            s.push('\n');
+        }
     }
     s
 }

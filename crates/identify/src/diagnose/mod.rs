@@ -35,6 +35,7 @@ mod shooting;
 mod support;
 #[cfg(test)]
 mod tests;
+mod transfer;
 mod undecided;
 mod verdict;
 mod weak;
@@ -45,7 +46,7 @@ pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
     ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen,
-    Undecided, Verdict, VerdictParticle,
+    SegmentTransfer, Transfer, Undecided, Verdict, VerdictParticle,
 };
 pub use support::Support;
 pub use verdict::EXPLAINED_RMS_RATIO;
@@ -232,6 +233,12 @@ fn diagnose_inner(
         supports.insert(0, s.clone());
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
+    // Transfer segments: a few typical periods each (twice the test window), within half the
+    // analysed frames.
+    let segments = transfer::Segments::new(&shot, &excluded, (2 * w).min(frames / 2), scales.length);
+    if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+        eprintln!(" test window {w}, transfer segments {segments:?}");
+    }
     let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
     let ctx = Context {
         obs: &obs,
@@ -433,37 +440,9 @@ fn diagnose_inner(
         // tether imitating a pendulum's field and tether): each is taken out, the best single
         // and pair screened in its place, and verified against the current model.
         let addition_pays = verified.iter().any(|v| v.evidence.score.is_some_and(|s| s > 0.0));
-        if !addition_pays && !ctx.explained(&current) {
-            for k in 0..current.family.effects.len() {
-                let removed = current.family.effects[k];
-                if !removed.is_smooth() {
-                    continue;
-                }
-                let reduced = ctx.without(&current, k);
-                let mut options: Vec<Vec<Proposal>> = Vec::new();
-                if let Some(p) = ctx
-                    .screen(&reduced, &candidates)
-                    .into_iter()
-                    .find(|p| p.screen.is_some_and(|s| s > 0.0))
-                {
-                    options.push(vec![p]);
-                }
-                if let Some(pair) = ctx
-                    .screen_pairs(&reduced, &candidates, Effect::Gravity)
-                    .into_iter()
-                    .find(|p| p[0].screen.is_some_and(|s| s > 0.0))
-                {
-                    options.push(pair);
-                }
-                for o in options {
-                    let v = ctx.verify_swap(&current, k, &o);
-                    if debug {
-                        let effects: Vec<Effect> = o.iter().map(|p| p.effect).collect();
-                        eprintln!("   swap {removed:?} -> {effects:?}: {:?}", v.evidence);
-                    }
-                    verified.push(v);
-                }
-            }
+        let swapped = !addition_pays && !ctx.explained(&current);
+        if swapped {
+            verified.extend(ctx.verify_swaps(&current, &candidates));
         }
         if debug {
             for v in &verified {
@@ -471,28 +450,7 @@ fn diagnose_inner(
                 eprintln!("   verified {effects:?}: {:?}", v.evidence);
             }
         }
-        // Candidates are ranked against each other on one yardstick: the held-out cost each
-        // removes over the smallest residual variance among them, minus its penalty. Each
-        // candidate's own score divides by its own residual variance, which favours the one
-        // with more parameters (a distant tether imitating a uniform field) by far more than
-        // its penalty when the cost removed is large.
-        let common = verified
-            .iter()
-            .filter_map(|v| v.evidence.noise_variance)
-            .fold(f64::INFINITY, f64::min);
-        let rank = |v: &search::Verified| {
-            v.evidence
-                .score
-                .and(v.evidence.score_on(common))
-                .unwrap_or(f64::NEG_INFINITY)
-        };
-        // An explanation that fits at the noise level beats one that does not, whatever
-        // their scores (a far tether imitating a field can remove much cost and still leave
-        // a residual many times the noise).
-        let fits = |v: &search::Verified| {
-            v.evidence.score.is_some_and(|s| s > 0.0) && v.current.as_ref().is_some_and(|c| ctx.explained(c))
-        };
-        verified.sort_by(|a, b| fits(b).cmp(&fits(a)).then(rank(b).total_cmp(&rank(a))));
+        ctx.rank(&mut verified);
         // Record this round's losers (and unverified screened ones).
         let mut round_rejects: Vec<report::RejectedCandidate> = Vec::new();
         for p in &screened {
@@ -500,24 +458,39 @@ fn diagnose_inner(
                 round_rejects.push(rejected_entry(&family0, p, None, round));
             }
         }
-        let best = verified
-            .first()
-            .filter(|v| v.evidence.score.is_some_and(|s| s > 0.0))
-            .cloned();
-        for v in verified.iter().skip(usize::from(best.is_some())) {
-            if v.proposals.len() == 1 {
-                round_rejects.push(rejected_entry(
-                    &family0,
-                    &v.proposals[0],
-                    Some(v.evidence.clone()),
-                    round,
-                ));
+        // The best that transfers to other observed start states (see `transfer`).
+        let mut chosen = transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified);
+        // Additions that paid but fit one path only leave room for a swap, as when none pays.
+        let one_path_only = verified
+            .iter()
+            .any(|v| v.evidence.transfer.as_ref().is_some_and(report::Transfer::fails));
+        if chosen.is_none() && one_path_only && !swapped && !ctx.explained(&current) {
+            let first = verified.len();
+            verified.extend(ctx.verify_swaps(&current, &candidates));
+            ctx.rank(&mut verified[first..]);
+            chosen =
+                transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified[first..])
+                    .map(|i| first + i);
+        }
+        let best = chosen.map(|i| verified[i].clone());
+        let mut one_path = false;
+        for (i, v) in verified.iter().enumerate() {
+            let fails = v.evidence.transfer.as_ref().is_some_and(report::Transfer::fails);
+            one_path |= fails;
+            if Some(i) != chosen && (v.proposals.len() == 1 || fails) {
+                for p in &v.proposals {
+                    round_rejects.push(rejected_entry(&family0, p, Some(v.evidence.clone()), round));
+                }
             }
         }
         let Some(best) = best else {
             merge_rejects(&mut rejected, round_rejects);
             stop = if ctx.explained(&current) {
                 "the residual is at the noise level and no candidate earns its place".into()
+            } else if one_path {
+                "the candidates that fit better fit one path only (they fail transfer to other \
+                 observed start states, see rejected); no other pays for its parameters"
+                    .into()
             } else {
                 "no candidate, alone, paired with the field or in place of an accepted effect, \
                  removes enough held-out cost to pay for its parameters"
@@ -568,6 +541,7 @@ fn diagnose_inner(
             if alt.fit.sum_squares < current.fit.sum_squares {
                 current = alt;
                 evidence = ctx.evidence(&current, Some(&next), &best.proposals);
+                evidence.transfer = best.evidence.transfer.clone();
             }
         }
         if !evidence.score.is_some_and(|s| s > 0.0) {
@@ -828,12 +802,19 @@ fn rejected_entry(
         penalty: 0.0,
         score: None,
         parameter_count: p.effect.parameter_count(),
+        transfer: None,
     });
+    let reason = evidence
+        .transfer
+        .as_ref()
+        .filter(|t| t.fails())
+        .map(|t| format!("fits one path only: {}", t.text));
     report::RejectedCandidate {
         effect: p.effect.name().into(),
         label: p.effect.label(&structure_family.structure),
         round,
         evidence,
+        reason,
     }
 }
 

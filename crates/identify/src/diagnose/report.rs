@@ -75,6 +75,80 @@ pub struct Evidence {
     pub score: Option<f64>,
     /// Number of parameters the term adds.
     pub parameter_count: usize,
+    /// The term judged from other observed start states (`null` when it was not judged:
+    /// only a round's best candidates are).
+    pub transfer: Option<Transfer>,
+}
+
+/// A candidate simulated from observed start states it was not fitted from, with and without
+/// it (see `docs/diagnosis.md`, "Transfer").
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Transfer {
+    /// Frames the segments start at (absolute).
+    pub starts: Vec<usize>,
+    /// Frames simulated after each start.
+    pub segment_frames: usize,
+    /// Position RMS over the segments without the candidate, px.
+    pub rms_without: f64,
+    /// The same with it, px.
+    pub rms_with: f64,
+    /// The RMS the start states' and the tracks' noise alone would give, px.
+    pub rms_noise: f64,
+    /// Share of the candidate's predicted change on the segments that the tracks confirm (1:
+    /// all of it, 0: none); `null` when it changes nothing there.
+    pub fraction: Option<f64>,
+    /// Standard error of `fraction` from the noise.
+    pub fraction_std_error: Option<f64>,
+    /// The model's launch memory without the candidate (one frame's response to a halved
+    /// launch velocity over free flight's; `null` when no start moves measurably).
+    pub launch_memory_without: Option<f64>,
+    /// The same with it.
+    pub launch_memory_with: Option<f64>,
+    /// True when the candidate transfers (the fraction above one half by `TRANSFER_Z`
+    /// standard errors), false when it fits one path only (below one half by as much, over
+    /// all segments or on one of them, or forgetting its launch within a frame), `null` when
+    /// the segments cannot tell.
+    pub transfers: Option<bool>,
+    /// Each segment's figures.
+    pub segments: Vec<SegmentTransfer>,
+    /// In words.
+    pub text: String,
+}
+
+impl Transfer {
+    /// Returns true if and only if the candidate fits one path only (`transfers` false).
+    pub fn fails(&self) -> bool {
+        self.transfers == Some(false)
+    }
+}
+
+/// One transfer segment (see [`Transfer`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SegmentTransfer {
+    /// Frame it starts at (absolute).
+    pub start: usize,
+    /// Frames simulated after the start.
+    pub frames: usize,
+    /// Position RMS without the candidate, px.
+    pub rms_without: f64,
+    /// Position RMS with it, px.
+    pub rms_with: f64,
+    /// Share of the candidate's change the tracks confirm there (`null`: no change).
+    pub fraction: Option<f64>,
+    /// Its standard error from the noise.
+    pub fraction_std_error: Option<f64>,
+}
+
+impl SegmentTransfer {
+    /// Returns true if and only if the tracks contradict the candidate's change on this
+    /// segment: the fraction below one half by `TRANSFER_Z` standard errors (its cost rises
+    /// with the candidate beyond what noise explains).
+    pub fn contradicts(&self) -> bool {
+        match (self.fraction, self.fraction_std_error) {
+            (Some(b), Some(e)) => b + super::transfer::TRANSFER_Z * e < 0.5,
+            _ => false,
+        }
+    }
 }
 
 impl Evidence {
@@ -208,6 +282,10 @@ pub struct RejectedCandidate {
     pub round: usize,
     /// Its scores in that round.
     pub evidence: Evidence,
+    /// Why it was rejected, when it improved the fit but failed transfer: `fits one path
+    /// only: ...` with the transfer figures (`null` otherwise: it did not pay for its
+    /// parameters).
+    pub reason: Option<String>,
 }
 
 /// Costs of one model on the whole tracked sequence.

@@ -766,6 +766,70 @@ impl Context<'_> {
         v
     }
 
+    /// Swaps: an accepted smooth effect of `current` may be a poor stand-in for a better
+    /// explanation (a far tether imitating a pendulum's field and tether): each is taken out,
+    /// the best single candidate and pair screened in its place, and verified against
+    /// `current` (see [`Context::verify_swap`]).
+    pub fn verify_swaps(&self, current: &Current, candidates: &[Effect]) -> Vec<Verified> {
+        let mut out = Vec::new();
+        for k in 0..current.family.effects.len() {
+            let removed = current.family.effects[k];
+            if !removed.is_smooth() {
+                continue;
+            }
+            let reduced = self.without(current, k);
+            let mut options: Vec<Vec<Proposal>> = Vec::new();
+            if let Some(p) = self
+                .screen(&reduced, candidates)
+                .into_iter()
+                .find(|p| p.screen.is_some_and(|s| s > 0.0))
+            {
+                options.push(vec![p]);
+            }
+            if let Some(pair) = self
+                .screen_pairs(&reduced, candidates, Effect::Gravity)
+                .into_iter()
+                .find(|p| p[0].screen.is_some_and(|s| s > 0.0))
+            {
+                options.push(pair);
+            }
+            for o in options {
+                let v = self.verify_swap(current, k, &o);
+                if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+                    let effects: Vec<Effect> = o.iter().map(|p| p.effect).collect();
+                    eprintln!("   swap {removed:?} -> {effects:?}: {:?}", v.evidence);
+                }
+                out.push(v);
+            }
+        }
+        out
+    }
+
+    /// Sorts `verified` best first. Candidates are ranked against each other on one
+    /// yardstick: the held-out cost each removes over the smallest residual variance among
+    /// them, minus its penalty (each candidate's own score divides by its own residual
+    /// variance, which favours the one with more parameters, a distant tether imitating a
+    /// uniform field, by far more than its penalty when the cost removed is large). An
+    /// explanation that fits at the noise level with a positive score ranks above every one
+    /// that does not, whatever their scores (a far tether imitating a field can remove much
+    /// cost and still leave a residual many times the noise).
+    pub fn rank(&self, verified: &mut [Verified]) {
+        let common = verified
+            .iter()
+            .filter_map(|v| v.evidence.noise_variance)
+            .fold(f64::INFINITY, f64::min);
+        let rank = |v: &Verified| {
+            v.evidence
+                .score
+                .and(v.evidence.score_on(common))
+                .unwrap_or(f64::NEG_INFINITY)
+        };
+        let fits = |v: &Verified| {
+            v.evidence.score.is_some_and(|s| s > 0.0) && v.current.as_ref().is_some_and(|c| self.explained(c))
+        };
+        verified.sort_by(|a, b| fits(b).cmp(&fits(a)).then(rank(b).total_cmp(&rank(a))));
+    }
+
     /// Multi-step verification of proposals (one effect, or a wall with a smooth effect
     /// that needs it) against `current`: fitted from the current fit plus the proposals'
     /// starting values and from the weak-form joint estimate, keeping the better fit.
@@ -829,6 +893,7 @@ impl Context<'_> {
             penalty: k as f64 * (n.max(2) as f64).ln(),
             score: None,
             parameter_count: k,
+            transfer: None,
         };
         evidence.score = variance.and_then(|v| evidence.score_on(v));
         evidence

@@ -83,21 +83,34 @@ impl<'a> Shot<'a> {
         s
     }
 
-    /// Simulates `family` at `params` from `initial` at the anchor up to offset `end`
-    /// (exclusive), calling `visit(offset, positions)` at each frame; false if it stops.
+    /// As [`Shot::simulate_from`], from the anchor.
     fn simulate(
         &self,
         family: &Family,
         params: &[f64],
         initial: &State,
         end: usize,
+        visit: impl FnMut(usize, &[Vec2]) -> bool,
+    ) -> bool {
+        self.simulate_from(family, params, initial, self.anchor, end, visit)
+    }
+
+    /// Simulates `family` at `params` from `initial` at frame offset `from` up to offset `end`
+    /// (exclusive), calling `visit(offset, positions)` at each frame; false if it stops.
+    pub fn simulate_from(
+        &self,
+        family: &Family,
+        params: &[f64],
+        initial: &State,
+        from: usize,
+        end: usize,
         mut visit: impl FnMut(usize, &[Vec2]) -> bool,
     ) -> bool {
         let mut state = initial.clone();
         let model = family.model(params, Some(&mut state));
         let mut scratch = StepScratch::new(state.len());
-        for k in self.anchor..end.min(self.obs.frame_count()) {
-            if k > self.anchor {
+        for k in from..end.min(self.obs.frame_count()) {
+            if k > from {
                 step_frame(&model, &self.stepping, &mut state, &mut scratch);
             }
             if !visit(k, &state.positions) {
