@@ -73,9 +73,13 @@ impl Detectability {
 /// A found value's error against the truth.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ParameterError {
-    /// The error: relative (a fraction) for magnitudes, px for positions.
+    /// What is compared: `field`, `drag`, `stiffness`, `length`, `fixed point`, `line`,
+    /// `restitution`...
+    pub name: &'static str,
+    /// The error: relative (a fraction) for magnitudes, px for positions, absolute for a
+    /// restitution.
     pub value: f64,
-    /// `relative` or `px`.
+    /// `relative`, `px` or `absolute`.
     pub unit: &'static str,
     /// In words, with the found and true values.
     pub text: String,
@@ -96,8 +100,9 @@ pub struct EffectVerdict {
     pub found: Option<String>,
     /// True when it is among the diagnosis's undecided findings.
     pub undecided: bool,
-    /// The matched finding's primary value against the truth.
-    pub error: Option<ParameterError>,
+    /// The matched finding's values against the truth, the primary one first (empty when
+    /// not found).
+    pub errors: Vec<ParameterError>,
 }
 
 /// A diagnosis against its truth.
@@ -160,7 +165,7 @@ pub fn judge(drawn: &Drawn, d: &Diagnosis, truth: &TrackTable, track_error: f64)
                 detectability: Detectability::of(ratio),
                 found: finding.map(|f| f.label.clone()),
                 undecided: d.undecided.iter().any(|u| matches(c, &u.finding)),
-                error: finding.and_then(|f| parameter_error(c, f, centre)),
+                errors: finding.map_or_else(Vec::new, |f| parameter_errors(c, f, centre)),
             }
         })
         .collect();
@@ -276,80 +281,88 @@ fn same_class_any_place(c: &Concealed, f: &Finding) -> bool {
     matches!(c, Concealed::SpringDamping { .. }) && f.effect == "spring_damping"
 }
 
-/// The matched finding's primary value against the truth: relative for magnitudes; px for a
-/// tether's fixed point and a wall's line (its distance from the true line at the point of
-/// that line nearest the frame's centre `centre`).
-fn parameter_error(c: &Concealed, f: &Finding, centre: Vec2) -> Option<ParameterError> {
-    let relative = |name: &str, found: f64, truth: f64| ParameterError {
-        value: (found - truth).abs() / truth.abs(),
-        unit: "relative",
-        text: format!("{name} {found:.4} (truth {truth:.4})"),
+/// The matched finding's values against the truth, the primary one first: relative errors
+/// for magnitudes (a field's as a vector), px for a tether's fixed point and for a wall's line
+/// (its distance from the true line at the point of that line nearest the frame's centre
+/// `centre`), the restitution's absolute error. Empty when the finding lacks a value.
+fn parameter_errors(c: &Concealed, f: &Finding, centre: Vec2) -> Vec<ParameterError> {
+    let relative = |name: &'static str, key: &str, truth: f64| {
+        value(f, key).map(|found| ParameterError {
+            name,
+            value: (found - truth).abs() / truth.abs(),
+            unit: "relative",
+            text: format!("{name} {found:.4} (truth {truth:.4})"),
+        })
     };
-    Some(match c {
-        Concealed::Field { gravity } => {
-            let (g, t) = (
-                Vec2::new(value(f, "gravity_x")?, value(f, "gravity_y")?),
-                Vec2::new(gravity[0], gravity[1]),
-            );
-            ParameterError {
+    let errors: Option<Vec<ParameterError>> = match c {
+        Concealed::Field { gravity } => (|| {
+            let g = Vec2::new(value(f, "gravity_x")?, value(f, "gravity_y")?);
+            let t = Vec2::new(gravity[0], gravity[1]);
+            Some(vec![ParameterError {
+                name: "field",
                 value: (g - t).norm() / t.norm(),
                 unit: "relative",
                 text: format!("field ({:.1}, {:.1}) (truth ({:.1}, {:.1}))", g.x, g.y, t.x, t.y),
-            }
-        }
-        Concealed::Drag { drag } => relative("drag", value(f, "drag")?, *drag),
+            }])
+        })(),
+        Concealed::Drag { drag } => relative("drag", "drag", *drag).map(|e| vec![e]),
         Concealed::QuadraticDrag { quadratic_drag } => {
-            relative("quadratic drag", value(f, "quadratic_drag")?, *quadratic_drag)
+            relative("quadratic drag", "quadratic_drag", *quadratic_drag).map(|e| vec![e])
         }
-        Concealed::SpringDamping { damping } => relative("damping", value(f, "damping")?, *damping),
+        Concealed::SpringDamping { damping } => relative("damping", "damping", *damping).map(|e| vec![e]),
         Concealed::MissingSpring {
             length, stiffness, ..
-        } => {
-            let mut e = relative("stiffness", value(f, "stiffness")?, *stiffness);
-            e.text.push_str(&format!(
-                ", length {:.2} (truth {length:.2})",
-                value(f, "length")?
-            ));
-            e
-        }
-        Concealed::Tether { anchor, length, .. } => {
+        } => (|| {
+            Some(vec![
+                relative("stiffness", "stiffness", *stiffness)?,
+                relative("length", "length", *length)?,
+            ])
+        })(),
+        Concealed::Tether { anchor, length, .. } => (|| {
             let a = Vec2::new(value(f, "anchor_x")?, value(f, "anchor_y")?);
-            ParameterError {
-                value: (a - Vec2::new(anchor[0], anchor[1])).norm(),
-                unit: "px",
-                text: format!(
-                    "fixed point ({:.1}, {:.1}) (truth ({:.1}, {:.1})), length {:.1} (truth {length:.1})",
-                    a.x,
-                    a.y,
-                    anchor[0],
-                    anchor[1],
-                    value(f, "length")?
-                ),
-            }
-        }
+            Some(vec![
+                ParameterError {
+                    name: "fixed point",
+                    value: (a - Vec2::new(anchor[0], anchor[1])).norm(),
+                    unit: "px",
+                    text: format!(
+                        "fixed point ({:.1}, {:.1}) (truth ({:.1}, {:.1}))",
+                        a.x, a.y, anchor[0], anchor[1]
+                    ),
+                },
+                relative("length", "length", *length)?,
+            ])
+        })(),
         Concealed::Wall {
             normal,
             offset,
             restitution,
-        } => {
+        } => (|| {
             let n = Vec2::new(normal[0], normal[1]);
             let on_line = centre - (n.dot(&centre) - offset) * n;
             let found = Vec2::new(value(f, "normal_x")?, value(f, "normal_y")?);
             let found_offset = value(f, "offset")?;
-            ParameterError {
-                value: (found.dot(&on_line) - found_offset).abs(),
-                unit: "px",
-                text: format!(
-                    "line n ({:.3}, {:.3}) . x = {found_offset:.1} (truth ({:.3}, {:.3}), {offset:.1}), restitution {:.3} (truth {restitution:.3})",
-                    found.x,
-                    found.y,
-                    n.x,
-                    n.y,
-                    value(f, "restitution")?
-                ),
-            }
-        }
-    })
+            let e = value(f, "restitution")?;
+            Some(vec![
+                ParameterError {
+                    name: "line",
+                    value: (found.dot(&on_line) - found_offset).abs(),
+                    unit: "px",
+                    text: format!(
+                        "line n ({:.3}, {:.3}) . x = {found_offset:.1} (truth ({:.3}, {:.3}), {offset:.1})",
+                        found.x, found.y, n.x, n.y
+                    ),
+                },
+                ParameterError {
+                    name: "restitution",
+                    value: (e - restitution).abs(),
+                    unit: "absolute",
+                    text: format!("restitution {e:.3} (truth {restitution:.3})"),
+                },
+            ])
+        })(),
+    };
+    errors.unwrap_or_default()
 }
 
 #[cfg(test)]

@@ -84,7 +84,7 @@ fn class_table(results: &[RecordingResult]) -> String {
 /// and the median error of what was found.
 fn effect_table(results: &[RecordingResult]) -> String {
     let mut out = String::from(
-        "| effect | concealed | detectable | marginal | undetectable | found, detectable | found, marginal | found, undetectable | median error (found, detectable) | error measure |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+        "| effect | concealed | detectable | marginal | undetectable | found, detectable | found, marginal | found, undetectable | median errors (found, detectable) |\n|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for kind in Kind::ALL {
         let effects: Vec<_> = results
@@ -106,29 +106,33 @@ fn effect_table(results: &[RecordingResult]) -> String {
                 format!("{k}/{n}")
             }
         };
-        let mut errors: Vec<f64> = effects
+        // Each named error's median over the detectable effects found, in order.
+        let mut named: Vec<(&str, &str, Vec<f64>)> = Vec::new();
+        for e in effects
             .iter()
             .filter(|e| e.detectability == Detectability::Detectable)
-            .filter_map(|e| e.error.as_ref().map(|x| x.value))
-            .collect();
-        let px = matches!(kind, Kind::Tether | Kind::Wall);
-        let error = median(&mut errors).map_or("-".into(), |m| {
-            if px {
-                format!("{m:.2} px")
-            } else {
-                format!("{:.2} %", 100.0 * m)
+        {
+            for x in &e.errors {
+                match named.iter_mut().find(|(name, _, _)| *name == x.name) {
+                    Some((_, _, values)) => values.push(x.value),
+                    None => named.push((x.name, x.unit, vec![x.value])),
+                }
             }
-        });
-        let measure = match kind {
-            Kind::Field => "relative, vector",
-            Kind::MissingSpring => "stiffness, relative",
-            Kind::Tether => "fixed point, px",
-            Kind::Wall => "line near the frame's centre, px",
-            _ => "relative",
-        };
+        }
+        let error = named
+            .iter_mut()
+            .filter_map(|(name, unit, values)| {
+                median(values).map(|m| match *unit {
+                    "relative" => format!("{name} {:.2} %", 100.0 * m),
+                    "px" => format!("{name} {m:.2} px"),
+                    _ => format!("{name} {m:.3}"),
+                })
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {error} | {measure} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             kind.name(),
             effects.len(),
             of(Detectability::Detectable),
@@ -137,6 +141,7 @@ fn effect_table(results: &[RecordingResult]) -> String {
             found(Detectability::Detectable),
             found(Detectability::Marginal),
             found(Detectability::Undetectable),
+            if error.is_empty() { "-" } else { &error },
         );
     }
     out
@@ -172,9 +177,17 @@ fn failure_line(r: &RecordingResult, small: bool) -> String {
                 e.detectability.name(),
                 e.ratio,
                 match (&e.found, e.undecided) {
-                    (Some(_), _) => ", found",
-                    (None, true) => ", undecided",
-                    (None, false) => ", not found",
+                    (Some(_), _) if e.errors.is_empty() => ", found".to_string(),
+                    (Some(_), _) => format!(
+                        ", found: {}",
+                        e.errors
+                            .iter()
+                            .map(|x| x.text.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                    (None, true) => ", undecided".to_string(),
+                    (None, false) => ", not found".to_string(),
                 }
             )
         })
