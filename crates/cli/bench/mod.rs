@@ -7,7 +7,7 @@ pub mod render;
 pub mod sweep;
 pub mod track;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
@@ -37,12 +37,7 @@ pub fn run(args: &BenchArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             "--sweep applies to `physfit bench track` only"
         );
         let report = sweep::run(args.quick)?;
-        print!("{report}");
-        if let Some(path) = &args.out {
-            physfit_model::write_atomic(path, report.as_bytes())
-                .with_context(|| format!("writing {}", path.display()))?;
-        }
-        return Ok(());
+        return print_and_save(&report, args.out.as_deref());
     }
     let mut report = String::new();
     if matches!(args.what, BenchTarget::Render | BenchTarget::All) {
@@ -61,12 +56,7 @@ pub fn run(args: &BenchArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         report.push_str(&fit::scaling(args.quick)?);
         report.push('\n');
     }
-    print!("{report}");
-    if let Some(path) = &args.out {
-        physfit_model::write_atomic(path, report.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
+    print_and_save(&report, args.out.as_deref())
 }
 
 /// `physfit bench diagnose`: the tables to stdout and `--out`, the results to `--json`.
@@ -91,17 +81,25 @@ fn run_diagnose(args: &BenchArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         minutes: args.minutes,
     };
     let (report, results) = diagnose::run(&options, verbosity)?;
-    print!("{report}");
-    if let Some(path) = &args.out {
-        physfit_model::write_atomic(path, report.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
-    }
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&results).context("serialising the results")?;
-        physfit_model::write_atomic(path, json.as_bytes())
-            .with_context(|| format!("writing {}", path.display()))?;
+        save(&json, path)?;
     }
-    Ok(())
+    print_and_save(&report, args.out.as_deref())
+}
+
+/// Prints `report` and writes it to `out` when given.
+fn print_and_save(report: &str, out: Option<&Path>) -> anyhow::Result<()> {
+    print!("{report}");
+    match out {
+        Some(path) => save(report, path),
+        None => Ok(()),
+    }
+}
+
+/// Writes `text` to `path` atomically, naming the file in an error.
+fn save(text: &str, path: &Path) -> anyhow::Result<()> {
+    physfit_model::write_atomic(path, text.as_bytes()).with_context(|| format!("writing {}", path.display()))
 }
 
 /// A scratch folder under the system's temporary folder, named after the process and a

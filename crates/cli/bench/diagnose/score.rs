@@ -22,6 +22,8 @@
 //! diagnosis is *unsure* when its verdict is "not explained" or it lists undecided findings
 //! ("not enough data"); that is reported beside, never counted as right.
 
+use std::path::Path;
+
 use physfit_identify::diagnose::{scene_costs, Diagnosis, Finding};
 use physfit_model::{Scene, Vec2};
 use physfit_track::TrackTable;
@@ -215,16 +217,7 @@ fn separation(c: &Concealed, truth: &Scene, centres: &TrackTable) -> f64 {
     {
         return rms;
     }
-    let run = |s: &Scene| {
-        s.model().ok().map(|m| {
-            physfit_model::simulate(
-                &m,
-                &s.initial_state(),
-                &s.integration_parameters(),
-                s.recording.frames,
-            )
-        })
-    };
+    let run = |s: &Scene| crate::cmd::simulate_scene(s, Path::new(&s.name)).ok();
     match (run(truth), run(&without)) {
         (Some(a), Some(b)) => {
             let n = without.particles.iter().filter(|p| !p.fixed).count();

@@ -1,6 +1,8 @@
 //! The truth's own simulation judged: stable integration, discs apart, the frame's margin
 //! kept, linking unambiguous; and what kind of recording it is ([`Regime`]).
 
+use std::path::Path;
+
 use physfit_model::scene::{ParticleSpec, SpringSpec, TorsionSpec};
 use physfit_model::{ParticleId, Recording, Scene, Vec2};
 use serde::Serialize;
@@ -113,15 +115,10 @@ pub fn substeps_needed(
     (substeps.is_finite() && substeps <= MAX_SUBSTEPS as f64).then_some(substeps as u32)
 }
 
-/// The scene's recording; `None` when it cannot be simulated or leaves finite numbers.
+/// The scene's recording (simulated as `physfit render` simulates it); `None` when it cannot
+/// be simulated or leaves finite numbers.
 pub fn simulate(scene: &Scene) -> Option<Recording> {
-    let model = scene.model().ok()?;
-    let rec = physfit_model::simulate(
-        &model,
-        &scene.initial_state(),
-        &scene.integration_parameters(),
-        scene.recording.frames,
-    );
+    let rec = crate::cmd::simulate_scene(scene, Path::new(&scene.name)).ok()?;
     rec.positions
         .iter()
         .all(|p| p.x.is_finite() && p.y.is_finite())
