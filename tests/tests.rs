@@ -1,5 +1,6 @@
 //! End-to-end tests of the `physfit` binary: one test binary, one module per stage.
 
+mod bench_diagnose;
 mod diagnose;
 mod fit;
 mod getting_started;

@@ -36,7 +36,7 @@ pub enum Command {
     Diagnose(DiagnoseArgs),
     /// The whole pipeline: render (a scene) or read frames, track, fit, diagnose, report.
     Run(RunArgs),
-    /// Measure speed: `render`, `track`, `fit` or `all`.
+    /// Measure speed (`render`, `track`, `fit`, `all`) or the diagnosis's accuracy (`diagnose`).
     Bench(BenchArgs),
 }
 
@@ -204,6 +204,25 @@ pub struct BenchArgs {
     /// Also write the tables to this Markdown file.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// With `diagnose`: recordings to draw (default 100; 12 with `--quick`).
+    #[arg(long)]
+    pub count: Option<usize>,
+    /// With `diagnose`: seed of the first recording; recording `i` uses `seed + i`, so
+    /// `--seed S --count 1` reproduces recording S of any run.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// With `diagnose`: small recordings (at most 4 particles and 150 frames; the ones the
+    /// tests run). `--quick` implies it.
+    #[arg(long)]
+    pub small: bool,
+    /// With `diagnose`: draw no new recording after this many minutes (the table says how
+    /// many ran).
+    #[arg(long)]
+    pub minutes: Option<f64>,
+    /// With `diagnose`: also write every recording's result (truth, detectability, findings,
+    /// errors, times) to this JSON file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
 }
 
 /// Benchmark groups.
@@ -217,7 +236,10 @@ pub enum BenchTarget {
     Fit,
     /// Identification's scaling table alone (lsq and ga-local on lattices of 9 to 1024 particles).
     Scaling,
-    /// Everything.
+    /// The diagnosis on random recordings with known concealed effects: found, missed and
+    /// falsely added rates and parameter errors (not part of `all`).
+    Diagnose,
+    /// Everything but `diagnose`.
     All,
 }
 

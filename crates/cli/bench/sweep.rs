@@ -10,11 +10,11 @@
 //! centre (a shaded sphere's leans towards the light): the rule of the tracker's style-sweep
 //! test (`crates/track/tests/tracking/sweep.rs`).
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
 use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+
+use super::Scratch;
 
 /// Radii of the full grid, px.
 const RADII: [f64; 6] = [1.5, 3.0, 6.0, 12.0, 24.0, 48.0];
@@ -23,15 +23,6 @@ const NOISES: [f64; 3] = [0.0, 5.0, 20.0];
 /// Radii and noise levels of `--quick`.
 const QUICK_RADII: [f64; 3] = [1.5, 6.0, 24.0];
 const QUICK_NOISES: [f64; 2] = [0.0, 20.0];
-
-/// A folder removed when dropped.
-struct Scratch(PathBuf);
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// The cell's style: a fixed draw for the motion's seed, then every look set.
 fn cell_style(profile: Profile, radius: f64, noise: f64, seed: u64) -> Style {
@@ -84,9 +75,7 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
             for &noise in noises {
                 let seed = 7000 + cells as u64;
                 let seq = Sequence::new(cell_style(profile, radius, noise, seed));
-                let dir = Scratch(
-                    std::env::temp_dir().join(format!("physfit-bench-sweep-{}-{cells}", std::process::id())),
-                );
+                let dir = Scratch::new(&format!("sweep-{cells}"))?;
                 seq.write_frames(&dir.0)
                     .with_context(|| format!("drawing into {}", dir.0.display()))?;
                 let truth = table(&seq.truth.names, &seq.truth.positions);

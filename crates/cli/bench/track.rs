@@ -5,7 +5,7 @@
 //! a background of 30, each particle stepping up to 3 px per frame in a random direction.
 //! They are rendered once per case into a folder under the system temp dir (removed after).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -15,30 +15,14 @@ use physfit_track::{
     list_frames, score_tracks, track_folder, Frame, FrameDecoder, TrackOptions, TrackPoint, TrackTable,
 };
 
+use super::Scratch;
+
 /// Frame size, px.
 const SIZE: u32 = 512;
 /// trackpy 0.7 end-to-end frames/s at 10, 100 and 1000 particles (from the issue).
 const TRACKPY_FPS: [(usize, f64); 3] = [(10, 90.0), (100, 70.0), (1000, 21.0)];
 /// trackpy 0.7 RMS localisation error per axis at noise 0, 5 and 20 grey levels, px.
 const TRACKPY_RMS: [(f64, f64); 3] = [(0.0, 0.004), (5.0, 0.014), (20.0, 0.05)];
-
-/// A folder removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(label: &str) -> anyhow::Result<Scratch> {
-        let dir = std::env::temp_dir().join(format!("physfit-bench-track-{}-{label}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-        Ok(Scratch(dir))
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// Uniform numbers in [0, 1) from splitmix64 (fixed seeds: every run draws the same frames).
 struct Uniform(u64);
@@ -182,7 +166,7 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
     out.push_str("| particles | frames | decode only (frames/s, 1 thread) | physfit end to end, 1 thread | physfit, 2 threads | trackpy 0.7 | physfit / trackpy (1 thread) | decode share (1 thread) |\n");
     out.push_str("|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (count, trackpy) in TRACKPY_FPS {
-        let dir = Scratch::new(&format!("n{count}"))?;
+        let dir = Scratch::new(&format!("track-n{count}"))?;
         render(&scattered(count, frames), 5.0, &dir.0)?;
         // One untimed run warms the file cache, then the timed runs, each the best of
         // REPEATS: on a shared machine a run is only ever slowed by the others' work, so the
@@ -213,7 +197,7 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
     let rec = isolated(acc_frames);
     let truth = truth_table(&rec);
     for (noise, trackpy) in TRACKPY_RMS {
-        let dir = Scratch::new(&format!("rms{noise}"))?;
+        let dir = Scratch::new(&format!("track-rms{noise}"))?;
         render(&rec, noise, &dir.0)?;
         let t = track_folder(&dir.0, &TrackOptions::default(), &|_, _| {})?;
         let s = score_tracks(&t.table, &truth, t.stats.radius);

@@ -29,6 +29,16 @@ pub fn truth_table(scene: &Scene, recording: &Recording) -> TrackTable {
     TrackTable { points }
 }
 
+/// The structure's particles by id with their frame-0 positions, px: the tracker's named start
+/// (tracks take these names and only these particles are followed).
+pub fn named_start(structure: &Scene) -> Vec<(String, [f64; 2])> {
+    structure
+        .particles
+        .iter()
+        .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
+        .collect()
+}
+
 /// Simulates a complete scene over its recording, naming the scene in errors.
 pub fn simulate_scene(scene: &Scene, source: &Path) -> anyhow::Result<Recording> {
     let model = scene

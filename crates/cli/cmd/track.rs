@@ -9,15 +9,7 @@ use crate::progress::{self, Verbosity};
 /// Tracks a folder of frames.
 pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let named_start = match &args.structure {
-        Some(path) => {
-            let s = super::load_scene(path)?;
-            Some(
-                s.particles
-                    .iter()
-                    .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
-                    .collect(),
-            )
-        }
+        Some(path) => Some(super::named_start(&super::load_scene(path)?)),
         None => None,
     };
     let options = TrackOptions {

@@ -220,13 +220,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let t = Instant::now();
     let options = TrackOptions {
         window: args.window,
-        named_start: Some(
-            structure
-                .particles
-                .iter()
-                .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
-                .collect(),
-        ),
+        named_start: Some(super::named_start(&structure)),
         ..TrackOptions::default()
     };
     let bar = progress::bar(verbosity, "track", 0);

@@ -1,0 +1,152 @@
+//! Issue 21: twelve fixed seeds of `physfit bench diagnose --small`, seeds 1 to 12 (the first
+//! twelve of the sequence, not chosen), each through the binary: draw the recording, render,
+//! track, diagnose, judge (`crates/cli/bench/diagnose/`). `--small` caps a recording at 4
+//! particles and 150 frames, so that each seed runs in a few seconds.
+//!
+//! Each asserts the recording is diagnosed exactly right: every detectable concealed effect
+//! found, nothing found that was not concealed (marginal effects may be found or not), and
+//! each detectable effect's found values within tolerance: magnitudes (a field as a vector, a
+//! drag, a dashpot, a spring's stiffness and length, a tether's length) within 10 %, a wall's
+//! line within 1 px and its restitution within 0.05, a tether's fixed point within 2 % of its
+//! length.
+//!
+//! Seeds the diagnosis gets wrong today are ignored, with what goes wrong; `cargo test --test
+//! integration bench_seed -- --include-ignored` runs them all.
+
+use serde_json::Value;
+
+use crate::util::{physfit, tempdir};
+
+/// Largest relative error of a magnitude.
+const RELATIVE: f64 = 0.10;
+/// Largest distance of a found wall's line from the true one, px.
+const WALL_LINE_PX: f64 = 1.0;
+/// Largest error of a restitution.
+const RESTITUTION: f64 = 0.05;
+/// Largest distance of a tether's found fixed point, as a fraction of its true length.
+const FIXED_POINT_OF_LENGTH: f64 = 0.02;
+
+/// Runs recording `seed` of `physfit bench diagnose --small` and asserts it is diagnosed
+/// exactly right, its detectable values within tolerance.
+fn bench_seed(seed: u64) {
+    let dir = tempdir();
+    let json = dir.path().join("results.json");
+    physfit()
+        .args(["-q", "bench", "diagnose", "--small", "--count", "1", "--seed"])
+        .arg(seed.to_string())
+        .arg("--json")
+        .arg(&json)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&json).expect("results.json");
+    let results: Value = serde_json::from_str(&text).expect("results.json is JSON");
+    let r = &results[0];
+    let j = &r["judgement"];
+    assert!(
+        j.is_object(),
+        "seed {seed}: the recording was not diagnosed: {}",
+        r["error"]
+    );
+    let strings = |v: &Value| -> Vec<String> {
+        v.as_array()
+            .map(|a| a.iter().filter_map(|s| s.as_str().map(String::from)).collect())
+            .unwrap_or_default()
+    };
+    let message = format!(
+        "seed {seed} (`physfit bench diagnose --seed {seed} --count 1 --small`): concealed [{}], found [{}]; {}",
+        strings(&r["concealed"]).join("; "),
+        strings(&j["found"]).join(", "),
+        j["verdict"]
+    );
+    let added = strings(&j["false_additions"]);
+    assert!(added.is_empty(), "{message}: falsely added {added:?}");
+    let effects = j["effects"].as_array().expect("effects");
+    for e in effects {
+        if e["detectability"] != "detectable" {
+            continue;
+        }
+        let what = format!("{} ({:.1} noises)", e["concealed"]["effect"], e["ratio"]);
+        assert!(e["found"].is_string(), "{message}: missed {what}");
+        for x in e["errors"].as_array().expect("errors") {
+            let value = x["value"].as_f64().expect("error value");
+            let (limit, unit) = match (x["name"].as_str(), x["unit"].as_str()) {
+                (Some("line"), _) => (WALL_LINE_PX, "px"),
+                (Some("restitution"), _) => (RESTITUTION, ""),
+                (Some("fixed point"), _) => {
+                    let length = e["concealed"]["length"].as_f64().expect("tether length");
+                    (FIXED_POINT_OF_LENGTH * length, "px")
+                }
+                _ => (RELATIVE, "(relative)"),
+            };
+            assert!(
+                value <= limit,
+                "{message}: {what}: {} off by {value:.4} {unit}, more than {limit:.4}",
+                x["text"]
+            );
+        }
+    }
+    assert_eq!(j["exactly_right"], true, "{message}");
+}
+
+#[test]
+fn bench_seed_01() {
+    bench_seed(1);
+}
+
+#[test]
+fn bench_seed_02() {
+    bench_seed(2);
+}
+
+#[test]
+fn bench_seed_03() {
+    bench_seed(3);
+}
+
+#[test]
+fn bench_seed_04() {
+    bench_seed(4);
+}
+
+#[test]
+#[ignore = "diagnosis issue 21: seed 5: tether without a field (3 particles, 130 frames): found, but its fixed point 727 px off and its length 39 % off"]
+fn bench_seed_05() {
+    bench_seed(5);
+}
+
+#[test]
+fn bench_seed_06() {
+    bench_seed(6);
+}
+
+#[test]
+fn bench_seed_07() {
+    bench_seed(7);
+}
+
+#[test]
+#[ignore = "diagnosis issue 21: seed 8: tether without a field, one particle, 21 frames: a field falsely added, the fixed point run off to 25 000 px"]
+fn bench_seed_08() {
+    bench_seed(8);
+}
+
+#[test]
+#[ignore = "diagnosis issue 21: seed 9: missing spring and wall: the wall found with restitution 0.000 (truth 0.606)"]
+fn bench_seed_09() {
+    bench_seed(9);
+}
+
+#[test]
+fn bench_seed_10() {
+    bench_seed(10);
+}
+
+#[test]
+fn bench_seed_11() {
+    bench_seed(11);
+}
+
+#[test]
+fn bench_seed_12() {
+    bench_seed(12);
+}
