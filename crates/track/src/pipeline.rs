@@ -1097,11 +1097,11 @@ const SETTLED_SIZE: f64 = 0.05;
 const HOVER_RATIO: f64 = 1.5;
 
 /// The starts of the named particles that hover in the per-pixel median of `per_pixel`:
-/// near each start, the strongest scale-space answer (see [`crate::scale`]) in the first
-/// sample against the `flat` level is more than [`HOVER_RATIO`] times the one against the
-/// median (or the median shows nothing there). A particle that moves shows whole against
-/// both; one that stays put is half or wholly in the median and shows only its leading and
-/// trailing edges against it.
+/// the strongest scale-space answer in the first sample holding the start
+/// ([`scale::holding`]) is more than [`HOVER_RATIO`] times stronger against the `flat` level
+/// than against the median (or the median shows nothing there). A particle that moves shows
+/// whole against both; one that stays put is half or wholly in the median and shows only its
+/// leading and trailing edges against it.
 fn hovering_starts(
     per_pixel: &Background,
     flat: &Background,
@@ -1116,16 +1116,8 @@ fn hovering_starts(
             workers,
             frames,
         };
-        let kept = scale_blobs(&estimation, false).unwrap_or_default();
-        starts
-            .iter()
-            .map(|s| {
-                nearest_each(&kept, std::slice::from_ref(s), |b| [b.x, b.y])
-                    .first()
-                    .filter(|b| (b.x - s[0]).hypot(b.y - s[1]) <= scale::OWN_RADIUS_OF_PEAK * b.radius + 1.0)
-                    .map(|b| **b)
-            })
-            .collect()
+        let all = scale_blobs(&estimation, false).unwrap_or_default();
+        starts.iter().map(|&s| scale::holding(&all, s)).collect()
     };
     let (against_median, against_flat) = (answers(per_pixel), answers(flat));
     starts
@@ -1229,35 +1221,40 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>, scale: 
 /// particle nearest each start; otherwise the typical scale of every particle found
 /// ([`scale::typical_radius`]). `None` when no particle is found at any scale.
 fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f64> {
-    let kept = scale_blobs(estimation, starts.is_none())?;
     match starts {
         Some(starts) => {
-            let mut radii: Vec<f64> = nearest_each(&kept, starts, |b| [b.x, b.y])
-                .into_iter()
-                .map(|b| b.radius)
-                .collect();
+            let mut radii: Vec<f64> = scale_of_each(estimation, starts).into_iter().flatten().collect();
             (!radii.is_empty()).then(|| median(&mut radii))
         }
-        None => scale::typical_radius(&kept),
+        None => scale::typical_radius(&scale::strongest(scale_blobs(estimation, true)?)),
     }
 }
 
-/// The scale of the blob nearest each start in the first estimation frame, px (`None` where
-/// no blob answered at any scale).
+/// The scale of each named particle in the first estimation frame, px: of the strongest
+/// answer holding its start ([`scale::holding`]), or else of the particle's strongest answer
+/// ([`scale::strongest`]) nearest the start (`None` where nothing answered at any scale).
 fn scale_of_each(estimation: &Estimation, starts: &[[f64; 2]]) -> Vec<Option<f64>> {
-    let Some(kept) = scale_blobs(estimation, false) else {
+    let Some(all) = scale_blobs(estimation, false) else {
         return vec![None; starts.len()];
     };
-    let nearest = nearest_each(&kept, starts, |b| [b.x, b.y]);
-    if nearest.len() < starts.len() {
-        return vec![None; starts.len()];
-    }
-    nearest.into_iter().map(|b| Some(b.radius)).collect()
+    let kept = scale::strongest(all.clone());
+    starts
+        .iter()
+        .map(|&s| {
+            scale::holding(&all, s)
+                .or_else(|| {
+                    nearest_each(&kept, std::slice::from_ref(&s), |b| [b.x, b.y])
+                        .first()
+                        .map(|b| **b)
+                })
+                .map(|b| b.radius)
+        })
+        .collect()
 }
 
-/// Each particle's strongest answer over the ladder of scales in the first estimation frame
-/// ([`scale::strongest`]); the climb stops beyond every particle's scale when `stop_early`.
-/// `None` without frames.
+/// Every answer over the ladder of scales in the first estimation frame (each radius's
+/// blobs); the climb stops beyond every particle's scale when `stop_early`. `None` without
+/// frames.
 fn scale_blobs(estimation: &Estimation, stop_early: bool) -> Option<Vec<ScaleBlob>> {
     let background = estimation.background;
     let frame = *estimation.frames.first()?;
@@ -1291,7 +1288,7 @@ fn scale_blobs(estimation: &Estimation, stop_early: bool) -> Option<Vec<ScaleBlo
             break;
         }
     }
-    Some(scale::strongest(found))
+    Some(found)
 }
 
 /// The tracks of `table` with a single point, in a frame strictly inside `frames` (first and

@@ -44,7 +44,7 @@ const LARGEST_OF_SIDE: f64 = 1.0 / 6.0;
 /// its strongest answer. Computed for the band-pass's continuous form: the answer peaks at
 /// 0.94 of a flat disc's radius, 0.80 of a shaded sphere's, 1.08 of a ring's outer radius
 /// and 1.10 of a Gaussian spot's half-maximum radius; 1 / 0.8 covers them all.
-pub(crate) const OWN_RADIUS_OF_PEAK: f64 = 1.25;
+const OWN_RADIUS_OF_PEAK: f64 = 1.25;
 
 /// The detector radii the scan tries for a `width` x `height` frame, px: one for each box
 /// half-width the detector can use (see [`crate::box_half_width`]: the radius whose box has
@@ -87,6 +87,19 @@ pub(crate) fn strongest(mut blobs: Vec<ScaleBlob>) -> Vec<ScaleBlob> {
         }
     }
     kept
+}
+
+/// The particle at a named particle's `start` (px): the strongest of `blobs` (from every
+/// radius of the ladder) whose own disc holds the start, or `None`. A thin ring answers most
+/// strongly with fragments of its rim at a small scale, and [`strongest`] keeps those; but
+/// none of them holds the ring's centre, where a structure names it, while the whole ring's
+/// answer at its own scale does. A disc's own answer is its strongest anyway.
+pub(crate) fn holding(blobs: &[ScaleBlob], start: [f64; 2]) -> Option<ScaleBlob> {
+    blobs
+        .iter()
+        .filter(|b| (b.x - start[0]).hypot(b.y - start[1]) <= b.radius)
+        .max_by(|a, b| a.peak.total_cmp(&b.peak))
+        .copied()
 }
 
 /// Returns true if and only if the blobs of the next radii, `level`, lie beyond the scale of
@@ -303,6 +316,44 @@ mod tests {
         // Still near its scale, or a larger particle answering strongly: go on.
         assert!(!beyond_every_scale(&below, &[blob(7.0, 30.0)]));
         assert!(!beyond_every_scale(&below, &[blob(9.0, 60.0)]));
+    }
+
+    #[test]
+    fn a_rings_centre_is_held_by_the_whole_ring_not_its_rim() {
+        // A ring of radii 7-10 px (contrast 100): the strongest answers overall are rim
+        // fragments; the answer holding the centre is the whole ring's, at about its radius.
+        let (w, h) = (80usize, 80usize);
+        let img: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let r = ((i % w) as f64 - 40.0).hypot((i / w) as f64 - 40.0);
+                if (7.0..=10.0).contains(&r) {
+                    100.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut all = Vec::new();
+        for r in ladder(w, h) {
+            let params = DetectParameters {
+                radius: r,
+                noise_sigma: 0.5,
+                expected: None,
+            };
+            for b in find_blobs(&img, w, h, &params).blobs {
+                all.push(ScaleBlob {
+                    x: b.x as f64,
+                    y: b.y as f64,
+                    peak: b.peak as f64,
+                    radius: r,
+                    snr: b.peak as f64 / crate::band_noise(r, 0.5),
+                });
+            }
+        }
+        let ring = holding(&all, [40.0, 40.0]).expect("an answer holds the centre");
+        assert!((7.0..=13.0).contains(&ring.radius), "{ring:?}");
+        assert!((ring.x - 40.0).hypot(ring.y - 40.0) <= 1.5, "{ring:?}");
+        assert!(holding(&all, [5.0, 75.0]).is_none());
     }
 
     #[test]
