@@ -1117,7 +1117,7 @@ fn hovering_starts(
             frames,
         };
         let all = scale_blobs(&estimation, false).unwrap_or_default();
-        starts.iter().map(|&s| scale::holding(&all, s)).collect()
+        scale::holding(&all, starts)
     };
     let (against_median, against_flat) = (answers(per_pixel), answers(flat));
     starts
@@ -1237,17 +1237,18 @@ fn scale_of_each(estimation: &Estimation, starts: &[[f64; 2]]) -> Vec<Option<f64
     let Some(all) = scale_blobs(estimation, false) else {
         return vec![None; starts.len()];
     };
-    let kept = scale::strongest(all.clone());
+    let held = scale::holding(&all, starts);
+    let kept = scale::strongest(all);
     starts
         .iter()
-        .map(|&s| {
-            scale::holding(&all, s)
-                .or_else(|| {
-                    nearest_each(&kept, std::slice::from_ref(&s), |b| [b.x, b.y])
-                        .first()
-                        .map(|b| **b)
-                })
-                .map(|b| b.radius)
+        .zip(held)
+        .map(|(&s, held)| {
+            held.or_else(|| {
+                nearest_each(&kept, std::slice::from_ref(&s), |b| [b.x, b.y])
+                    .first()
+                    .map(|b| **b)
+            })
+            .map(|b| b.radius)
         })
         .collect()
 }

@@ -14,6 +14,8 @@
 //! Without this, an estimate started at a fixed small radius found a large disc as the
 //! fragments of its rim and converged on them: discs of radius 6 px and more were lost.
 
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
 /// A blob found at one radius of the ladder.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ScaleBlob {
@@ -89,17 +91,32 @@ pub(crate) fn strongest(mut blobs: Vec<ScaleBlob>) -> Vec<ScaleBlob> {
     kept
 }
 
-/// The particle at a named particle's `start` (px): the strongest of `blobs` (from every
+/// The particle at each named particle's start (px): the strongest of `blobs` (from every
 /// radius of the ladder) whose own disc holds the start, or `None`. A thin ring answers most
 /// strongly with fragments of its rim at a small scale, and [`strongest`] keeps those; but
 /// none of them holds the ring's centre, where a structure names it, while the whole ring's
-/// answer at its own scale does. A disc's own answer is its strongest anyway.
-pub(crate) fn holding(blobs: &[ScaleBlob], start: [f64; 2]) -> Option<ScaleBlob> {
-    blobs
-        .iter()
-        .filter(|b| (b.x - start[0]).hypot(b.y - start[1]) <= b.radius)
-        .max_by(|a, b| a.peak.total_cmp(&b.peak))
-        .copied()
+/// answer at its own scale does. A disc's own answer is its strongest anyway. Each radius's
+/// blobs are searched through a k-d tree (thousands of named particles, a dozen radii).
+pub(crate) fn holding(blobs: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<Option<ScaleBlob>> {
+    let mut best: Vec<Option<ScaleBlob>> = vec![None; starts.len()];
+    let mut radii: Vec<f64> = blobs.iter().map(|b| b.radius).collect();
+    radii.sort_by(f64::total_cmp);
+    radii.dedup();
+    for r in radii {
+        // The radii are copies of the ladder's values, so equality picks one level exactly.
+        let level: Vec<&ScaleBlob> = blobs.iter().filter(|b| b.radius.total_cmp(&r).is_eq()).collect();
+        let at: Vec<[f64; 2]> = level.iter().map(|b| [b.x, b.y]).collect();
+        let tree = ImmutableKdTree::<f64, 2>::new_from_slice(&at);
+        for (s, best) in starts.iter().zip(best.iter_mut()) {
+            for n in tree.within_unsorted::<SquaredEuclidean>(s, r * r) {
+                let b = level[n.item as usize];
+                if best.map_or(true, |k| b.peak > k.peak) {
+                    *best = Some(*b);
+                }
+            }
+        }
+    }
+    best
 }
 
 /// Returns true if and only if the blobs of the next radii, `level`, lie beyond the scale of
@@ -350,10 +367,11 @@ mod tests {
                 });
             }
         }
-        let ring = holding(&all, [40.0, 40.0]).expect("an answer holds the centre");
+        let held = holding(&all, &[[40.0, 40.0], [5.0, 75.0]]);
+        let ring = held[0].expect("an answer holds the centre");
         assert!((7.0..=13.0).contains(&ring.radius), "{ring:?}");
         assert!((ring.x - 40.0).hypot(ring.y - 40.0) <= 1.5, "{ring:?}");
-        assert!(holding(&all, [5.0, 75.0]).is_none());
+        assert!(held[1].is_none());
     }
 
     #[test]
