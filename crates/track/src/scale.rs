@@ -220,7 +220,8 @@ mod tests {
         img
     }
 
-    fn scan(img: &[f32], width: usize, height: usize) -> Vec<ScaleBlob> {
+    /// Every answer of `img` over the ladder (no suppression).
+    fn answers(img: &[f32], width: usize, height: usize) -> Vec<ScaleBlob> {
         let mut all = Vec::new();
         for r in ladder(width, height) {
             let params = DetectParameters {
@@ -238,7 +239,11 @@ mod tests {
                 });
             }
         }
-        strongest(all)
+        all
+    }
+
+    fn scan(img: &[f32], width: usize, height: usize) -> Vec<ScaleBlob> {
+        strongest(answers(img, width, height))
     }
 
     #[test]
@@ -350,23 +355,7 @@ mod tests {
                 }
             })
             .collect();
-        let mut all = Vec::new();
-        for r in ladder(w, h) {
-            let params = DetectParameters {
-                radius: r,
-                noise_sigma: 0.5,
-                expected: None,
-            };
-            for b in find_blobs(&img, w, h, &params).blobs {
-                all.push(ScaleBlob {
-                    x: b.x as f64,
-                    y: b.y as f64,
-                    peak: b.peak as f64,
-                    radius: r,
-                    snr: b.peak as f64 / crate::band_noise(r, 0.5),
-                });
-            }
-        }
+        let all = answers(&img, w, h);
         let held = holding(&all, &[[40.0, 40.0], [5.0, 75.0]]);
         let ring = held[0].expect("an answer holds the centre");
         assert!((7.0..=13.0).contains(&ring.radius), "{ring:?}");
