@@ -605,3 +605,57 @@ fn a_short_toss_of_eleven_frames_gets_its_field() {
 }
 
 mod issue_21;
+
+/// The jolts `find_jolts` sees, with no model, in `truth`'s tracks of its particle `ball`.
+fn jolts_of_ball(truth: &Scene) -> Vec<Jolt> {
+    let mut t = tracks(truth, SIGMA, 1);
+    t.points.retain(|p| p.particle == "ball");
+    let mut structure = truth.structure();
+    structure.particles.retain(|p| p.id == "ball");
+    structure.springs.clear();
+    let obs = Observations::from_tracks(&t, &structure, None).unwrap_or_else(|e| panic!("{e}"));
+    jolts::find_jolts(&obs, None).0
+}
+
+#[test]
+fn a_stiff_tether_turning_a_ball_round_makes_no_jolts() {
+    // A radial oscillation of 25 frames' period and 12 px amplitude: the velocity reverses
+    // every 12 frames, smoothly; the means' jump is hundreds of noises at each turn.
+    let text = r#"
+        name = "stiff-tether"
+        [recording]
+        fps = 137.0
+        frames = 200
+        substeps = 10
+        [[particles]]
+        id = "ball"
+        mass = 1.0
+        position = [100.0, 112.0]
+        velocity = [20.0, 0.0]
+        [[particles]]
+        id = "pin"
+        mass = 1.0
+        position = [100.0, 400.0]
+        fixed = true
+        [[springs]]
+        between = ["ball", "pin"]
+        length = 300.0
+        stiffness = 1500.0
+    "#;
+    let truth = Scene::from_toml_str(text, "stiff-tether").unwrap_or_else(|e| panic!("{e}"));
+    let found = jolts_of_ball(&truth);
+    assert!(found.is_empty(), "smooth turns taken for bounces: {found:?}");
+    // The same ball bouncing off a floor: every bounce is still a jolt.
+    let bounce = ball_over_a_floor(
+        "bounce",
+        137.0,
+        200,
+        [60.0, 80.0],
+        [40.0, 0.0],
+        900.0,
+        200.0,
+        0.75,
+    );
+    let found = jolts_of_ball(&bounce);
+    assert!(found.len() >= 2, "bounces missed: {found:?}");
+}
