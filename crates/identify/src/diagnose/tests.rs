@@ -619,28 +619,17 @@ fn jolts_of_ball(truth: &Scene) -> Vec<Jolt> {
 
 #[test]
 fn a_stiff_tether_turning_a_ball_round_makes_no_jolts() {
-    // A radial oscillation of 25 frames' period and 12 px amplitude: the velocity reverses
-    // every 12 frames, smoothly; the means' jump is hundreds of noises at each turn.
+    // A radial oscillation of 16 frames' period (sqrt(2 S / m) = 55 /s at 137 frames/s) and
+    // 12 px amplitude: the velocity reverses every 8 frames, smoothly; the means' jump is
+    // hundreds of noises at each turn.
     let text = r#"
         name = "stiff-tether"
-        [recording]
-        fps = 137.0
-        frames = 200
-        substeps = 10
-        [[particles]]
-        id = "ball"
-        mass = 1.0
-        position = [100.0, 112.0]
-        velocity = [20.0, 0.0]
-        [[particles]]
-        id = "pin"
-        mass = 1.0
-        position = [100.0, 400.0]
-        fixed = true
-        [[springs]]
-        between = ["ball", "pin"]
-        length = 300.0
-        stiffness = 1500.0
+        recording = { fps = 137.0, frames = 200, substeps = 10 }
+        particles = [
+            { id = "ball", mass = 1.0, position = [100.0, 112.0], velocity = [20.0, 0.0] },
+            { id = "pin", mass = 1.0, position = [100.0, 400.0], fixed = true },
+        ]
+        springs = [{ between = ["ball", "pin"], length = 300.0, stiffness = 1500.0 }]
     "#;
     let truth = Scene::from_toml_str(text, "stiff-tether").unwrap_or_else(|e| panic!("{e}"));
     let found = jolts_of_ball(&truth);
