@@ -17,10 +17,11 @@
 //! gaps, not concentrated in one. The *local jump* `2 e[k+1] - 2 e[k-1] + e[k-2] - e[k+2]`
 //! (the step across the gap less the two flanking second differences) is the full impulse
 //! for a bounce and zero for any acceleration linear in time (a third-order remainder for a
-//! curved one); its noise is `sqrt(28) sigma` per coordinate. A candidate whose local jump
-//! along its impulse falls short of half the jump of the means (halfway between a bounce and
-//! smooth motion) by more than [`JOLT_THRESHOLD`] times that noise is smooth motion, not a
-//! jolt.
+//! curved one); its noise is `sqrt(28) sigma` per coordinate. A candidate whose local jumps
+//! along its impulse, at its gap and at the two next to it (the means' peak can be a gap off
+//! the bounce near the ends of the series), all fall short of half the jump of the means
+//! (halfway between a bounce and smooth motion) by more than [`JOLT_THRESHOLD`] times that
+//! noise is smooth motion, not a jolt.
 //!
 //! A wall reverses the normal velocity and keeps the tangential one, so its jolts have jumps
 //! along its normal: jolts are grouped by jump direction, each group gives a normal (mean
@@ -96,7 +97,7 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     // where a frame is missing), and the cumulative model term.
     let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2)>>> = vec![vec![None; frames]; obs.particle_count()];
     // Per particle and gap: the local jump (see the module doc), px/s.
-    let mut local: Vec<Vec<Option<Vec2>>> = vec![vec![None; frames]; obs.particle_count()];
+    let mut local: Vec<Vec<Option<Vec<Vec2>>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
     for (p, (out, out_local)) in series.iter_mut().zip(local.iter_mut()).enumerate() {
         if obs.fixed[p] {
@@ -122,8 +123,19 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 magnitudes.push(impulse.x.abs());
                 magnitudes.push(impulse.y.abs());
                 out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps));
-                // m >= 2: the flanking differences lie within the means' frames.
-                out_local[k] = Some((2.0 * (a[0] - b[m - 1]) + b[m - 2] - a[1]) * fps);
+                // The bounce may lie in a neighbouring gap (the means' peak is shifted near the
+                // ends of the series): the local jumps of gaps k - 1, k and k + 1.
+                let at = |j: usize| e.get(j).copied().flatten();
+                let jump = |g: usize| -> Option<Vec2> {
+                    Some(
+                        (2.0 * (at(g + 1)? - at(g.checked_sub(1)?)?) + at(g.checked_sub(2)?)? - at(g + 2)?)
+                            * fps,
+                    )
+                };
+                out_local[k] = [k - 1, k, k + 1]
+                    .iter()
+                    .map(|&g| jump(g))
+                    .collect::<Option<Vec<Vec2>>>();
             }
         }
     }
@@ -153,8 +165,10 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 continue;
             }
             // Spread over the gaps rather than concentrated in one: smooth motion.
-            let concentrated =
-                local[p][k].map_or(true, |l| l.dot(&n) + JOLT_THRESHOLD * local_noise >= 0.5 * size);
+            let concentrated = local[p][k].as_ref().map_or(true, |l| {
+                let best = l.iter().map(|g| g.dot(&n)).fold(f64::NEG_INFINITY, f64::max);
+                best + JOLT_THRESHOLD * local_noise >= 0.5 * size
+            });
             if !concentrated {
                 continue;
             }
