@@ -12,6 +12,17 @@
 //! [`JOLT_THRESHOLD`] times the scale, is the largest within `m` frames, and reverses the
 //! velocity along it (approaching, then leaving: a bounce, not a kick) is a jolt.
 //!
+//! A missing smooth force that turns a particle round (a stiff tether's radial oscillation)
+//! also makes a large, locally largest, reversing jump of the means, but spread over the
+//! gaps, not concentrated in one. The *local jump* `2 e[k+1] - 2 e[k-1] + e[k-2] - e[k+2]`
+//! (the step across the gap less the two flanking second differences) is the full impulse
+//! for a bounce and zero for any acceleration linear in time (a third-order remainder for a
+//! curved one); its noise is `sqrt(28) sigma` per coordinate. A candidate whose local jumps
+//! along its impulse, at its gap and at the two next to it (the means' peak can be a gap off
+//! the bounce near the ends of the series), all fall short of half the jump of the means
+//! (halfway between a bounce and smooth motion) by more than [`JOLT_THRESHOLD`] times that
+//! noise is smooth motion, not a jolt.
+//!
 //! A wall reverses the normal velocity and keeps the tangential one, so its jolts have jumps
 //! along its normal: jolts are grouped by jump direction, each group gives a normal (mean
 //! jump direction), a restitution (median of `-v_n after / v_n before`) and a line position
@@ -75,6 +86,8 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     let dt = obs.frame_dt();
     // mean(x[k+1+m] - x[k+1]) / m - mean(x[k] - x[k-m]) / m: noise 2 sigma / m per coordinate.
     let noise_scale = 2.0 * obs.noise * fps / m as f64;
+    // The local jump's noise per coordinate, px/s (see the module doc).
+    let local_noise = 28f64.sqrt() * obs.noise * fps;
     let frames = obs.frame_count();
     let model_acc = |k: usize, p: usize| {
         acc.and_then(|a| a.get(k)?.as_ref()?.get(p).copied())
@@ -83,8 +96,10 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     // Per particle: corrected differences e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2 (None
     // where a frame is missing), and the cumulative model term.
     let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2)>>> = vec![vec![None; frames]; obs.particle_count()];
+    // Per particle and gap: the local jump (see the module doc), px/s.
+    let mut local: Vec<Vec<Option<Vec<Vec2>>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
-    for (p, out) in series.iter_mut().enumerate() {
+    for (p, (out, out_local)) in series.iter_mut().zip(local.iter_mut()).enumerate() {
         if obs.fixed[p] {
             continue;
         }
@@ -108,6 +123,19 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 magnitudes.push(impulse.x.abs());
                 magnitudes.push(impulse.y.abs());
                 out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps));
+                // The bounce may lie in a neighbouring gap (the means' peak is shifted near the
+                // ends of the series): the local jumps of gaps k - 1, k and k + 1.
+                let at = |j: usize| e.get(j).copied().flatten();
+                let jump = |g: usize| -> Option<Vec2> {
+                    Some(
+                        (2.0 * (at(g + 1)? - at(g.checked_sub(1)?)?) + at(g.checked_sub(2)?)? - at(g + 2)?)
+                            * fps,
+                    )
+                };
+                out_local[k] = [k - 1, k, k + 1]
+                    .iter()
+                    .map(|&g| jump(g))
+                    .collect::<Option<Vec<Vec2>>>();
             }
         }
     }
@@ -134,6 +162,14 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
             // A bounce reverses the velocity along its impulse: approaching, then leaving.
             let n = imp / size;
             if !(vb.dot(&n) < 0.0 && va.dot(&n) > 0.0) {
+                continue;
+            }
+            // Spread over the gaps rather than concentrated in one: smooth motion.
+            let concentrated = local[p][k].as_ref().map_or(true, |l| {
+                let best = l.iter().map(|g| g.dot(&n)).fold(f64::NEG_INFINITY, f64::max);
+                best + JOLT_THRESHOLD * local_noise >= 0.5 * size
+            });
+            if !concentrated {
                 continue;
             }
             let x = obs.positions[k][p].unwrap_or_else(Vec2::zeros);
