@@ -72,8 +72,9 @@ pub struct Jolt {
 pub struct WallGuess {
     /// `[normal_angle (rad), offset (px), restitution]` (see [`super::Effect::Wall`]).
     pub params: [f64; 3],
-    /// Indices of the jolts it explains.
-    pub jolts: Vec<usize>,
+    /// The jolts it explains (copies: the jolt list is found again each round, so indices
+    /// into it would go stale).
+    pub jolts: Vec<Jolt>,
 }
 
 /// The jolts in `obs` (free particles only) and the noise scale of the impulses (px/s).
@@ -246,7 +247,7 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
             };
             WallGuess {
                 params: [n.y.atan2(n.x), offset, e],
-                jolts: members,
+                jolts: members.iter().map(|&k| jolts[k].clone()).collect(),
             }
         })
         // A wall is never crossed: a line that some tracked centre goes beyond by more than a
@@ -267,7 +268,7 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
             let travel = g
                 .jolts
                 .iter()
-                .map(|&k| Vec2::new(jolts[k].before[0], jolts[k].before[1]).dot(&n).abs() * dt)
+                .map(|j| Vec2::new(j.before[0], j.before[1]).dot(&n).abs() * dt)
                 .fold(0.0, f64::max);
             let tolerance = travel.max(5.0 * obs.noise).max(WALL_CROSSING_PX);
             if deepest < -tolerance {

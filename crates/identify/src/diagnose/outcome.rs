@@ -174,7 +174,7 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 push("normal_y", n.y, errs[0].map(|e| e * n.x.abs()));
                 push("offset", values[1], errs[1]);
                 push("restitution", values[2], errs[2]);
-                let contacts: Vec<&Jolt> = proposal.jolts.iter().filter_map(|&j| inp.jolts.get(j)).collect();
+                let contacts: Vec<&Jolt> = proposal.jolts.iter().collect();
                 let mut particles: Vec<String> = contacts.iter().map(|j| id(j.particle)).collect();
                 particles.sort();
                 particles.dedup();

@@ -20,7 +20,7 @@ use physfit_model::{State, Vec2};
 
 use super::effect::Effect;
 use super::family::{DataScales, Family};
-use super::jolts::WallGuess;
+use super::jolts::{Jolt, WallGuess};
 use super::report::Evidence;
 use super::shooting::{fit_shot, Shot, ShotFit};
 use super::weak::{residuals, solve, WeakForm};
@@ -72,7 +72,7 @@ pub struct Proposal {
     /// Multi-step score test (`None` for walls or before it is computed).
     pub score_test: Option<f64>,
     /// For walls: the jolts it explains.
-    pub jolts: Vec<usize>,
+    pub jolts: Vec<Jolt>,
 }
 
 /// A verified candidate (one effect, or a wall with a smooth effect).
