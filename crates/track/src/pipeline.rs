@@ -247,11 +247,16 @@ fn track_paths(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
+    // The named particles' answers in scale space against this background, scanned once for
+    // the sizes and the hovering test below.
+    let first_scan: Option<Vec<ScaleBlob>> = (starts.is_some() && options.radius.is_none())
+        .then(|| first_frame_scan(&background, &views(&sample_frames), &workers));
     let mut classes = SizeClass::measure_all(
         &background,
         &views(&sample_frames),
         options.radius,
         starts,
+        first_scan.as_deref(),
         &workers,
     );
     // Without a structure, the blobs that move steadily, where the sizes were measured on them.
@@ -265,9 +270,18 @@ fn track_paths(
         let hovering: Vec<[f64; 2]> = match starts {
             Some(starts) if options.radius.is_none() => {
                 let flat = estimate_background(&samples, BackgroundChoice::Constant);
-                let hovering = hovering_starts(&background, &flat, &samples, starts, &workers);
+                let flat_scan = first_frame_scan(&flat, &samples, &workers);
+                let against_median = first_scan.as_deref().unwrap_or_default();
+                let hovering = hovering_starts(against_median, &flat_scan, starts);
                 if !hovering.is_empty() {
-                    classes = SizeClass::measure_all(&flat, &samples, None, Some(starts), &workers);
+                    classes = SizeClass::measure_all(
+                        &flat,
+                        &samples,
+                        None,
+                        Some(starts),
+                        Some(&flat_scan),
+                        &workers,
+                    );
                 }
                 hovering
             }
@@ -309,7 +323,7 @@ fn track_paths(
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
             background = estimate_background(&samples, BackgroundChoice::Constant);
-            classes = SizeClass::measure_all(&background, &samples, options.radius, starts, &workers);
+            classes = SizeClass::measure_all(&background, &samples, options.radius, starts, None, &workers);
         } else {
             // Hovering particles cover their start in every sample; pixels near a named start
             // that no sample shows clear are the particle's own. Particles half in the median
@@ -324,7 +338,7 @@ fn track_paths(
                     break;
                 }
                 let before = largest_radius(&classes);
-                classes = SizeClass::measure_all(&background, &samples, None, starts, &workers);
+                classes = SizeClass::measure_all(&background, &samples, None, starts, None, &workers);
                 if (largest_radius(&classes) - before).abs() <= SETTLED_SIZE * before {
                     break;
                 }
@@ -413,7 +427,7 @@ fn track_paths(
                         ),
                     }]
                 } else {
-                    SizeClass::measure_all(&background, &samples, options.radius, starts, &workers)
+                    SizeClass::measure_all(&background, &samples, options.radius, starts, None, &workers)
                 };
             }
         }
@@ -1021,11 +1035,14 @@ impl SizeClass {
     /// estimation frame fall into groups far apart ([`scale::size_groups`]), each then measured
     /// on its own particles; classes whose measured radii come out within [`SAME_SIZE`] of
     /// each other are measured again as one. A `given` radius makes one class.
+    ///
+    /// `scan` is [`first_frame_scan`] against `background`, when already made.
     fn measure_all(
         background: &Background,
         samples: &[FrameView<'_>],
         given: Option<f64>,
         starts: Option<&[[f64; 2]]>,
+        scan: Option<&[ScaleBlob]>,
         workers: &Workers,
     ) -> Vec<SizeClass> {
         let one = |scale: Option<f64>| {
@@ -1034,15 +1051,13 @@ impl SizeClass {
                 sizes: Sizes::measure(background, samples, given, starts, scale, workers),
             }]
         };
-        let Some(starts) = starts.filter(|s| s.len() > 1 && given.is_none()) else {
+        let Some(starts) = starts.filter(|_| given.is_none()) else {
             return one(None);
         };
-        let estimation = Estimation {
-            background,
-            workers,
-            frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
+        let scales = match scan {
+            Some(all) => scale_of_each(all, starts),
+            None => scale_of_each(&first_frame_scan(background, samples, workers), starts),
         };
-        let scales = scale_of_each(&estimation, starts);
         let groups = scale::size_groups(&scales);
         let group_scale = |g: &[usize]| -> Option<f64> {
             let mut r: Vec<f64> = g.iter().filter_map(|&i| scales[i]).collect();
@@ -1096,30 +1111,18 @@ const SETTLED_SIZE: f64 = 0.05;
 /// answer against the per-pixel median hovers in that median.
 const HOVER_RATIO: f64 = 1.5;
 
-/// The starts of the named particles that hover in the per-pixel median of `per_pixel`:
-/// the strongest scale-space answer in the first sample holding the start
-/// ([`scale::holding`]) is more than [`HOVER_RATIO`] times stronger against the `flat` level
-/// than against the median (or the median shows nothing there). A particle that moves shows
+/// The starts of the named particles that hover in the per-pixel median: the strongest
+/// scale-space answer holding the start ([`scale::holding`]) in the first sample's scan
+/// against a flat level (`flat_scan`, see [`first_frame_scan`]) is more than [`HOVER_RATIO`]
+/// times its answer in the scan against the median (`median_scan`), or the median shows
+/// nothing there. A particle that moves shows
 /// whole against both; one that stays put is half or wholly in the median and shows only its
 /// leading and trailing edges against it.
-fn hovering_starts(
-    per_pixel: &Background,
-    flat: &Background,
-    samples: &[FrameView<'_>],
-    starts: &[[f64; 2]],
-    workers: &Workers,
-) -> Vec<[f64; 2]> {
-    let frames = &samples[..samples.len().min(RADIUS_SAMPLES)];
-    let answers = |background: &Background| -> Vec<Option<ScaleBlob>> {
-        let estimation = Estimation {
-            background,
-            workers,
-            frames,
-        };
-        let all = scale_blobs(&estimation, false).unwrap_or_default();
-        scale::holding(&all, starts)
-    };
-    let (against_median, against_flat) = (answers(per_pixel), answers(flat));
+fn hovering_starts(median_scan: &[ScaleBlob], flat_scan: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let (against_median, against_flat) = (
+        scale::holding(median_scan, starts),
+        scale::holding(flat_scan, starts),
+    );
     starts
         .iter()
         .zip(against_median.iter().zip(&against_flat))
@@ -1223,22 +1226,32 @@ fn estimate_radius(estimation: &Estimation, starts: Option<&[[f64; 2]]>, scale: 
 fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f64> {
     match starts {
         Some(starts) => {
-            let mut radii: Vec<f64> = scale_of_each(estimation, starts).into_iter().flatten().collect();
+            let all = scale_blobs(estimation, false)?;
+            let mut radii: Vec<f64> = scale_of_each(&all, starts).into_iter().flatten().collect();
             (!radii.is_empty()).then(|| median(&mut radii))
         }
         None => scale::typical_radius(&scale::strongest(scale_blobs(estimation, true)?)),
     }
 }
 
-/// The scale of each named particle in the first estimation frame, px: of the strongest
-/// answer holding its start ([`scale::holding`]), or else of the particle's strongest answer
-/// ([`scale::strongest`]) nearest the start (`None` where nothing answered at any scale).
-fn scale_of_each(estimation: &Estimation, starts: &[[f64; 2]]) -> Vec<Option<f64>> {
-    let Some(all) = scale_blobs(estimation, false) else {
-        return vec![None; starts.len()];
+/// Every scale-space answer in the first of the estimation frames of `samples` against
+/// `background` ([`scale_blobs`], the whole ladder); empty without frames.
+fn first_frame_scan(background: &Background, samples: &[FrameView<'_>], workers: &Workers) -> Vec<ScaleBlob> {
+    let estimation = Estimation {
+        background,
+        workers,
+        frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
     };
-    let held = scale::holding(&all, starts);
-    let kept = scale::strongest(all);
+    scale_blobs(&estimation, false).unwrap_or_default()
+}
+
+/// The scale of each named particle, px, from the answers `all` of one frame: of the
+/// strongest answer holding its start ([`scale::holding`]), or else of the particle's
+/// strongest answer ([`scale::strongest`]) nearest the start (`None` where nothing answered
+/// at any scale).
+fn scale_of_each(all: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<Option<f64>> {
+    let held = scale::holding(all, starts);
+    let kept = scale::strongest(all.to_vec());
     starts
         .iter()
         .zip(held)
