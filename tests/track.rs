@@ -244,3 +244,75 @@ fn track_refuses_named_tracks_that_follow_parts_of_the_particles() {
         .stdout(predicate::str::contains("| recall | 1.0000"))
         .stdout(predicate::str::contains("identity switches | 0"));
 }
+
+/// A named particle that leaves the view for good: its track is reported lost, with the
+/// frames, and never resumes on a neighbour's blob (paper5 falling under a field of
+/// 60 px/s²: p4 leaves through the bottom edge at frame 280; it used to take p3's blob 37 px
+/// from its own prediction at frame 295, two identity switches with no word).
+#[test]
+fn track_reports_a_particle_that_leaves_the_view_and_never_gives_it_a_neighbour() {
+    let dir = tempdir();
+    let mut scene = std::fs::read_to_string(scenes_dir().join("paper5.toml")).unwrap();
+    scene = scene.replacen("frames = 400", "frames = 300", 1);
+    scene = scene.replacen("noise = 0.0", "noise = 5.0", 1);
+    scene.push_str("\n[physics]\ngravity = [0.0, 60.0]\ndrag = 0.2\n");
+    let scene_path = crate::util::write(dir.path(), "fall.toml", &scene);
+    physfit()
+        .arg("-q")
+        .arg("render")
+        .arg(&scene_path)
+        .arg("--out")
+        .arg(dir.path())
+        .assert()
+        .success();
+    let tracks = dir.path().join("tracks.csv");
+    let truth = read_xy(&dir.path().join("truth.csv"));
+    let gone = truth
+        .iter()
+        .filter(|t| t.1 == "p4" && t.3 > 511.0 + 2.0 * 5.0)
+        .map(|t| t.0)
+        .min()
+        .expect("p4 leaves through the bottom edge (a disc of 5 px, wholly out)");
+    physfit()
+        .arg("track")
+        .arg(dir.path().join("frames"))
+        .arg("--out")
+        .arg(&tracks)
+        .arg("--structure")
+        .arg(dir.path().join("structure.toml"))
+        .arg("--truth")
+        .arg(dir.path().join("truth.csv"))
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("identity switches | 0"))
+        .stdout(predicate::str::contains(
+            "points named after the wrong particle | 0",
+        ))
+        .stderr(predicate::str::contains("p4 outside the image or lost"));
+    // Every point located in the image is its own particle's: within a radius of its true
+    // centre (bridged points, warned of, follow the motion out of the view).
+    let got = read_xy(&tracks);
+    let text = std::fs::read_to_string(&tracks).unwrap();
+    let flags: Vec<&str> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap())
+        .collect();
+    for (g, flag) in got.iter().zip(&flags).filter(|(_, f)| **f != "interpolated") {
+        let t = truth
+            .iter()
+            .find(|t| t.0 == g.0 && t.1 == g.1)
+            .expect("a true point for every tracked one");
+        let off = (g.2 - t.2).hypot(g.3 - t.3);
+        assert!(
+            off < 5.0,
+            "frame {} {} ({flag}): {off:.1} px from its particle",
+            g.0,
+            g.1
+        );
+    }
+    assert!(
+        got.iter().all(|g| g.1 != "p4" || g.0 < gone),
+        "no p4 point after it left the view at frame {gone}"
+    );
+}
