@@ -51,7 +51,8 @@ pub fn is_video_path(path: &Path) -> bool {
         .is_some_and(|e| VIDEO_EXTENSIONS.contains(&e.as_str()))
 }
 
-/// What the container says about a video's first video stream.
+/// What the container says about a video's first video stream, as ffmpeg decodes it (a
+/// stream stored with a quarter-turn rotation, as phones film upright, is turned upright).
 #[derive(Clone, Debug, PartialEq)]
 pub struct VideoInfo {
     /// Width, px.
@@ -96,7 +97,7 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, TrackError> {
     }
     let output = Command::new("ffprobe")
         .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
-        .arg("stream=width,height,avg_frame_rate,r_frame_rate,nb_frames,pix_fmt")
+        .arg("stream=width,height,avg_frame_rate,r_frame_rate,nb_frames,pix_fmt:stream_side_data=rotation:stream_tags=rotate")
         .args(["-of", "default=noprint_wrappers=1"])
         .arg(path)
         .stdin(Stdio::null())
@@ -133,6 +134,19 @@ pub fn probe_video(path: &Path) -> Result<VideoInfo, TrackError> {
     };
     let rate = |key: &str| field(key).and_then(|v| parse_rate(&v));
     let pix_fmt = field("pix_fmt").unwrap_or_default();
+    // A phone held upright stores its frames on their side with a rotation to display them
+    // by; ffmpeg turns the frames upright as it decodes, so the frames it pipes are the
+    // other way round from the stored size.
+    let rotation = field("rotation")
+        .or_else(|| field("TAG:rotate"))
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(0.0);
+    let quarter_turn = (rotation.round() as i64).rem_euclid(180) == 90;
+    let (width, height) = if quarter_turn {
+        (height, width)
+    } else {
+        (width, height)
+    };
     Ok(VideoInfo {
         width,
         height,
@@ -555,6 +569,85 @@ mod tests {
         assert!(neutral_to_grey(&[10, 11, 12, 200, 200, 200], &mut grey));
         assert_eq!(grey, [11, 200]);
         assert!(!neutral_to_grey(&[10, 11, 12, 200, 0, 200], &mut grey));
+    }
+
+    /// A colour video, stored on its side as a phone films upright, decoded through a small
+    /// memory limit: turned upright, kept in colour, spilled to a cache file, read back equal
+    /// to the frames kept in memory, the cache file removed on drop.
+    #[test]
+    fn a_rotated_colour_video_spills_to_a_cache_file() {
+        let dir = std::env::temp_dir().join(format!("physfit-video-unit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ffmpeg = |args: &[&str]| {
+            let status = Command::new("ffmpeg")
+                .args(["-nostdin", "-v", "error", "-y"])
+                .args(args)
+                .current_dir(&dir)
+                .status()
+                .expect("this test needs the ffmpeg program on the PATH");
+            assert!(status.success(), "ffmpeg {args:?}");
+        };
+        ffmpeg(&[
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc=size=48x32:rate=25",
+            "-frames:v",
+            "12",
+            "-c:v",
+            "mjpeg",
+            "side.mp4",
+        ]);
+        // The rotation is written as ffmpeg 5 does (a `rotate` tag), else as ffmpeg 6 and
+        // later do (a display matrix).
+        ffmpeg(&[
+            "-i",
+            "side.mp4",
+            "-c",
+            "copy",
+            "-metadata:s:v",
+            "rotate=90",
+            "upright.mp4",
+        ]);
+        let video = dir.join("upright.mp4");
+        if probe_video(&video).unwrap().width == 48 {
+            ffmpeg(&[
+                "-display_rotation",
+                "90",
+                "-i",
+                "side.mp4",
+                "-c",
+                "copy",
+                "upright.mp4",
+            ]);
+        }
+        let info = probe_video(&video).unwrap();
+        assert_eq!((info.width, info.height), (32, 48), "turned upright");
+        assert_eq!(info.fps, Some(25.0));
+        let whole = VideoFrames::open(&video, None).unwrap();
+        assert_eq!((whole.len(), whole.channels), (12, 3));
+        assert!(!whole.is_cached_on_disk());
+        // Four frames' worth of memory: frames 2..=9 are kept, the last four in the file.
+        let frame_bytes = whole.frame_bytes();
+        let cached = VideoFrames::open_with_memory(&video, Some((2, 9)), 4 * frame_bytes).unwrap();
+        assert!(cached.is_cached_on_disk());
+        assert_eq!((cached.first, cached.count, cached.len()), (2, 8, 10));
+        let cache_file = match &cached.store {
+            Store::File { path, .. } => path.clone(),
+            Store::Memory { .. } => unreachable!(),
+        };
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        for k in 2..=9 {
+            assert_eq!(
+                whole.frame(k, &mut a).unwrap(),
+                cached.frame(k, &mut b).unwrap(),
+                "frame {k}"
+            );
+        }
+        assert!(cached.frame(1, &mut b).is_err() && cached.frame(10, &mut b).is_err());
+        drop(cached);
+        assert!(!cache_file.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
