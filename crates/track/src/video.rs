@@ -487,8 +487,18 @@ impl Store {
     /// Replaces every kept grey frame (one byte per pixel) with its red, green and blue.
     fn grey_to_rgb(&mut self) -> Result<(), TrackError> {
         match self {
-            Store::Memory { bytes, .. } => {
-                *bytes = bytes.iter().flat_map(|&v| [v, v, v]).collect();
+            Store::Memory { bytes, limit, video } => {
+                let rgb: Vec<u8> = bytes.iter().flat_map(|&v| [v, v, v]).collect();
+                // Three times the bytes may no longer fit the memory limit.
+                *self = if rgb.len() <= *limit {
+                    Store::Memory {
+                        bytes: rgb,
+                        limit: *limit,
+                        video: std::mem::take(video),
+                    }
+                } else {
+                    Store::file_with(video, &rgb)?
+                };
                 Ok(())
             }
             Store::File { file, path, len } => {
@@ -666,6 +676,21 @@ mod tests {
         assert_eq!(back, [1, 2, 3, 4, 5, 6]);
         store.grey_to_rgb().unwrap();
         store.push(&[7, 7, 7]).unwrap();
+        // Grey frames that fit in memory but not once in colour go to a file.
+        let mut small = Store::new(5, video);
+        small.push(&[1, 2]).unwrap();
+        small.grey_to_rgb().unwrap();
+        let Store::File {
+            file: small_file,
+            len: 6,
+            ..
+        } = &small
+        else {
+            panic!("colour should have spilled");
+        };
+        let mut back = [0u8; 6];
+        read_exact_at(small_file, &mut back, 0).unwrap();
+        assert_eq!(back, [1, 1, 1, 2, 2, 2]);
         let Store::File { file, len, .. } = &store else {
             panic!("still a file");
         };
