@@ -7,6 +7,8 @@ use std::path::{Path, PathBuf};
 use crate::util::{physfit, tempdir};
 
 const CARGO_RUN: &str = "cargo run --release --";
+/// The page's ffmpeg lines (section 4 makes its video with them).
+const FFMPEG: &str = "ffmpeg ";
 
 /// The repository's root.
 fn root() -> PathBuf {
@@ -77,10 +79,14 @@ fn the_getting_started_page_runs_as_written() {
     let lines = shell_lines(&page);
     let commands: Vec<&str> = lines.iter().filter_map(|l| l.strip_prefix(CARGO_RUN)).collect();
     assert!(commands.len() >= 6, "the page lost its commands: {lines:?}");
-    // Every other line is the test command, which must be the README's and CI's.
+    // The ffmpeg lines of "From your own video" make the video; every other line is the test
+    // command, which must be the README's and CI's.
     let ci = std::fs::read_to_string(root().join(".ci/run")).expect(".ci/run");
     let readme = std::fs::read_to_string(root().join("README.md")).expect("README");
-    for other in lines.iter().filter(|l| !l.starts_with(CARGO_RUN)) {
+    for other in lines
+        .iter()
+        .filter(|l| !l.starts_with(CARGO_RUN) && !l.starts_with(FFMPEG))
+    {
         assert_eq!(
             other, "cargo test --workspace",
             "a command the test cannot run: {other}"
@@ -95,16 +101,22 @@ fn the_getting_started_page_runs_as_written() {
         let path = entry.unwrap().path();
         std::fs::copy(&path, scenes.join(path.file_name().unwrap())).unwrap();
     }
-    for command in &commands {
+    for line in &lines {
+        let (program, command) = match (line.strip_prefix(CARGO_RUN), line.strip_prefix(FFMPEG)) {
+            (Some(command), _) => (physfit(), command),
+            (None, Some(command)) => (assert_cmd::Command::new("ffmpeg"), command),
+            (None, None) => continue,
+        };
+        let mut program = program;
         let args: Vec<&str> = command.split_whitespace().collect();
-        let output = physfit()
+        let output = program
             .current_dir(dir.path())
             .args(&args)
             .output()
-            .expect("run physfit");
+            .expect("run the page's command");
         assert!(
             output.status.success(),
-            "`physfit {command}` failed:\n{}",
+            "`{line}` failed:\n{}",
             String::from_utf8_lossy(&output.stderr)
         );
     }
@@ -178,4 +190,15 @@ fn the_getting_started_page_runs_as_written() {
     assert_eq!(run["given"]["kind"], "recording");
     assert!(run.get("truth").is_none());
     assert_eq!(effects(&run), ["gravity"]);
+
+    // 4. From a video: the container's frame rate, the window in seconds as frames, the field.
+    assert!(demo.join("first.png").is_file());
+    let video = json(&demo.join("video/report.json"));
+    assert_eq!(video["given"]["kind"], "recording");
+    assert!(video["given"]["frames"].as_str().unwrap().ends_with("throw.avi"));
+    assert_eq!(video["given"]["fps"], 100.0);
+    assert_eq!(video["given"]["window"], serde_json::json!([0, 250]));
+    assert_eq!(effects(&video), ["gravity"]);
+    let g = finding_value(&video["findings"][0], "gravity_y");
+    assert!((g - 40.0).abs() < 0.4, "gravity_y {g} px/s^2 against 40");
 }

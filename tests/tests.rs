@@ -10,3 +10,4 @@ mod render;
 mod run;
 mod track;
 mod util;
+mod video;

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
+use physfit_track::FrameWindow;
 
 /// physfit: from an image sequence of a moving deformable object to a physical model of it,
 /// and to the physics the model left out.
@@ -28,7 +29,7 @@ pub enum Command {
     Render(RenderArgs),
     /// Simulate a scene and write the true particle centres as CSV (no images).
     Simulate(SimulateArgs),
-    /// Find particles in a folder of frames and link them into trajectories (tracks.csv).
+    /// Find particles in a recording (frames, video, TIFF stack) and link them into trajectories (tracks.csv).
     Track(TrackArgs),
     /// Identify every bond's parameters from trajectories and a structure.
     Fit(FitArgs),
@@ -66,7 +67,9 @@ pub struct SimulateArgs {
 /// `physfit track`.
 #[derive(Debug, Args)]
 pub struct TrackArgs {
-    /// Folder of frames (PNG 8/16-bit grey, RGB, RGBA, or JPEG), read in natural name order.
+    /// The recording: a folder of frames (PNG 8/16-bit grey, RGB, RGBA, JPEG or TIFF, read in
+    /// natural name order), a video (.mp4, .mov, .avi, .mkv; needs ffmpeg on the PATH) or a
+    /// multi-page TIFF stack (.tif, .tiff).
     pub frames: PathBuf,
     /// Output CSV: frame,particle,x,y,mass,size,ep,flag.
     #[arg(long)]
@@ -75,9 +78,12 @@ pub struct TrackArgs {
     /// analysed frame, and follow only those.
     #[arg(long)]
     pub structure: Option<PathBuf>,
-    /// First and last frame tracked, inclusive (`A..B`).
-    #[arg(long, value_parser = parse_window)]
-    pub window: Option<(usize, usize)>,
+    /// First and last frame tracked, inclusive (`A..B`), or times (`2.5s..4s`).
+    #[arg(long)]
+    pub window: Option<FrameWindow>,
+    /// Frame rate, frames/s, for a window in seconds (a video's own rate otherwise).
+    #[arg(long)]
+    pub fps: Option<f64>,
     /// Disc radius, px (estimated from the frames when absent).
     #[arg(long)]
     pub radius: Option<f64>,
@@ -165,20 +171,22 @@ pub struct RunArgs {
     /// built-in default scene when neither a scene nor `--frames` is given.
     #[arg(conflicts_with = "frames")]
     pub scene: Option<PathBuf>,
-    /// A folder of frames of a recording (PNG or JPEG, natural name order): track, fit and
-    /// diagnose it against `--structure`.
+    /// A recording: a folder of frames (PNG, JPEG or TIFF, natural name order), a video (.mp4,
+    /// .mov, .avi, .mkv; needs ffmpeg on the PATH) or a TIFF stack: track, fit and diagnose it
+    /// against `--structure`.
     #[arg(long, requires = "structure")]
     pub frames: Option<PathBuf>,
     /// The recorded object's structure (particles, masses, first positions, bonds without
     /// values); its particle positions are those of the first analysed frame.
     #[arg(long, requires = "frames")]
     pub structure: Option<PathBuf>,
-    /// Frame rate, frames/s (overrides the structure's `[recording] fps`).
+    /// Frame rate, frames/s (overrides a video's own rate and the structure's
+    /// `[recording] fps`).
     #[arg(long, requires = "frames")]
     pub fps: Option<f64>,
-    /// First and last frame analysed, inclusive (`A..B`).
-    #[arg(long, value_parser = parse_window)]
-    pub window: Option<(usize, usize)>,
+    /// First and last frame analysed, inclusive (`A..B`), or times (`2.5s..4s`).
+    #[arg(long)]
+    pub window: Option<FrameWindow>,
     /// Seed of every random choice (rendering noise of a scene keeps the scene's own seed).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -243,23 +251,12 @@ pub enum BenchTarget {
     All,
 }
 
-/// Parses an inclusive frame window `A..B`.
+/// Parses an inclusive frame window `A..B` (frame numbers only: times need a recording).
 pub fn parse_window(s: &str) -> Result<(usize, usize), String> {
-    let (a, b) = s
-        .split_once("..")
-        .ok_or_else(|| format!("window `{s}` is not of the form A..B (first and last frame, inclusive)"))?;
-    let a: usize = a
-        .trim()
-        .parse()
-        .map_err(|_| format!("window `{s}`: `{a}` is not a frame number"))?;
-    let b: usize = b
-        .trim()
-        .parse()
-        .map_err(|_| format!("window `{s}`: `{b}` is not a frame number"))?;
-    if b < a {
-        return Err(format!("window `{s}`: last frame {b} is before first frame {a}"));
+    match s.parse::<FrameWindow>()? {
+        FrameWindow::Frames(a, b) => Ok((a, b)),
+        FrameWindow::Seconds(..) => Err(format!("window `{s}`: give frame numbers A..B here, not times")),
     }
-    Ok((a, b))
 }
 
 #[cfg(test)]

@@ -9,9 +9,9 @@ pub mod track;
 
 use std::path::Path;
 
-use anyhow::Context;
+use anyhow::{bail, Context};
 use physfit_model::{Recording, Scene};
-use physfit_track::{TrackPoint, TrackTable};
+use physfit_track::{FrameSource, FrameWindow, TrackPoint, TrackTable};
 
 /// Loads and validates a scene file, naming it in any error.
 pub fn load_scene(path: &Path) -> anyhow::Result<Scene> {
@@ -37,6 +37,45 @@ pub fn named_start(structure: &Scene) -> Vec<(String, [f64; 2])> {
         .iter()
         .map(|p| (p.id.clone(), [p.position.x, p.position.y]))
         .collect()
+}
+
+/// A recording opened for tracking ([`open_recording`]).
+pub struct OpenRecording {
+    /// Its frames (of a video: those of the window only).
+    pub source: FrameSource,
+    /// The window's first and last frame, inclusive, when one was given.
+    pub window: Option<(usize, usize)>,
+    /// The frame rate, frames/s: `--fps` when given, else a video's own; `None` for frames
+    /// and stacks without `--fps`.
+    pub fps: Option<f64>,
+}
+
+/// Opens the recording at `path` (a folder of frames, a video, a TIFF stack) with `window`,
+/// whose times (if any) are converted with `fps` (`--fps`, frames/s), else with a video's own
+/// rate, else with `fallback_fps` (a structure's `[recording] fps`). Errors name the recording.
+pub fn open_recording(
+    path: &Path,
+    window: Option<FrameWindow>,
+    fps: Option<f64>,
+    fallback_fps: Option<f64>,
+) -> anyhow::Result<OpenRecording> {
+    if let Some(fps) = fps {
+        if !(fps.is_finite() && fps > 0.0) {
+            bail!("--fps {fps}: the frame rate must be a positive number of frames per second");
+        }
+    }
+    let fps = match fps {
+        Some(fps) => Some(fps),
+        // The errors name the recording.
+        None if physfit_track::is_video_path(path) => physfit_track::probe_video(path)?.fps,
+        None => None,
+    };
+    let window = window
+        .map(|w| w.frames(fps.or(fallback_fps)))
+        .transpose()
+        .with_context(|| format!("the window of {}", path.display()))?;
+    let source = FrameSource::open(path, window)?;
+    Ok(OpenRecording { source, window, fps })
 }
 
 /// Simulates a complete scene over its recording, naming the scene in errors.

@@ -1,4 +1,5 @@
-//! `physfit track FRAMES_DIR --out tracks.csv [--structure S] [--window A..B] [--truth T]`.
+//! `physfit track RECORDING --out tracks.csv [--structure S] [--window A..B|2.5s..4s] [--fps F]
+//! [--truth T]`: RECORDING is a folder of frames, a video or a TIFF stack.
 
 use anyhow::Context;
 use physfit_track::{TrackOptions, TrackTable};
@@ -6,24 +7,25 @@ use physfit_track::{TrackOptions, TrackTable};
 use crate::cli::TrackArgs;
 use crate::progress::{self, Verbosity};
 
-/// Tracks a folder of frames.
+/// Tracks a recording.
 pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let named_start = match &args.structure {
         Some(path) => Some(super::named_start(&super::load_scene(path)?)),
         None => None,
     };
+    let recording = super::open_recording(&args.frames, args.window, args.fps, None)?;
     let options = TrackOptions {
-        window: args.window,
+        window: recording.window,
         named_start,
         radius: args.radius,
         ..TrackOptions::default()
     };
     let bar = progress::bar(verbosity, "track", 0);
-    let outcome = physfit_track::track_folder(&args.frames, &options, &|done, total| {
+    let outcome = physfit_track::track_source(&recording.source, &options, &|done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })
-    .with_context(|| format!("tracking frames in {}", args.frames.display()))?;
+    .with_context(|| format!("tracking {}", args.frames.display()))?;
     bar.finish_and_clear();
     if verbosity != Verbosity::Quiet {
         for w in &outcome.warnings {

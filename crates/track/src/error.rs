@@ -33,8 +33,24 @@ pub enum TrackError {
         /// What is wrong.
         message: String,
     },
-    /// The folder holds no PNG or JPEG frames.
-    #[error("{dir}: no frames (PNG or JPEG files) in this folder")]
+    /// A video could not be read: not a video, corrupt or truncated (`message` says which).
+    #[error("{path}: {message}")]
+    Video {
+        /// The video file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A program needed to read the recording could not be started (it is not on the `PATH`).
+    #[error("reading {path} needs the {program} program of ffmpeg on the PATH; install ffmpeg (Debian/Ubuntu: apt-get install ffmpeg; Fedora: dnf install ffmpeg; macOS: brew install ffmpeg; Windows: winget install ffmpeg)")]
+    MissingProgram {
+        /// The recording.
+        path: PathBuf,
+        /// The program (`ffmpeg` or `ffprobe`).
+        program: String,
+    },
+    /// The folder holds no PNG, JPEG or TIFF frames.
+    #[error("{dir}: no frames (PNG, JPEG or TIFF files) in this folder")]
     NoFrames {
         /// The folder.
         dir: PathBuf,
@@ -56,13 +72,13 @@ pub enum TrackError {
         found_height: usize,
     },
     /// The frame window `A..B` does not fit the recording.
-    #[error("frame window {start}..{end} is invalid: the folder has {count} frames (indices 0..{last}), and A must not exceed B", last = count.saturating_sub(1))]
+    #[error("frame window {start}..{end} is invalid: the recording has {count} frames (indices 0..{last}), and A must not exceed B", last = count.saturating_sub(1))]
     Window {
         /// First frame requested.
         start: usize,
         /// Last frame requested (inclusive).
         end: usize,
-        /// Frames in the folder.
+        /// Frames in the recording.
         count: usize,
     },
     /// Named particles could not be followed: the tracks would be wrong.

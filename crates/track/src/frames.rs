@@ -1,5 +1,6 @@
 //! Frame files: listing a folder in natural name order and decoding one frame to a
-//! floating-point pixel buffer.
+//! floating-point pixel buffer. (A recording may also be a video or a TIFF stack: see
+//! [`crate::FrameSource`].)
 //!
 //! Every frame is held as `f32` samples on the 8-bit scale (0 = black, 255 = white), one
 //! channel for grey images and three for colour ones (alpha is dropped). 16-bit images
@@ -69,8 +70,8 @@ impl Frame {
     }
 }
 
-/// Returns the image files of `dir` (PNG and JPEG, by extension, case-insensitive; hidden
-/// files skipped) in natural name order: digit runs compare by value, so `frame_2`
+/// Returns the image files of `dir` (PNG, JPEG and single-page TIFF, by extension,
+/// case-insensitive; hidden files skipped) in natural name order: digit runs compare by value, so `frame_2`
 /// comes before `frame_10`.
 pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, TrackError> {
     let io_err = |source| TrackError::Io {
@@ -88,7 +89,10 @@ pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, TrackError> {
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())
             .unwrap_or_default();
-        if !name.starts_with('.') && matches!(ext.as_str(), "png" | "jpg" | "jpeg") && path.is_file() {
+        if !name.starts_with('.')
+            && matches!(ext.as_str(), "png" | "jpg" | "jpeg" | "tif" | "tiff")
+            && path.is_file()
+        {
             files.push(path);
         }
     }
@@ -150,7 +154,8 @@ pub fn frame_number(path: &Path) -> Option<u64> {
     digits.chars().rev().collect::<String>().parse().ok()
 }
 
-/// Decodes one frame file (PNG 8/16-bit grey, grey+alpha, RGB, RGBA; JPEG) to a [`Frame`].
+/// Decodes one frame file (PNG or TIFF 8/16-bit grey, grey+alpha, RGB, RGBA; JPEG; a TIFF's
+/// first page) to a [`Frame`].
 /// Errors name the file: unreadable, empty, corrupt or truncated.
 pub fn load_frame(path: &Path) -> Result<Frame, TrackError> {
     FrameDecoder::default().load(path)
@@ -218,9 +223,40 @@ impl FrameDecoder {
         })
     }
 
+    /// The buffer 8-bit grey samples are decoded into, for frames read from elsewhere than
+    /// a file (a video's cache file).
+    pub(crate) fn samples_mut(&mut self) -> &mut Vec<u8> {
+        &mut self.samples
+    }
+
+    /// The 8-bit grey samples last decoded (see [`FrameDecoder::decode`]).
+    pub(crate) fn samples(&self) -> &[u8] {
+        &self.samples
+    }
+
+    /// Decodes the current page of `tiff` as [`FrameDecoder::decode`] decodes a file: 8-bit
+    /// grey samples left in `self.samples` (their size returned), every other layout into
+    /// `frame`. Errs with a message (without the file's name).
+    pub(crate) fn decode_tiff<R: std::io::Read + std::io::Seek>(
+        &mut self,
+        tiff: &mut tiff::decoder::Decoder<R>,
+        frame: &mut Frame,
+    ) -> Result<Option<(usize, usize)>, String> {
+        let (colour, size) = crate::stack::read_page(tiff, &mut self.samples)?;
+        if colour == image::ColorType::L8 {
+            return Ok(Some(size));
+        }
+        samples_to_frame(&self.samples, colour, size, frame)?;
+        Ok(None)
+    }
+
     /// Decodes `path`: 8-bit grey samples are left in `self.samples` (their size returned),
     /// every other layout is converted into `frame` (`None` returned).
-    fn decode(&mut self, path: &Path, frame: &mut Frame) -> Result<Option<(usize, usize)>, TrackError> {
+    pub(crate) fn decode(
+        &mut self,
+        path: &Path,
+        frame: &mut Frame,
+    ) -> Result<Option<(usize, usize)>, TrackError> {
         use image::ImageDecoder;
         use std::io::Read;
         let io_err = |source| TrackError::Io {
@@ -253,6 +289,15 @@ impl FrameDecoder {
             }
             samples_to_frame(&self.samples, colour, (width, height), frame).map_err(decode_err)?;
             return Ok(None);
+        }
+        if crate::stack::is_tiff(&self.file) {
+            let mut file = std::mem::take(&mut self.file);
+            let decoded = tiff::decoder::Decoder::new(Cursor::new(&file))
+                .map_err(|e| format!("corrupt or truncated TIFF: {e}"))
+                .and_then(|mut tiff| self.decode_tiff(&mut tiff, frame));
+            // The file's buffer is kept for the next file.
+            std::mem::swap(&mut self.file, &mut file);
+            return decoded.map_err(decode_err);
         }
         let decoder = image::ImageReader::new(Cursor::new(&self.file))
             .with_guessed_format()
@@ -403,7 +448,7 @@ impl<'a> From<&'a Frame> for FrameView<'a> {
 }
 
 /// Fills `frame` (`size` = width, height, px) with 8-bit grey `samples`.
-fn grey8_to_frame(samples: &[u8], size: (usize, usize), frame: &mut Frame) {
+pub(crate) fn grey8_to_frame(samples: &[u8], size: (usize, usize), frame: &mut Frame) {
     samples_to_frame(samples, image::ColorType::L8, size, frame).expect("8-bit grey is a known layout");
 }
 
@@ -428,7 +473,7 @@ pub fn frame_from_image(image: &DynamicImage) -> Frame {
 /// (native-endian 16- and 32-bit samples, as image's decoders write them): grey stays one
 /// channel, colour becomes three, alpha is dropped, and every depth is put on the 8-bit
 /// scale. Errs with a message for a colour type it does not know.
-fn samples_to_frame(
+pub(crate) fn samples_to_frame(
     samples: &[u8],
     colour: image::ColorType,
     size: (usize, usize),

@@ -1,5 +1,5 @@
-//! Tracking: finds particles in a folder of frames, locates them to sub-pixel accuracy and
-//! links them into trajectories, seeing only pixels.
+//! Tracking: finds particles in a recording (a folder of frames, a video, a TIFF stack),
+//! locates them to sub-pixel accuracy and links them into trajectories, seeing only pixels.
 
 mod appearance;
 mod assignment;
@@ -22,7 +22,10 @@ mod point_grid;
 mod scale;
 mod score;
 mod shared;
+mod source;
+mod stack;
 mod track_table;
+mod video;
 
 pub use appearance::*;
 pub use assignment::*;
@@ -33,6 +36,11 @@ pub use error::TrackError;
 pub use frames::*;
 pub use link::*;
 pub use locate::*;
-pub use pipeline::{track_folder, TrackOptions, TrackOutcome, TrackStats};
+pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};
 pub use score::*;
+pub use source::{FrameSource, FrameWindow};
+pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
 pub use track_table::{write_detections_csv, PointFlag, TrackPoint, TrackTable};
+pub use video::{
+    is_video_path, probe_video, VideoFrames, VideoInfo, NEUTRAL_LEVELS, VIDEO_EXTENSIONS, VIDEO_MEMORY_BYTES,
+};

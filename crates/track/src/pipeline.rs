@@ -1,4 +1,5 @@
-//! [`track_folder`]: the whole tracking stage, from a folder of frames to a track table.
+//! [`track_folder`]: the whole tracking stage, from a recording (a folder of frames, a video,
+//! a TIFF stack: a [`FrameSource`]) to a track table.
 //!
 //! Every threshold is measured from the frames themselves: the background model and pixel
 //! noise from a sample of frames ([`crate::estimate_background`]), the particle radius from
@@ -7,7 +8,7 @@
 //! parallel; linking is sequential.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -18,9 +19,9 @@ use crate::scale::{self, ScaleBlob};
 use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     band_noise, estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections,
-    list_frames, refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice,
-    BackgroundModel, Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder,
-    FrameDetections, FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, SampleExposure, Scratch,
+    refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
+    Blob, BlobSet, BlobSize, DecodedFrame, DetectParameters, Detection, Frame, FrameDecoder, FrameDetections,
+    FrameSource, FrameView, LinkOptions, LinkOutcome, LocateScratch, PointFlag, SampleExposure, Scratch,
     TrackError, TrackPoint, TrackTable,
 };
 
@@ -168,10 +169,21 @@ pub struct TrackOutcome {
     pub detections: Vec<FrameDetections>,
 }
 
-/// Tracks the frames of `dir` (PNG or JPEG, natural name order). `progress(done, total)` is
+/// Tracks the recording at `path`: a folder of frames (PNG, JPEG or TIFF, natural name
+/// order), a video or a TIFF stack (see [`FrameSource::open`]). `progress(done, total)` is
 /// called as frames are located.
 pub fn track_folder(
-    dir: &Path,
+    path: &Path,
+    options: &TrackOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<TrackOutcome, TrackError> {
+    let source = FrameSource::open(path, options.window)?;
+    track_source(&source, options, progress)
+}
+
+/// Tracks the frames of `source` (see [`track_folder`]).
+pub fn track_source(
+    source: &FrameSource,
     options: &TrackOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<TrackOutcome, TrackError> {
@@ -181,29 +193,29 @@ pub fn track_folder(
                 .num_threads(n.max(1))
                 .build()
                 .map_err(|e| TrackError::Option(format!("cannot start {n} threads: {e}")))?;
-            pool.install(|| track_paths(dir, options, progress))
+            pool.install(|| track_frames(source, options, progress))
         }
-        None => track_paths(dir, options, progress),
+        None => track_frames(source, options, progress),
     }
 }
 
-fn track_paths(
-    dir: &Path,
+fn track_frames(
+    source: &FrameSource,
     options: &TrackOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<TrackOutcome, TrackError> {
-    let all = list_frames(dir)?;
-    if all.is_empty() {
+    let count = source.len();
+    if count == 0 {
         return Err(TrackError::NoFrames {
-            dir: dir.to_path_buf(),
+            dir: source.path().to_path_buf(),
         });
     }
-    let (first, last) = options.window.unwrap_or((0, all.len() - 1));
-    if first > last || last >= all.len() {
+    let (first, last) = options.window.unwrap_or((0, count - 1));
+    if first > last || last >= count {
         return Err(TrackError::Window {
             start: first,
             end: last,
-            count: all.len(),
+            count,
         });
     }
     if let Some(r) = options.radius {
@@ -224,16 +236,17 @@ fn track_paths(
             )));
         }
     }
-    let paths: Vec<(usize, PathBuf)> = (first..=last).map(|k| (k, all[k].clone())).collect();
+    // The window's frame numbers.
+    let paths: Vec<usize> = (first..=last).collect();
 
     // Background and noise from an even sample of the window.
     // The sampled frames are kept and reused by the locate pass: each file is decoded once.
     let workers = Workers::default();
-    let (picks, mut sample_frames) = load_sample(&paths, BACKGROUND_SAMPLES, &workers)?;
+    let (picks, mut sample_frames) = load_sample(source, &paths, BACKGROUND_SAMPLES, &workers)?;
     let size = sample_frames[0].view().size();
-    let reference = &paths[picks[0]].1;
+    let reference = &source.frame_name(paths[picks[0]]);
     for (&i, frame) in picks.iter().zip(&sample_frames) {
-        check_size(&paths[i].1, frame.view(), reference, size)?;
+        check_size(&source.frame_name(paths[i]), frame.view(), reference, size)?;
     }
     let mut sample_of: Vec<Option<usize>> = vec![None; paths.len()];
     for (j, &i) in picks.iter().enumerate() {
@@ -365,8 +378,9 @@ fn track_paths(
                         *slot = match sample_of[k] {
                             Some(j) => j,
                             None => {
-                                let frame = workers.with(|w| w.decoder.load_decoded(&paths[k].1))?;
-                                check_size(&paths[k].1, frame.view(), reference, size)?;
+                                let frame =
+                                    workers.with(|w| source.load_decoded(paths[k], &mut w.decoder))?;
+                                check_size(&source.frame_name(paths[k]), frame.view(), reference, size)?;
                                 sample_frames.push(frame);
                                 sample_of[k] = Some(sample_frames.len() - 1);
                                 sample_frames.len() - 1
@@ -444,6 +458,7 @@ fn track_paths(
     let radius_estimated = classes[0].sizes.radius_estimated;
 
     let frames = WindowFrames {
+        source,
         paths: &paths,
         sample_of: &sample_of,
         samples: &sample_frames,
@@ -630,7 +645,7 @@ impl Stage<'_> {
             .paths
             .par_iter()
             .enumerate()
-            .map(|(i, (k, _))| {
+            .map(|(i, k)| {
                 workers.with(|w| {
                     let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
                     let each = classes
@@ -754,11 +769,12 @@ impl Stage<'_> {
     }
 }
 
-/// The frames of the tracked window: the samples already decoded, the others read from their
-/// files on demand.
+/// The frames of the tracked window: the samples already decoded, the others read from the
+/// source on demand.
 struct WindowFrames<'a> {
-    /// Each frame's index and file.
-    paths: &'a [(usize, PathBuf)],
+    source: &'a FrameSource,
+    /// Each frame's number in the source.
+    paths: &'a [usize],
     /// Each frame's place among `samples`, if it is one.
     sample_of: &'a [Option<usize>],
     samples: &'a [DecodedFrame],
@@ -768,7 +784,7 @@ struct WindowFrames<'a> {
 }
 
 impl WindowFrames<'_> {
-    /// Frame `i` of the window: the sample already decoded, or the file decoded into `buf`
+    /// Frame `i` of the window: the sample already decoded, or the frame decoded into `buf`
     /// (with `decoder`'s buffers) and checked against the reference size.
     fn get<'b>(
         &'b self,
@@ -779,9 +795,11 @@ impl WindowFrames<'_> {
         if let Some(j) = self.sample_of[i] {
             return Ok(self.samples[j].view());
         }
-        let path = &self.paths[i].1;
-        let view = decoder.load_view(path, buf)?;
-        check_size(path, view, self.reference, self.size)?;
+        let k = self.paths[i];
+        let view = self.source.load_view(k, decoder, buf)?;
+        if view.size() != self.size {
+            check_size(&self.source.frame_name(k), view, self.reference, self.size)?;
+        }
         Ok(view)
     }
 }
@@ -915,10 +933,11 @@ fn locate_window(radius: f64) -> f64 {
     radius + 1.0
 }
 
-/// Loads up to `count` frames spread evenly over `paths`, with the `workers`' decoders;
-/// returns their indices into `paths` and the decoded frames.
+/// Loads up to `count` frames of `source` spread evenly over `paths` (frame numbers), with
+/// the `workers`' decoders; returns their indices into `paths` and the decoded frames.
 fn load_sample(
-    paths: &[(usize, PathBuf)],
+    source: &FrameSource,
+    paths: &[usize],
     count: usize,
     workers: &Workers,
 ) -> Result<(Vec<usize>, Vec<DecodedFrame>), TrackError> {
@@ -934,7 +953,7 @@ fn load_sample(
     // paged its buffers in again for every few frames).
     let frames = picks
         .par_iter()
-        .map(|&i| workers.with(|w| w.decoder.load_decoded(&paths[i].1)))
+        .map(|&i| workers.with(|w| source.load_decoded(paths[i], &mut w.decoder)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
 }
@@ -1182,7 +1201,7 @@ fn background_without_tracks(
     background: &Background,
     samples: &[FrameView<'_>],
     sample_of: &[Option<usize>],
-    paths: &[(usize, PathBuf)],
+    paths: &[usize],
     pass: &Pass,
     radius: f64,
     reach: f64,
@@ -1197,7 +1216,7 @@ fn background_without_tracks(
     let index: std::collections::HashMap<usize, usize> = paths
         .iter()
         .zip(sample_of)
-        .filter_map(|((k, _), j)| j.map(|j| (*k, j)))
+        .filter_map(|(k, j)| j.map(|j| (*k, j)))
         .collect();
     let mut at: Vec<Vec<[f64; 2]>> = vec![Vec::new(); samples.len()];
     let mut points: Vec<(usize, &TrackPoint)> = Vec::new();
@@ -1483,7 +1502,7 @@ fn sample_skirts(
     radius: f64,
     workers: &Workers,
 ) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
-    let first = frames.paths.first().map_or(0, |p| p.0);
+    let first = frames.paths.first().copied().unwrap_or(0);
     // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
     // and each costs a pass over its points' rings.
     let samples: Vec<usize> = (0..frames.paths.len())

@@ -7,7 +7,7 @@ use std::path::Path;
 use anyhow::Context;
 use physfit_identify::diagnose::Diagnosis;
 use physfit_identify::FitResult;
-use physfit_track::TrackTable;
+use physfit_track::{Frame, FrameSource, TrackTable};
 
 use crate::cmd::diagnose::figures::{self as diagnosis_figures, Backdrop};
 use crate::report::{self, LineChart, Overlay, Prediction, Series, Tail};
@@ -18,17 +18,18 @@ const TAIL_FRAMES: usize = 10;
 /// Draws every picture into `out`; returns their Markdown and the files written (relative).
 pub fn figures(
     out: &Path,
-    frames_dir: &Path,
+    frames: &FrameSource,
     tracks: &TrackTable,
     base: Option<&FitResult>,
     d: &Diagnosis,
 ) -> anyhow::Result<(String, Vec<String>)> {
-    let paths = physfit_track::list_frames(frames_dir)?;
-    let first = paths
-        .get(d.window[0])
-        .or(paths.first())
-        .map(|p| image::open(p).with_context(|| format!("reading {}", p.display())))
-        .transpose()?;
+    let picture = |k: usize| -> anyhow::Result<image::DynamicImage> {
+        let frame = frames
+            .load_frame(k)
+            .with_context(|| format!("reading {}", frames.frame_name(k).display()))?;
+        Ok(frame_picture(&frame))
+    };
+    let first = Some(picture(d.window[0])?);
     let ids = &d.residuals.particles;
     let by_particle = tracks.by_particle();
     let mut md = String::new();
@@ -69,8 +70,10 @@ pub fn figures(
     let mut chosen = vec![a, (a + b) / 2, b];
     chosen.dedup();
     for f in chosen {
-        let Some(path) = paths.get(f) else { continue };
-        let frame = image::open(path).with_context(|| format!("reading {}", path.display()))?;
+        if f >= frames.len() {
+            continue;
+        }
+        let frame = picture(f)?;
         let mut marks = Overlay::default();
         for (k, id) in ids.iter().enumerate() {
             let Some(obs) = by_particle.get(id.as_str()) else {
@@ -101,6 +104,22 @@ pub fn figures(
         files.push(name);
     }
     Ok((md, files))
+}
+
+/// A frame as an 8-bit picture (grey or RGB) to draw on.
+fn frame_picture(frame: &Frame) -> image::DynamicImage {
+    let bytes: Vec<u8> = frame
+        .data
+        .iter()
+        .map(|&v| v.round().clamp(0.0, 255.0) as u8)
+        .collect();
+    let (w, h) = (frame.width as u32, frame.height as u32);
+    let picture = if frame.channels == 1 {
+        image::GrayImage::from_raw(w, h, bytes).map(image::DynamicImage::ImageLuma8)
+    } else {
+        image::RgbImage::from_raw(w, h, bytes).map(image::DynamicImage::ImageRgb8)
+    };
+    picture.expect("a frame's samples fill its size")
 }
 
 /// The diagnosed model's predicted position of particle `id` at frame `f`, px.

@@ -2,7 +2,9 @@
 //!
 //! * `physfit run` (no arguments): the built-in default scene, which hides one effect;
 //! * `physfit run SCENE --out DIR`: any scene; the truth is known, so the report compares;
-//! * `physfit run --frames DIR --structure S --out DIR [--fps F] [--window A..B]`: a recording.
+//! * `physfit run --frames DIR|VIDEO|STACK --structure S --out DIR [--fps F] [--window A..B]`: a
+//!   recording (a folder of frames, a video, a TIFF stack). A video's own frame rate is used
+//!   unless `--fps` is given.
 //!
 //! Stages: render (scenes only), track, fit (the structure alone, by `lsq`), diagnose (name
 //! and add the missing physics, refit), report. Each stage's failure names the stage and its
@@ -211,20 +213,24 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             (frames, s, None, structure)
         }
     };
-    if let Some(fps) = args.fps {
+    // The frame rate: --fps, else a video's own, else the structure's (or the scene's).
+    let recording = super::open_recording(&frames_dir, args.window, args.fps, Some(structure.recording.fps))
+        .context("stage track")?;
+    if let Some(fps) = recording.fps {
         structure.recording.fps = fps;
     }
+    let window = recording.window;
 
     // Stage track.
     explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
     let t = Instant::now();
     let options = TrackOptions {
-        window: args.window,
+        window,
         named_start: Some(super::named_start(&structure)),
         ..TrackOptions::default()
     };
     let bar = progress::bar(verbosity, "track", 0);
-    let tracked = physfit_track::track_folder(&frames_dir, &options, &|done, total| {
+    let tracked = physfit_track::track_source(&recording.source, &options, &|done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })
@@ -266,7 +272,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         let fit_options = FitOptions {
             method: physfit_identify::Method::Lsq,
             seed: args.seed,
-            window: args.window,
+            window,
             ..FitOptions::default()
         };
         let spinner = progress::spinner(verbosity, "fit");
@@ -295,7 +301,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         &tracked.table,
         &DiagnoseOptions {
             seed: args.seed,
-            window: args.window,
+            window,
             ..DiagnoseOptions::default()
         },
         &spinner,
@@ -328,10 +334,10 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         torsions: structure.torsions.len(),
         unknowns: structure.unknown_count(),
         fps: structure.recording.fps,
-        window: args.window.map(|(a, b)| [a, b]),
+        window: window.map(|(a, b)| [a, b]),
         seed: args.seed,
     };
-    let (pictures, mut outputs) = figures::figures(out, &frames_dir, &tracked.table, base.as_ref(), &d)
+    let (pictures, mut outputs) = figures::figures(out, &recording.source, &tracked.table, base.as_ref(), &d)
         .context("stage report: pictures")?;
     outputs.splice(
         0..0,
