@@ -8,5 +8,6 @@ mod issue_21;
 mod real;
 mod render;
 mod run;
+mod tables;
 mod track;
 mod util;

@@ -22,6 +22,7 @@ mod point_grid;
 mod scale;
 mod score;
 mod shared;
+mod tables;
 mod track_table;
 
 pub use appearance::*;
@@ -35,4 +36,8 @@ pub use link::*;
 pub use locate::*;
 pub use pipeline::{track_folder, TrackOptions, TrackOutcome, TrackStats};
 pub use score::*;
+pub use tables::{
+    detect_format, name_tracks_by_position, read_track_table, read_track_table_str, ForeignTable,
+    TableFormat, TableOptions,
+};
 pub use track_table::{write_detections_csv, PointFlag, TrackPoint, TrackTable};

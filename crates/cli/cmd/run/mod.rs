@@ -214,6 +214,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     if let Some(fps) = args.fps {
         structure.recording.fps = fps;
     }
+    super::apply_scale(&mut structure, args.scale)?;
 
     // Stage track.
     explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
