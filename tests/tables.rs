@@ -193,3 +193,78 @@ fn bad_tables_are_named_with_file_and_line() {
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
 }
+
+/// A Tracker data export of the same tracks: masses named `mass A`..., times from 0.5 s,
+/// positions in metres (0.002 m/px) with y up around an origin at (100, 300) px, side by side
+/// with a names line. Read with `--scale 0.002 --origin 100,300`, it fits like physfit's own
+/// CSV, to rounding (1e-9 relative).
+#[test]
+fn a_tracker_export_gives_the_same_fit_as_physfits_own() {
+    let dir = tempdir();
+    let d = dir.path();
+    physfit()
+        .args(["-q", "render"])
+        .arg(scenes_dir().join("paper3.toml"))
+        .arg("--out")
+        .arg(d)
+        .assert()
+        .success();
+    let structure = d.join("structure.toml");
+    let truth = d.join("truth.csv");
+    let own = fit_values(&truth, &structure, &d.join("own.toml"), &[]);
+    let fps: f64 = std::fs::read_to_string(&structure)
+        .unwrap()
+        .lines()
+        .find_map(|l| l.strip_prefix("fps = ").map(|v| v.trim().parse().unwrap()))
+        .unwrap();
+    let mut rdr = csv::Reader::from_path(&truth).unwrap();
+    let rows: Vec<(usize, String, f64, f64)> = rdr
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (
+                r[0].parse().unwrap(),
+                r[1].to_string(),
+                r[2].parse().unwrap(),
+                r[3].parse().unwrap(),
+            )
+        })
+        .collect();
+    let mut names: Vec<String> = rows.iter().map(|r| r.1.clone()).collect();
+    names.dedup();
+    names.sort();
+    names.dedup();
+    let frames = rows.iter().map(|r| r.0).max().unwrap() + 1;
+    let mut text = names
+        .iter()
+        .enumerate()
+        .map(|(k, _)| format!("mass {}\t\t", (b'A' + k as u8) as char))
+        .collect::<Vec<_>>()
+        .join("\t");
+    text.push('\n');
+    text.push_str(&vec!["t\tx\ty"; names.len()].join("\t"));
+    text.push('\n');
+    for f in 0..frames {
+        let t = 0.5 + f as f64 / fps;
+        let cells: Vec<String> = names
+            .iter()
+            .map(|n| {
+                let r = rows.iter().find(|r| r.0 == f && &r.1 == n).unwrap();
+                format!("{t}\t{}\t{}", (r.2 - 100.0) * 0.002, -(r.3 - 300.0) * 0.002)
+            })
+            .collect();
+        text.push_str(&cells.join("\t"));
+        text.push('\n');
+    }
+    let path = d.join("tracker.txt");
+    std::fs::write(&path, text).unwrap();
+    let got = fit_values(
+        &path,
+        &structure,
+        &d.join("tracker.toml"),
+        &["--scale", "0.002", "--origin", "100,300"],
+    );
+    for (a, b) in got.iter().zip(&own) {
+        assert!((a - b).abs() <= 1e-9 * b.abs(), "tracker: {a} vs physfit's {b}");
+    }
+}
