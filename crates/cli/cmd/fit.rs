@@ -31,7 +31,7 @@ impl physfit_identify::Observer for BarObserver {
 pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let mut structure = super::load_scene(&args.structure)?;
     super::apply_scale(&mut structure, args.scale)?;
-    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, verbosity)?;
+    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, args.window, verbosity)?;
     let mut options = FitOptions {
         method: method(args.method),
         seed: args.seed,

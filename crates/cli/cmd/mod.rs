@@ -67,12 +67,14 @@ pub fn apply_scale(structure: &mut Scene, scale: Option<f64>) -> anyhow::Result<
 }
 
 /// Reads a tracks table in any format `table` allows, converts it to px with the structure's
-/// scale, and names its tracks after the structure's particles by first position when no
-/// track name is a particle id. Warnings go to stderr unless quiet.
+/// scale, and names its tracks after the structure's particles by their position in the first
+/// analysed frame (`window`'s first, else the table's) when no track name is a particle id.
+/// Warnings go to stderr unless quiet.
 pub fn load_tracks(
     path: &Path,
     table: &TableArgs,
     structure: &Scene,
+    window: Option<(usize, usize)>,
     verbosity: Verbosity,
 ) -> anyhow::Result<TrackTable> {
     let options = TableOptions {
@@ -101,6 +103,7 @@ pub fn load_tracks(
     notes.extend(physfit_track::name_tracks_by_position(
         &mut tracks,
         &named_start(structure),
+        window.map(|w| w.0),
     ));
     if verbosity != Verbosity::Quiet {
         if read.format != TableFormat::Physfit {

@@ -15,7 +15,7 @@ pub mod sections;
 pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let mut structure = super::load_scene(&args.structure)?;
     super::apply_scale(&mut structure, args.scale)?;
-    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, verbosity)?;
+    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, args.window, verbosity)?;
     let options = DiagnoseOptions {
         seed: args.seed,
         window: args.window,

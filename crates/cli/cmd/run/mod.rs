@@ -53,6 +53,9 @@ pub struct Given {
     pub unknowns: usize,
     /// Frame rate used, frames/s.
     pub fps: f64,
+    /// The image scale used, m/px (`--scale` or the structure's), when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metres_per_px: Option<f64>,
     /// `--window`, when given.
     pub window: Option<[usize; 2]>,
     /// Seed of the random choices.
@@ -329,6 +332,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         torsions: structure.torsions.len(),
         unknowns: structure.unknown_count(),
         fps: structure.recording.fps,
+        metres_per_px: structure.recording.metres_per_px,
         window: args.window.map(|(a, b)| [a, b]),
         seed: args.seed,
     };

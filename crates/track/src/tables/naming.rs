@@ -3,21 +3,30 @@
 use crate::{match_to_starts, TrackTable};
 
 /// Renames `table`'s tracks after the structure's particles when no track name is a particle
-/// id: each track's first position, px, is matched to the particles' frame-0 positions `starts`
-/// (id, px) by [`match_to_starts`], the optimal assignment that names tracks in
-/// `track --structure`, with no distance limit. Tracks left unmatched are dropped. Returns
-/// what was done, a sentence each (empty when the names already were particle ids).
-pub fn name_tracks_by_position(table: &mut TrackTable, starts: &[(String, [f64; 2])]) -> Vec<String> {
+/// id: each track's position, px, in frame `first_frame` (the first analysed frame, where the
+/// structure's positions are; its first point when it has none there or `first_frame` is
+/// `None`) is matched to the particles' positions `starts` (id, px) by [`match_to_starts`],
+/// the optimal assignment that names tracks in `track --structure`, with no distance limit.
+/// Tracks left unmatched are dropped. Returns what was done, a sentence each (empty when the
+/// names already were particle ids).
+pub fn name_tracks_by_position(
+    table: &mut TrackTable,
+    starts: &[(String, [f64; 2])],
+    first_frame: Option<usize>,
+) -> Vec<String> {
     let by = table.by_particle();
     if starts.iter().any(|(id, _)| by.contains_key(id.as_str())) {
         return Vec::new();
     }
-    // Tracks in order of first appearance, each at its first point.
+    // Tracks in order of first appearance, each at the first analysed frame or its first point.
     let names = table.particle_ids();
     let firsts: Vec<[f64; 2]> = names
         .iter()
         .map(|n| {
-            let p = by[n.as_str()][0];
+            let points = &by[n.as_str()];
+            let p = first_frame
+                .and_then(|f| points.iter().find(|p| p.frame == f))
+                .unwrap_or(&points[0]);
             [p.x, p.y]
         })
         .collect();
@@ -95,13 +104,29 @@ mod tests {
             ],
         };
         let starts = vec![("a".to_string(), [11.0, 9.0]), ("b".to_string(), [99.0, 11.0])];
-        let notes = name_tracks_by_position(&mut t, &starts);
+        let notes = name_tracks_by_position(&mut t, &starts, None);
         assert_eq!(t.particle_ids(), ["b", "a"]);
         assert_eq!(t.points.len(), 3);
         assert!(notes[1].contains("9"), "{notes:?}");
         // Names already ids: nothing changes.
-        assert!(name_tracks_by_position(&mut t, &starts).is_empty());
+        assert!(name_tracks_by_position(&mut t, &starts, None).is_empty());
         assert_eq!(t.particle_ids(), ["b", "a"]);
         assert_eq!(t.points.len(), 3);
+    }
+
+    #[test]
+    fn the_first_analysed_frame_decides() {
+        // Two tracks that swap places by frame 5: the structure's positions are frame 5's.
+        let mut t = TrackTable {
+            points: vec![
+                TrackPoint::new(0, "1", 0.0, 0.0),
+                TrackPoint::new(0, "2", 100.0, 0.0),
+                TrackPoint::new(5, "1", 100.0, 0.0),
+                TrackPoint::new(5, "2", 0.0, 0.0),
+            ],
+        };
+        let starts = vec![("a".to_string(), [0.0, 0.0]), ("b".to_string(), [100.0, 0.0])];
+        name_tracks_by_position(&mut t, &starts, Some(5));
+        assert_eq!(t.particle_ids(), ["b", "a"]);
     }
 }
