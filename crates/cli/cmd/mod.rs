@@ -91,6 +91,16 @@ pub fn load_tracks(
     let read = physfit_track::read_track_table(path, &options)
         .with_context(|| format!("reading tracks {}", path.display()))?;
     let mut notes = read.warnings;
+    let in_px = matches!(read.format, TableFormat::Physfit | TableFormat::Trackpy);
+    if in_px && table.px_per_unit.is_some() {
+        notes.push(format!("--px-per-unit ignored: a {} table is in px", read.format));
+    }
+    if read.format != TableFormat::Tracker && table.origin != [0.0, 0.0] {
+        notes.push(format!(
+            "--origin ignored: it places Tracker's origin, not a {} table's",
+            read.format
+        ));
+    }
     if let Some(fps) = read.fps {
         let given = structure.recording.fps;
         if (fps / given - 1.0).abs() > 0.01 {

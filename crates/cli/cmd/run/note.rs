@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use physfit_identify::units::{format_quantity, format_value_se};
+use physfit_identify::units::{format_quantity, format_value_se, significant};
 use physfit_identify::{BondKeys, FitReport};
 use physfit_model::scene::SceneComparison;
 
@@ -114,18 +114,30 @@ fn base_fit(fit: &FitReport) -> String {
     s
 }
 
-/// The diagnosed model's bond values.
+/// The diagnosed model's bond values, with SI values when the scene has a scale.
 fn final_bonds(scene: &physfit_model::Scene) -> String {
+    // `v unit`, and `(v_si unit_si)` beside it with a scale.
+    let q = |v: f64, unit: &str| -> String {
+        let mut s = format!("{} {unit}", significant(v, 6));
+        let si = scene
+            .recording
+            .metres_per_px
+            .and_then(|m| physfit_identify::units::to_si(v, None, unit, m));
+        if let Some((v, _, u)) = si.filter(|si| si.2 != unit) {
+            s.push_str(&format!(" ({} {u})", significant(v, 6)));
+        }
+        s
+    };
     let mut rows = Vec::new();
     for k in 0..scene.springs.len() {
         let sp = &scene.springs[k];
         let damping = sp.damping.unwrap_or(scene.physics.spring_damping);
         rows.push(vec![
             scene.spring_label(k),
-            sp.rest_length.map_or("-".into(), |v| format!("{v:.4} px")),
-            sp.stiffness.map_or("-".into(), |v| format!("{v:.4} mass/s²")),
+            sp.rest_length.map_or("-".into(), |v| q(v, "px")),
+            sp.stiffness.map_or("-".into(), |v| q(v, "energy/px^2")),
             if damping > 0.0 {
-                format!("damping {damping:.4} mass/s")
+                format!("damping {}", q(damping, "mass/s"))
             } else {
                 String::new()
             },
@@ -141,7 +153,7 @@ fn final_bonds(scene: &physfit_model::Scene) -> String {
                     c.clamp(-1.0, 1.0).acos().to_degrees()
                 )
             }),
-            t.stiffness.map_or("-".into(), |v| format!("{v:.4} mass px²/s²")),
+            t.stiffness.map_or("-".into(), |v| q(v, "energy")),
             String::new(),
         ]);
     }
