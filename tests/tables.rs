@@ -268,3 +268,76 @@ fn a_tracker_export_gives_the_same_fit_as_physfits_own() {
         assert!((a - b).abs() <= 1e-9 * b.abs(), "tracker: {a} vs physfit's {b}");
     }
 }
+
+/// `diagnose` reads a foreign table like `fit`: the true centres of a scene with a concealed
+/// field, written as a TrackMate spot table (pixel units, numbered tracks), give the same
+/// findings with the same values as physfit's own CSV.
+#[test]
+fn diagnose_reads_a_trackmate_table_like_physfits_own() {
+    let dir = tempdir();
+    let d = dir.path();
+    physfit()
+        .args(["-q", "render"])
+        .arg(scenes_dir().join("concealed-gravity.toml"))
+        .arg("--out")
+        .arg(d)
+        .assert()
+        .success();
+    let truth = d.join("truth.csv");
+    let mut rdr = csv::Reader::from_path(&truth).unwrap();
+    let table: Vec<(usize, String, String, String, String)> = rdr
+        .records()
+        .map(|r| {
+            let r = r.unwrap();
+            (
+                r[0].parse().unwrap(),
+                r[1].to_string(),
+                r[2].to_string(),
+                r[3].to_string(),
+                String::new(),
+            )
+        })
+        .collect();
+    let mut names: Vec<String> = table.iter().map(|r| r.1.clone()).collect();
+    names.sort();
+    names.dedup();
+    let ids = |p: &str| format!("{}", 7 + names.iter().position(|n| n == p).unwrap());
+    let (_, tm) = write_foreign(&table, &ids, d);
+    let findings = |tracks: &Path, out: &str| -> Vec<(String, Vec<f64>)> {
+        physfit()
+            .args(["-q", "diagnose"])
+            .arg(tracks)
+            .arg("--structure")
+            .arg(d.join("structure.toml"))
+            .arg("--out")
+            .arg(d.join(out))
+            .assert()
+            .success();
+        let json: Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join(out).join("report.json")).unwrap()).unwrap();
+        json["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|f| {
+                let values = f["parameters"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|p| p["value"].as_f64().unwrap())
+                    .collect();
+                (f["effect"].as_str().unwrap().to_string(), values)
+            })
+            .collect()
+    };
+    let own = findings(&truth, "own");
+    let got = findings(&tm, "trackmate");
+    assert!(!own.is_empty());
+    assert_eq!(got.len(), own.len(), "{got:?} vs {own:?}");
+    for ((e1, v1), (e2, v2)) in got.iter().zip(&own) {
+        assert_eq!(e1, e2);
+        for (a, b) in v1.iter().zip(v2) {
+            assert!((a - b).abs() <= 1e-9 * b.abs().max(1.0), "{e1}: {a} vs {b}");
+        }
+    }
+}
