@@ -122,3 +122,59 @@ fn a_malformed_track_file_is_named_with_its_line() {
         .failure()
         .stderr(predicate::str::contains("bad.csv:3"));
 }
+
+/// With `--scale`, fit.json gains `units` and each parameter its SI value beside the px one
+/// (keys unchanged): lengths in m, spring stiffness in N/m (masses as kg), torsion stiffness
+/// in J; the console summary rounds each value to its standard error.
+#[test]
+fn a_scale_adds_si_values_beside_px() {
+    let dir = tempdir();
+    rendered("paper3", dir.path());
+    let report = dir.path().join("fit.json");
+    let out = physfit()
+        .arg("fit")
+        .arg(dir.path().join("truth.csv"))
+        .arg("--structure")
+        .arg(dir.path().join("structure.toml"))
+        .arg("--out")
+        .arg(dir.path().join("fitted.toml"))
+        .arg("--report")
+        .arg(&report)
+        .args(["--method", "lsq", "--scale", "0.002"])
+        .assert()
+        .success();
+    let stdout = String::from_utf8_lossy(&out.get_output().stdout).to_string();
+    assert!(
+        stdout.contains(" m)") && stdout.contains("masses as kg"),
+        "{stdout}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["units"]["mass_unit"], "kg");
+    for p in json["parameters"].as_array().unwrap() {
+        let v = p["value"].as_f64().unwrap();
+        let torsion = p["bond"]["at"].is_string();
+        let (unit, factor) = match (p["name"].as_str().unwrap(), torsion) {
+            ("length", _) => ("m", 0.002),
+            ("stiffness", false) => ("N/m", 1.0),
+            ("stiffness", true) => ("J", 0.002 * 0.002),
+            _ => {
+                assert!(p.get("value_si").is_none(), "{p}");
+                continue;
+            }
+        };
+        assert_eq!(p["unit_si"], unit, "{p}");
+        let si = p["value_si"].as_f64().unwrap();
+        assert!((si - v * factor).abs() <= 1e-12 * (v * factor).abs(), "{p}");
+    }
+    physfit()
+        .arg("fit")
+        .arg(dir.path().join("truth.csv"))
+        .arg("--structure")
+        .arg(dir.path().join("structure.toml"))
+        .arg("--out")
+        .arg(dir.path().join("fitted.toml"))
+        .args(["--scale", "0"])
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("--scale 0"));
+}

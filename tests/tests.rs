@@ -8,6 +8,7 @@ mod issue_21;
 mod real;
 mod render;
 mod run;
+mod tables;
 mod track;
 mod util;
 mod video;

@@ -99,8 +99,16 @@ pub struct TrackArgs {
 /// `physfit fit`.
 #[derive(Debug, Args)]
 pub struct FitArgs {
-    /// Trajectories (`frame,particle,x,y` CSV; `particle` = a structure id).
+    /// Trajectories: physfit's `frame,particle,x,y` CSV (`particle` = a structure id), or a
+    /// trackpy, TrackMate or Tracker table (see `--format`).
     pub tracks: PathBuf,
+    /// How to read the tracks table.
+    #[command(flatten)]
+    pub table: TableArgs,
+    /// The image scale, m/px (overrides the structure's `[recording] metres_per_px` or ruler):
+    /// reports then give SI values beside px, with masses taken as kg.
+    #[arg(long, value_name = "M_PER_PX")]
+    pub scale: Option<f64>,
     /// The structure: a scene whose unknown bond values are left out.
     #[arg(long)]
     pub structure: PathBuf,
@@ -133,8 +141,16 @@ pub struct FitArgs {
 /// `physfit diagnose`.
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// Trajectories (`frame,particle,x,y` CSV; `particle` = a structure id).
+    /// Trajectories: physfit's `frame,particle,x,y` CSV (`particle` = a structure id), or a
+    /// trackpy, TrackMate or Tracker table (see `--format`).
     pub tracks: PathBuf,
+    /// How to read the tracks table.
+    #[command(flatten)]
+    pub table: TableArgs,
+    /// The image scale, m/px (overrides the structure's `[recording] metres_per_px` or ruler):
+    /// reports then give SI values beside px, with masses taken as kg.
+    #[arg(long, value_name = "M_PER_PX")]
+    pub scale: Option<f64>,
     /// The structure: a scene whose unknown bond values and physics are left out.
     #[arg(long)]
     pub structure: PathBuf,
@@ -147,6 +163,49 @@ pub struct DiagnoseArgs {
     /// Seed of every random choice (which frames are held out).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+/// How `fit` and `diagnose` read their tracks table (see `docs/tables.md`).
+#[derive(Debug, Args)]
+pub struct TableArgs {
+    /// The tracks table's format (detected from its header when absent).
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+    /// Pixels per unit of the table's positions (TrackMate's calibrated unit, Tracker's world
+    /// unit), px/unit; otherwise derived from the unit and the scale.
+    #[arg(long, value_name = "PX")]
+    pub px_per_unit: Option<f64>,
+    /// Where Tracker's world origin is in the image, px (`X,Y`, x right, y down).
+    #[arg(long, value_name = "X,Y", value_parser = parse_point, default_value = "0,0")]
+    pub origin: [f64; 2],
+}
+
+/// Track table formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FormatArg {
+    /// physfit's own `frame,particle,x,y[,mass,size,ep,flag]`.
+    Physfit,
+    /// trackpy's linked DataFrame written by `to_csv`.
+    Trackpy,
+    /// TrackMate's spot table CSV export.
+    Trackmate,
+    /// Tracker's (Open Source Physics) data export: `t, x, y` per mass.
+    Tracker,
+}
+
+/// Parses a point `X,Y`, px.
+pub fn parse_point(s: &str) -> Result<[f64; 2], String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("`{s}` is not of the form X,Y"))?;
+    let num = |t: &str| -> Result<f64, String> {
+        t.trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("`{s}`: `{t}` is not a finite number"))
+    };
+    Ok([num(a)?, num(b)?])
 }
 
 /// Identification methods.
@@ -184,6 +243,10 @@ pub struct RunArgs {
     /// `[recording] fps`).
     #[arg(long, requires = "frames")]
     pub fps: Option<f64>,
+    /// The image scale, m/px (overrides the structure's `[recording] metres_per_px` or ruler):
+    /// reports then give SI values beside px, with masses taken as kg.
+    #[arg(long, value_name = "M_PER_PX")]
+    pub scale: Option<f64>,
     /// First and last frame analysed, inclusive (`A..B`), or times (`2.5s..4s`).
     #[arg(long)]
     pub window: Option<FrameWindow>,
@@ -275,5 +338,12 @@ mod tests {
         assert!(parse_window("12..2").unwrap_err().contains("before"));
         assert!(parse_window("a..2").unwrap_err().contains("`a`"));
         assert!(parse_window("3").unwrap_err().contains("A..B"));
+    }
+
+    #[test]
+    fn points_parse_and_reject() {
+        assert_eq!(parse_point("1.5, -2"), Ok([1.5, -2.0]));
+        assert!(parse_point("1").unwrap_err().contains("X,Y"));
+        assert!(parse_point("1,nan").unwrap_err().contains("finite"));
     }
 }

@@ -468,6 +468,8 @@ fn lattice(side: usize, frames: usize) -> anyhow::Result<Scene> {
             frames,
             substeps: Some(20),
             integrator: None,
+            metres_per_px: None,
+            ruler: None,
         },
         render: None,
         particles,

@@ -2,7 +2,6 @@
 
 use anyhow::Context;
 use physfit_identify::{FitOptions, Method};
-use physfit_track::TrackTable;
 
 use crate::cli::{FitArgs, MethodArg};
 use crate::progress::{self, Verbosity};
@@ -30,9 +29,9 @@ impl physfit_identify::Observer for BarObserver {
 
 /// Fits a structure to tracks.
 pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
-    let structure = super::load_scene(&args.structure)?;
-    let tracks = TrackTable::read_csv(&args.tracks)
-        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let mut structure = super::load_scene(&args.structure)?;
+    super::apply_scale(&mut structure, args.scale)?;
+    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, args.window, verbosity)?;
     let mut options = FitOptions {
         method: method(args.method),
         seed: args.seed,
@@ -100,12 +99,12 @@ pub fn summary(report: &physfit_identify::FitReport) -> String {
             BondKeys::Spring { between } => format!("spring {}-{}", between[0], between[1]),
             BondKeys::Torsion { at, between } => format!("torsion {}-{}-{}", between[0], at, between[1]),
         };
-        let err = p
-            .std_error
-            .map_or_else(|| "?".to_string(), |e| format!("{e:.3e}"));
-        let mut line = format!("  {bond:<24} {:<9} = {:>12.6} +- {err}", p.name, p.value);
+        let mut line = format!("  {bond:<24} {:<9} = {}", p.name, p.text());
         if let (Some(a), Some(e)) = (p.rest_angle_deg, p.rest_angle_std_error_deg) {
-            line.push_str(&format!("  ({a:.3} +- {e:.3} deg)"));
+            line.push_str(&format!(
+                "  ({} deg)",
+                physfit_identify::units::format_value_se(a, Some(e))
+            ));
         }
         if let Some(r) = p.relative_error {
             line.push_str(&format!("  [error {:+.3}%]", 100.0 * r));
@@ -120,5 +119,8 @@ pub fn summary(report: &physfit_identify::FitReport) -> String {
         "  multi-step RMS over the whole sequence: {:.4} px; measured track noise {:.4} px\n",
         report.costs.multi_step_sequence.rms, report.track_noise
     ));
+    if let Some(u) = &report.units {
+        out.push_str(&format!("  units: {}\n", u.text));
+    }
     out
 }

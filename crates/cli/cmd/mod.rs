@@ -11,7 +11,10 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use physfit_model::{Recording, Scene};
-use physfit_track::{FrameSource, FrameWindow, TrackPoint, TrackTable};
+use physfit_track::{FrameSource, FrameWindow, TableFormat, TableOptions, TrackPoint, TrackTable};
+
+use crate::cli::{FormatArg, TableArgs};
+use crate::progress::Verbosity;
 
 /// Loads and validates a scene file, naming it in any error.
 pub fn load_scene(path: &Path) -> anyhow::Result<Scene> {
@@ -89,4 +92,75 @@ pub fn simulate_scene(scene: &Scene, source: &Path) -> anyhow::Result<Recording>
         &scene.integration_parameters(),
         scene.recording.frames,
     ))
+}
+
+/// Sets the structure's scale from `--scale`, m/px, when given (it overrides the file's).
+pub fn apply_scale(structure: &mut Scene, scale: Option<f64>) -> anyhow::Result<()> {
+    if let Some(m) = scale {
+        if !(m.is_finite() && m > 0.0) {
+            bail!("--scale {m}: the scale must be a positive number of metres per px");
+        }
+        structure.recording.metres_per_px = Some(m);
+    }
+    Ok(())
+}
+
+/// Reads a tracks table in any format `table` allows, converts it to px with the structure's
+/// scale, and names its tracks after the structure's particles by their position in the first
+/// analysed frame (`window`'s first, else the table's) when no track name is a particle id.
+/// Warnings go to stderr unless quiet.
+pub fn load_tracks(
+    path: &Path,
+    table: &TableArgs,
+    structure: &Scene,
+    window: Option<(usize, usize)>,
+    verbosity: Verbosity,
+) -> anyhow::Result<TrackTable> {
+    let options = TableOptions {
+        format: table.format.map(|f| match f {
+            FormatArg::Physfit => TableFormat::Physfit,
+            FormatArg::Trackpy => TableFormat::Trackpy,
+            FormatArg::Trackmate => TableFormat::TrackMate,
+            FormatArg::Tracker => TableFormat::Tracker,
+        }),
+        px_per_unit: table.px_per_unit,
+        metres_per_px: structure.recording.metres_per_px,
+        origin_px: table.origin,
+    };
+    let read = physfit_track::read_track_table(path, &options)
+        .with_context(|| format!("reading tracks {}", path.display()))?;
+    let mut notes = read.warnings;
+    let in_px = matches!(read.format, TableFormat::Physfit | TableFormat::Trackpy);
+    if in_px && table.px_per_unit.is_some() {
+        notes.push(format!("--px-per-unit ignored: a {} table is in px", read.format));
+    }
+    if read.format != TableFormat::Tracker && table.origin != [0.0, 0.0] {
+        notes.push(format!(
+            "--origin ignored: it places Tracker's origin, not a {} table's",
+            read.format
+        ));
+    }
+    if let Some(fps) = read.fps {
+        let given = structure.recording.fps;
+        if (fps / given - 1.0).abs() > 0.01 {
+            notes.push(format!(
+                "the table's times give {fps:.4} frames/s but the structure says {given} (`[recording] fps`); the structure's is used"
+            ));
+        }
+    }
+    let mut tracks = read.table;
+    notes.extend(physfit_track::name_tracks_by_position(
+        &mut tracks,
+        &named_start(structure),
+        window.map(|w| w.0),
+    ));
+    if verbosity != Verbosity::Quiet {
+        if read.format != TableFormat::Physfit {
+            eprintln!("physfit: read {} as a {} table", path.display(), read.format);
+        }
+        for n in &notes {
+            eprintln!("physfit: warning: {n}");
+        }
+    }
+    Ok(tracks)
 }

@@ -227,7 +227,7 @@ pub fn fit_observations(
         warnings.push("the fitted motion could not be run back to frame 0; particle start positions are the structure's".into());
     }
     let settings = settings_json(options, &ga);
-    let report = FitReport {
+    let mut report = FitReport {
         structure: structure.name.clone(),
         method: options.method.name().into(),
         method_used: solved.method_used.name().into(),
@@ -251,7 +251,11 @@ pub fn fit_observations(
         seconds: t0.elapsed().as_secs_f64(),
         warnings,
         truth: None,
+        units: None,
     };
+    if let Some(m) = structure.recording.metres_per_px {
+        report.add_si(m);
+    }
     Ok(FitResult {
         fitted,
         report,

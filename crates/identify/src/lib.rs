@@ -75,6 +75,7 @@ mod sparse_cholesky;
 #[cfg(test)]
 mod testutil;
 mod uncertainty;
+pub mod units;
 
 pub use cost::{CostFunction, LocalCostFunction, Observer, SolverOutcome};
 pub use error::IdentifyError;

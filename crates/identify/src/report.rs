@@ -112,6 +112,41 @@ pub struct ParameterReport {
     /// For a rest cosine: fitted minus true rest angle, degrees.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angle_error_deg: Option<f64>,
+    /// The value in SI units, when a scale is known (see [`FitReport::add_si`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value_si: Option<f64>,
+    /// The standard error in SI units, when a scale is known.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub std_error_si: Option<f64>,
+    /// The SI unit: `m` for lengths, `N/m` for spring stiffness, `J` for torsion stiffness
+    /// (masses taken as kg).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit_si: Option<String>,
+}
+
+impl ParameterReport {
+    /// The value's unit: `px` (lengths), `energy/px^2` (spring stiffness, that is mass/s²),
+    /// `energy` (torsion stiffness, mass px²/s²) or `1` (rest cosines).
+    pub fn unit(&self) -> &'static str {
+        match (&self.bond, self.name) {
+            (_, "length") => "px",
+            (BondKeys::Spring { .. }, "stiffness") => "energy/px^2",
+            (BondKeys::Torsion { .. }, "stiffness") => "energy",
+            _ => "1",
+        }
+    }
+
+    /// `value ± error unit` rounded to the error, with the SI value beside it when known.
+    pub fn text(&self) -> String {
+        let mut s = crate::units::format_quantity(self.value, self.std_error, self.unit());
+        if let (Some(v), Some(u)) = (self.value_si, &self.unit_si) {
+            s.push_str(&format!(
+                " ({})",
+                crate::units::format_quantity(v, self.std_error_si, u)
+            ));
+        }
+        s
+    }
 }
 
 /// Costs of the fitted model.
@@ -181,9 +216,25 @@ pub struct FitReport {
     /// Errors against a ground truth, after [`FitReport::compare_truth`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub truth: Option<TruthComparison>,
+    /// The scale and mass unit of the SI values, when a scale is known.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units: Option<crate::units::Units>,
 }
 
 impl FitReport {
+    /// Adds SI values beside every parameter (`value_si`, `std_error_si`, `unit_si`) and the
+    /// `units` note, at scale `metres_per_px`, m/px, with the structure's masses as kg.
+    pub fn add_si(&mut self, metres_per_px: f64) {
+        for p in &mut self.parameters {
+            if let Some((v, e, u)) = crate::units::to_si(p.value, p.std_error, p.unit(), metres_per_px) {
+                p.value_si = Some(v);
+                p.std_error_si = e;
+                p.unit_si = Some(u.to_string());
+            }
+        }
+        self.units = Some(crate::units::Units::new(metres_per_px));
+    }
+
     /// The parameter list of a fit.
     pub fn parameter_reports(
         problem: &Problem,
@@ -217,6 +268,9 @@ impl FitReport {
                     truth: None,
                     relative_error: None,
                     angle_error_deg: None,
+                    value_si: None,
+                    std_error_si: None,
+                    unit_si: None,
                 }
             })
             .collect()

@@ -52,6 +52,8 @@ pub fn scene_from(
             frames: timing.frames,
             substeps: Some(timing.substeps),
             integrator: Some(timing.integrator),
+            metres_per_px: None,
+            ruler: None,
         },
         render: None,
         particles: particles

@@ -84,6 +84,29 @@ pub fn solve_sparse(problem: &SparseProblem) -> Vec<Option<usize>> {
     result
 }
 
+/// Matches named start positions to points, px, by minimal total squared distance: each start
+/// takes at most one point, none farther than `gate`, px (a start with no point within it
+/// stays unmatched). Returns, for each start, its point's index. This is how named tracks
+/// begin: structure particles matched to first-frame detections, or to the first positions
+/// of another tracker's tracks.
+pub fn match_to_starts(starts: &[[f64; 2]], points: &[[f64; 2]], gate: f64) -> Vec<Option<usize>> {
+    let g2 = gate * gate;
+    let mut problem = SparseProblem {
+        row_miss: vec![1.0; starts.len()],
+        col_miss: vec![0.0; points.len()],
+        pairs: Vec::new(),
+    };
+    for (i, s) in starts.iter().enumerate() {
+        for (j, p) in points.iter().enumerate() {
+            let d2 = (p[0] - s[0]).powi(2) + (p[1] - s[1]).powi(2);
+            if d2 <= g2 {
+                problem.pairs.push((i, j, d2 / g2));
+            }
+        }
+    }
+    solve_sparse(&problem)
+}
+
 /// Solves one connected component by successive shortest augmenting paths on the sparse
 /// graph (Dijkstra with potentials, the shortest-path form of the Hungarian method), so a
 /// crowded frame whose gates chain a thousand particles together costs about the number of

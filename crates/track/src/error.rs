@@ -25,6 +25,19 @@ pub enum TrackError {
         /// What is wrong.
         message: String,
     },
+    /// A cell of a track table is bad (not a number, not finite, not a frame index...);
+    /// `line` is 1-based.
+    #[error("{path}:{line}: column `{column}`: {message}")]
+    Cell {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: u64,
+        /// The column's header.
+        column: String,
+        /// What is wrong.
+        message: String,
+    },
     /// A frame file could not be decoded (corrupt, truncated, empty or not an image).
     #[error("{path}: {message}")]
     Decode {

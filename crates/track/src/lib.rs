@@ -24,6 +24,7 @@ mod score;
 mod shared;
 mod source;
 mod stack;
+mod tables;
 mod track_table;
 mod video;
 
@@ -40,6 +41,10 @@ pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, Track
 pub use score::*;
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
+pub use tables::{
+    detect_format, name_tracks_by_position, read_track_table, read_track_table_str, ForeignTable,
+    TableFormat, TableOptions,
+};
 pub use track_table::{write_detections_csv, PointFlag, TrackPoint, TrackTable};
 pub use video::{
     is_video_path, probe_video, VideoFrames, VideoInfo, NEUTRAL_LEVELS, VIDEO_EXTENSIONS, VIDEO_MEMORY_BYTES,

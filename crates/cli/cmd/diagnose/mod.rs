@@ -3,7 +3,6 @@
 
 use anyhow::Context;
 use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
-use physfit_track::TrackTable;
 
 use crate::cli::DiagnoseArgs;
 use crate::progress::Verbosity;
@@ -14,9 +13,9 @@ pub mod sections;
 
 /// Diagnoses a structure against tracks and writes `fitted.toml` and the reports into `--out`.
 pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
-    let structure = super::load_scene(&args.structure)?;
-    let tracks = TrackTable::read_csv(&args.tracks)
-        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let mut structure = super::load_scene(&args.structure)?;
+    super::apply_scale(&mut structure, args.scale)?;
+    let tracks = super::load_tracks(&args.tracks, &args.table, &structure, args.window, verbosity)?;
     let options = DiagnoseOptions {
         seed: args.seed,
         window: args.window,

@@ -5,11 +5,31 @@ use physfit_identify::diagnose::{Diagnosis, FittedValue};
 
 use crate::report;
 
-/// One fitted value with its standard error and unit, e.g. `drag = 0.301 ± 2.1e-3 1/s`.
+/// One fitted value rounded to its standard error, with its SI value when a scale is known,
+/// e.g. `drag = 0.3011 ± 0.0021 1/s`, `gravity_y = 1770 ± 5 px/s^2 (9.73 ± 0.03 m/s^2)`.
 pub fn value_text(v: &FittedValue) -> String {
-    match v.std_error {
-        Some(e) => format!("{} = {:.6} ± {:.2e} {}", v.name, v.value, e, v.unit),
-        None => format!("{} = {:.6} {}", v.name, v.value, v.unit),
+    v.text()
+}
+
+/// A finding's values, and for a field its strength `g` (what a pendulum's or a falling
+/// ball's g is), each rounded to its standard error.
+pub fn values_text(f: &physfit_identify::Finding) -> Vec<String> {
+    let mut out: Vec<String> = f.parameters.iter().map(value_text).collect();
+    if let Some(g) = f.field_strength() {
+        out.push(g.text());
+    }
+    out
+}
+
+/// A length, px, with its SI value when a scale is known: `0.0412 px (0.000226 m)`.
+pub fn length_text(px: f64, d: &Diagnosis) -> String {
+    match &d.units {
+        Some(u) if px.is_finite() => format!(
+            "{} px ({} m)",
+            number(px),
+            physfit_identify::units::significant(px * u.metres_per_px, 3)
+        ),
+        _ => format!("{} px", number(px)),
     }
 }
 
@@ -20,7 +40,7 @@ pub fn summary(d: &Diagnosis) -> String {
         s.push_str("no missing physics found\n");
     }
     for f in &d.findings {
-        let values: Vec<String> = f.parameters.iter().map(value_text).collect();
+        let values = values_text(f);
         s.push_str(&format!(
             "found {}: {}\n  seen: {}\n",
             f.label,
@@ -32,11 +52,14 @@ pub fn summary(d: &Diagnosis) -> String {
         }
     }
     s.push_str(&format!(
-        "multi-step RMS over the sequence: base {} px, diagnosed {} px (track noise {} px)\n",
-        number(d.base.costs.multi_step.rms),
-        number(d.final_model.costs.multi_step.rms),
-        number(d.track_noise)
+        "multi-step RMS over the sequence: base {}, diagnosed {} (track noise {})\n",
+        length_text(d.base.costs.multi_step.rms, d),
+        length_text(d.final_model.costs.multi_step.rms, d),
+        length_text(d.track_noise, d)
     ));
+    if let Some(u) = &d.units {
+        s.push_str(&format!("units: {}\n", u.text));
+    }
     s.push_str(&format!("verdict: {}\n", d.verdict.text));
     s
 }
@@ -126,7 +149,7 @@ pub fn findings(d: &Diagnosis) -> String {
                 let e = &f.evidence;
                 vec![
                     f.label.clone(),
-                    f.parameters.iter().map(value_text).collect::<Vec<_>>().join("; "),
+                    values_text(f).join("; "),
                     f.seen.text.clone(),
                     e.held_out_cost_before.map_or("-".into(), |v| format!("{v:.4}")),
                     e.held_out_cost_after.map_or("-".into(), |v| format!("{v:.4}")),
@@ -240,16 +263,27 @@ pub fn costs(d: &Diagnosis) -> String {
     )
 }
 
+/// The units paragraph of a report: the scale and the mass unit of the SI values, or that
+/// values are in px because no scale was given.
+pub fn units_line(d: &Diagnosis) -> String {
+    match &d.units {
+        Some(u) => format!("Units: {}; values are rounded to their standard error.\n\n", u.text),
+        None => "Units: px, s and the structure's mass unit (no scale given: `[recording] metres_per_px` or `--scale` adds SI values); values are rounded to their standard error.\n\n".into(),
+    }
+}
+
 /// `report.md` of `physfit diagnose`.
 pub fn markdown(d: &Diagnosis, pictures: &str) -> String {
     let mut s = format!("# physfit diagnosis: {}\n\n", d.structure);
     s.push_str(&format!(
-        "Frames {}..{} analysed; track noise {} px per coordinate; {:.1} s.\n\n## Verdict\n\n",
+        "Frames {}..{} analysed; track noise {} per coordinate; {:.1} s.\n\n",
         d.window[0],
         d.window[1],
-        number(d.track_noise),
+        length_text(d.track_noise, d),
         d.seconds
     ));
+    s.push_str(&units_line(d));
+    s.push_str("## Verdict\n\n");
     s.push_str(&verdict(d));
     s.push_str("\n## Findings\n\n");
     s.push_str(&findings(d));

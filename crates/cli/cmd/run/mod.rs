@@ -55,6 +55,9 @@ pub struct Given {
     pub unknowns: usize,
     /// Frame rate used, frames/s.
     pub fps: f64,
+    /// The image scale used, m/px (`--scale` or the structure's), when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metres_per_px: Option<f64>,
     /// `--window`, when given.
     pub window: Option<[usize; 2]>,
     /// Seed of the random choices.
@@ -220,6 +223,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         structure.recording.fps = fps;
     }
     let window = recording.window;
+    super::apply_scale(&mut structure, args.scale)?;
 
     // Stage track.
     explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
@@ -334,6 +338,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         torsions: structure.torsions.len(),
         unknowns: structure.unknown_count(),
         fps: structure.recording.fps,
+        metres_per_px: structure.recording.metres_per_px,
         window: window.map(|(a, b)| [a, b]),
         seed: args.seed,
     };

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use physfit_identify::units::{format_quantity, format_value_se, significant};
 use physfit_identify::{BondKeys, FitReport};
 use physfit_model::scene::SceneComparison;
 
@@ -53,19 +54,14 @@ fn bond_name(keys: &BondKeys) -> String {
     }
 }
 
-fn unit_of(keys: &BondKeys, name: &str) -> &'static str {
-    match (keys, name) {
-        (_, "length") => "px",
-        (BondKeys::Spring { .. }, "stiffness") => "mass/s²",
-        (BondKeys::Torsion { .. }, "stiffness") => "mass px²/s²",
-        _ => "1",
-    }
-}
-
 /// The base fit's values with standard errors (rest cosines also as angles).
 fn base_fit(fit: &FitReport) -> String {
     let with_truth = fit.parameters.iter().any(|p| p.relative_error.is_some());
-    let mut header = vec!["bond", "value", "unit", "standard error", "rest angle, deg"];
+    let si = fit.units.is_some();
+    let mut header = vec!["bond", "value ± standard error", "unit", "rest angle, deg"];
+    if si {
+        header.insert(3, "SI value");
+    }
     if with_truth {
         header.push("error against the truth");
     }
@@ -75,15 +71,22 @@ fn base_fit(fit: &FitReport) -> String {
         .map(|p| {
             let mut row = vec![
                 format!("{} {}", bond_name(&p.bond), p.name),
-                format!("{:.6}", p.value),
-                unit_of(&p.bond, p.name).to_string(),
-                p.std_error.map_or("-".into(), |e| format!("{e:.2e}")),
-                match (p.rest_angle_deg, p.rest_angle_std_error_deg) {
-                    (Some(a), Some(e)) => format!("{a:.3} ± {e:.3}"),
-                    (Some(a), None) => format!("{a:.3}"),
-                    _ => String::new(),
+                format_value_se(p.value, p.std_error),
+                p.unit().to_string(),
+                match p.rest_angle_deg {
+                    Some(a) => format_value_se(a, p.rest_angle_std_error_deg),
+                    None => String::new(),
                 },
             ];
+            if si {
+                row.insert(
+                    3,
+                    match (p.value_si, &p.unit_si) {
+                        (Some(v), Some(u)) => format_quantity(v, p.std_error_si, u),
+                        _ => "-".into(),
+                    },
+                );
+            }
             if with_truth {
                 row.push(match (p.angle_error_deg, p.relative_error) {
                     (Some(a), _) => format!("{a:+.3} deg"),
@@ -111,18 +114,30 @@ fn base_fit(fit: &FitReport) -> String {
     s
 }
 
-/// The diagnosed model's bond values.
+/// The diagnosed model's bond values, with SI values when the scene has a scale.
 fn final_bonds(scene: &physfit_model::Scene) -> String {
+    // `v unit`, and `(v_si unit_si)` beside it with a scale.
+    let q = |v: f64, unit: &str| -> String {
+        let mut s = format!("{} {unit}", significant(v, 6));
+        let si = scene
+            .recording
+            .metres_per_px
+            .and_then(|m| physfit_identify::units::to_si(v, None, unit, m));
+        if let Some((v, _, u)) = si.filter(|si| si.2 != unit) {
+            s.push_str(&format!(" ({} {u})", significant(v, 6)));
+        }
+        s
+    };
     let mut rows = Vec::new();
     for k in 0..scene.springs.len() {
         let sp = &scene.springs[k];
         let damping = sp.damping.unwrap_or(scene.physics.spring_damping);
         rows.push(vec![
             scene.spring_label(k),
-            sp.rest_length.map_or("-".into(), |v| format!("{v:.4} px")),
-            sp.stiffness.map_or("-".into(), |v| format!("{v:.4} mass/s²")),
+            sp.rest_length.map_or("-".into(), |v| q(v, "px")),
+            sp.stiffness.map_or("-".into(), |v| q(v, "energy/px^2")),
             if damping > 0.0 {
-                format!("damping {damping:.4} mass/s")
+                format!("damping {}", q(damping, "mass/s"))
             } else {
                 String::new()
             },
@@ -138,7 +153,7 @@ fn final_bonds(scene: &physfit_model::Scene) -> String {
                     c.clamp(-1.0, 1.0).acos().to_degrees()
                 )
             }),
-            t.stiffness.map_or("-".into(), |v| format!("{v:.4} mass px²/s²")),
+            t.stiffness.map_or("-".into(), |v| q(v, "energy")),
             String::new(),
         ]);
     }
@@ -215,6 +230,7 @@ pub fn lab_note(r: &RunReport, pictures: &str) -> String {
         )
     });
 
+    s.push_str(&sections::units_line(d));
     s.push_str("## What was given\n\n");
     s.push_str(&format!(
         "- {}: `{}`; frames in `{}` at {} frames/s{}.\n- Structure `{}`: {} particles, {} springs, {} torsions, {} unknown bond values; no physics beyond the bonds.\n- Seed {}.\n\n",

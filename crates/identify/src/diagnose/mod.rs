@@ -688,7 +688,7 @@ fn diagnose_inner(
         &outcome.residuals,
         &jolt_list,
     );
-    Ok(Diagnosis {
+    let mut diagnosis = Diagnosis {
         structure: structure.name.clone(),
         seed: options.seed,
         window: [obs.first_frame, obs.last_frame()],
@@ -710,9 +710,14 @@ fn diagnose_inner(
         },
         warnings,
         seconds: t0.elapsed().as_secs_f64(),
+        units: None,
         final_scene: outcome.scene,
         predictions: outcome.predictions,
-    })
+    };
+    if let Some(m) = structure.recording.metres_per_px {
+        diagnosis.add_si(m);
+    }
+    Ok(diagnosis)
 }
 
 /// `next` with each tether from effect `first_new` on taken as rigid where the tracks cannot

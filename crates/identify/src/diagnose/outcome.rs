@@ -158,12 +158,7 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             .collect();
         let mut parameters: Vec<FittedValue> = Vec::new();
         let mut push = |name: &str, value: f64, std_error: Option<f64>| {
-            parameters.push(FittedValue {
-                name: name.into(),
-                value,
-                std_error,
-                unit: unit(effect, name).into(),
-            })
+            parameters.push(FittedValue::new(name, value, std_error, unit(effect, name)))
         };
         let mut seen = Seen::default();
         let all_free: Vec<String> = fam.free.iter().map(|&p| id(p)).collect();

@@ -33,6 +33,58 @@ pub struct FittedValue {
     pub std_error: Option<f64>,
     /// Unit, e.g. `px/s^2`, `1/s`, `mass/s`, `px`.
     pub unit: String,
+    /// The value in SI units, when a scale is known (see [`Diagnosis::add_si`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value_si: Option<f64>,
+    /// The standard error in SI units, when a scale is known.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub std_error_si: Option<f64>,
+    /// The SI unit, e.g. `m/s^2`, `1/s`, `kg/s`, `m`, `N/m` (masses taken as kg).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit_si: Option<String>,
+}
+
+impl FittedValue {
+    /// A value in `unit` without SI values.
+    pub fn new(name: impl Into<String>, value: f64, std_error: Option<f64>, unit: impl Into<String>) -> Self {
+        FittedValue {
+            name: name.into(),
+            value,
+            std_error,
+            unit: unit.into(),
+            value_si: None,
+            std_error_si: None,
+            unit_si: None,
+        }
+    }
+
+    /// Fills the SI values at scale `metres_per_px`, m/px (dimensionless values get none).
+    pub fn add_si(&mut self, metres_per_px: f64) {
+        if let Some((v, e, u)) = crate::units::to_si(self.value, self.std_error, &self.unit, metres_per_px) {
+            self.value_si = Some(v);
+            self.std_error_si = e;
+            self.unit_si = Some(u.to_string());
+        }
+    }
+
+    /// `value ± error unit` rounded to the error, with the SI value beside it when known:
+    /// `gravity_y = 1770 ± 5 px/s^2 (9.73 ± 0.03 m/s^2)`.
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "{} = {}",
+            self.name,
+            crate::units::format_quantity(self.value, self.std_error, &self.unit)
+        );
+        if let (Some(v), Some(u)) = (self.value_si, &self.unit_si) {
+            if *u != self.unit {
+                s.push_str(&format!(
+                    " ({})",
+                    crate::units::format_quantity(v, self.std_error_si, u)
+                ));
+            }
+        }
+        s
+    }
 }
 
 /// Where a finding was seen.
@@ -271,6 +323,33 @@ pub struct Finding {
     pub note: Option<String>,
 }
 
+impl Finding {
+    /// For a uniform field: its strength `g = |(gravity_x, gravity_y)|`, px/s², with
+    /// a standard error propagated from theirs (their covariance left out), and its SI value
+    /// when theirs are known. `None` for other effects.
+    pub fn field_strength(&self) -> Option<FittedValue> {
+        let get = |name: &str| self.parameters.iter().find(|p| p.name == name);
+        let (x, y) = (get("gravity_x")?, get("gravity_y")?);
+        let strength = |gx: f64, gy: f64, ex: Option<f64>, ey: Option<f64>| {
+            let g = gx.hypot(gy);
+            let e = match (ex, ey) {
+                (Some(ex), Some(ey)) if g > 0.0 => Some((gx * ex).hypot(gy * ey) / g),
+                _ => None,
+            };
+            (g, e)
+        };
+        let (g, e) = strength(x.value, y.value, x.std_error, y.std_error);
+        let mut out = FittedValue::new("g", g, e, x.unit.clone());
+        if let (Some(vx), Some(vy), Some(u)) = (x.value_si, y.value_si, &x.unit_si) {
+            let (g, e) = strength(vx, vy, x.std_error_si, y.std_error_si);
+            out.value_si = Some(g);
+            out.std_error_si = e;
+            out.unit_si = Some(u.clone());
+        }
+        Some(out)
+    }
+}
+
 /// A candidate that did not earn its place, with its best scores.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RejectedCandidate {
@@ -468,6 +547,10 @@ pub struct Diagnosis {
     pub warnings: Vec<String>,
     /// Wall time, s.
     pub seconds: f64,
+    /// The scale and mass unit of the SI values, when a scale is known (see
+    /// [`Diagnosis::add_si`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units: Option<crate::units::Units>,
     /// The diagnosed model as a scene: fitted values, `[physics]`, added springs and fixed
     /// particles; frame-0 state from the fit. Saved by the CLI as `fitted.toml`.
     #[serde(skip)]
@@ -480,6 +563,21 @@ pub struct Diagnosis {
 }
 
 impl Diagnosis {
+    /// Adds SI values beside every fitted value (`value_si`, `std_error_si`, `unit_si`) and
+    /// the `units` note, at scale `metres_per_px`, m/px, with the structure's masses as kg.
+    pub fn add_si(&mut self, metres_per_px: f64) {
+        for f in self
+            .findings
+            .iter_mut()
+            .chain(self.undecided.iter_mut().map(|u| &mut u.finding))
+        {
+            for v in &mut f.parameters {
+                v.add_si(metres_per_px);
+            }
+        }
+        self.units = Some(crate::units::Units::new(metres_per_px));
+    }
+
     /// The names of the accepted effects, in order.
     pub fn effect_names(&self) -> Vec<&str> {
         self.findings.iter().map(|f| f.effect.as_str()).collect()

@@ -54,6 +54,9 @@ pub enum SceneProblem {
         /// The allowed range, in words.
         allowed: &'static str,
     },
+    /// `[recording]` gives the scale twice (`metres_per_px` and a ruler).
+    #[error("[recording] has both metres_per_px and [recording.ruler]: give one scale")]
+    TwoScales,
     /// A wall's normal has zero length.
     #[error("physics.walls[{0}].normal has zero length")]
     ZeroWallNormal(usize),

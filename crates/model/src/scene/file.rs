@@ -77,6 +77,24 @@ pub struct RecordingFile {
     /// Integration scheme (default `verlet`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub integrator: Option<IntegratorKind>,
+    /// The image scale, m/px (absent = unknown; reports then give px only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub metres_per_px: Option<f64>,
+    /// The image scale as a ruler seen in the image (instead of `metres_per_px`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ruler: Option<RulerFile>,
+}
+
+/// `[recording.ruler]`: two points of the image a known distance apart.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RulerFile {
+    /// One end, px (x right, y down).
+    pub from: [f64; 2],
+    /// The other end, px.
+    pub to: [f64; 2],
+    /// The distance between them, m.
+    pub length_m: f64,
 }
 
 /// One `[[particles]]` entry.

@@ -11,8 +11,8 @@ mod file;
 pub use compare::{compare_scenes, effects_beyond, SceneComparison, ValueComparison};
 pub use error::{SceneError, SceneProblem};
 pub use file::{
-    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, SceneFile, SpringFile, TorsionFile,
-    WallFile,
+    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, RulerFile, SceneFile, SpringFile,
+    TorsionFile, WallFile,
 };
 
 use std::collections::HashMap;
@@ -37,6 +37,8 @@ pub struct RecordingSettings {
     pub substeps: u32,
     /// Integration scheme.
     pub integrator: IntegratorKind,
+    /// The image scale, m/px (from `metres_per_px` or the ruler); `None` = unknown.
+    pub metres_per_px: Option<f64>,
 }
 
 /// A particle as a scene describes it.
@@ -142,6 +144,40 @@ fn is_plus_zero2(v: Vec2) -> bool {
     is_plus_zero(v.x) && is_plus_zero(v.y)
 }
 
+/// The scale given by `[recording]`, m/px: `metres_per_px`, or the ruler's length over its
+/// length in px; giving both is an error.
+fn scale_of(rec: &RecordingFile) -> Result<Option<f64>, SceneProblem> {
+    match (rec.metres_per_px, &rec.ruler) {
+        (Some(_), Some(_)) => Err(SceneProblem::TwoScales),
+        (Some(m), None) => {
+            check_finite(|| "recording.metres_per_px".into(), &[m])?;
+            check_range(|| "recording.metres_per_px".into(), m, m > 0.0, "positive")?;
+            Ok(Some(m))
+        }
+        (None, Some(r)) => {
+            check_finite(
+                || "recording.ruler".into(),
+                &[r.from[0], r.from[1], r.to[0], r.to[1], r.length_m],
+            )?;
+            check_range(
+                || "recording.ruler.length_m".into(),
+                r.length_m,
+                r.length_m > 0.0,
+                "positive",
+            )?;
+            let px = (r.to[0] - r.from[0]).hypot(r.to[1] - r.from[1]);
+            check_range(
+                || "recording.ruler (from-to distance, px)".into(),
+                px,
+                px > 0.0,
+                "positive (two different points)",
+            )?;
+            Ok(Some(r.length_m / px))
+        }
+        (None, None) => Ok(None),
+    }
+}
+
 impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -200,6 +236,7 @@ impl Scene {
             substeps >= 1,
             "at least 1",
         )?;
+        let metres_per_px = scale_of(rec)?;
         let render = raw.render.clone().unwrap_or_default();
         check_finite(|| "render.radius".into(), &[render.radius])?;
         check_range(
@@ -332,6 +369,7 @@ impl Scene {
                 frames: rec.frames,
                 substeps,
                 integrator: rec.integrator.unwrap_or_default(),
+                metres_per_px,
             },
             render,
             has_render_table: raw.render.is_some(),
@@ -384,6 +422,8 @@ impl Scene {
                 frames: self.recording.frames,
                 substeps: Some(self.recording.substeps),
                 integrator: Some(self.recording.integrator),
+                metres_per_px: self.recording.metres_per_px,
+                ruler: None,
             },
             render: if self.has_render_table {
                 Some(self.render.clone())

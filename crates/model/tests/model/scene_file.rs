@@ -589,3 +589,29 @@ fn the_documented_example_is_valid_and_uses_every_key() {
     );
     assert!(rec.positions.iter().all(|x| x.x.is_finite() && x.y <= 230.0));
 }
+
+#[test]
+fn the_scale_is_metres_per_px_or_a_ruler_but_not_both() {
+    let with = |extra: &str| BASE.replace("frames = 10\n", &format!("frames = 10\n{extra}"));
+    let s = Scene::from_toml_str(&with("metres_per_px = 0.002\n"), "s.toml").unwrap();
+    assert_eq!(s.recording.metres_per_px, Some(0.002));
+    assert_eq!(
+        Scene::from_toml_str(BASE, "s.toml")
+            .unwrap()
+            .recording
+            .metres_per_px,
+        None
+    );
+    let ruler = "[recording.ruler]\nfrom = [0.0, 0.0]\nto = [30.0, 40.0]\nlength_m = 1.0\n";
+    let text = BASE.replace("frames = 10\n", &format!("frames = 10\n\n{ruler}"));
+    let s = Scene::from_toml_str(&text, "s.toml").unwrap();
+    assert!((s.recording.metres_per_px.unwrap() - 0.02).abs() < 1e-15);
+    // Written back as metres_per_px, read back the same.
+    let back = Scene::from_toml_str(&s.to_toml_string().unwrap(), "s.toml").unwrap();
+    assert_eq!(back.recording.metres_per_px, s.recording.metres_per_px);
+    let both = text.replace("frames = 10\n", "frames = 10\nmetres_per_px = 0.1\n");
+    assert!(matches!(problem(&both), SceneProblem::TwoScales));
+    assert!(message(&with("metres_per_px = -1.0\n")).contains("recording.metres_per_px"));
+    let flat = text.replace("to = [30.0, 40.0]", "to = [0.0, 0.0]");
+    assert!(message(&flat).contains("recording.ruler"), "{}", message(&flat));
+}

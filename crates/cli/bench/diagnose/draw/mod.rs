@@ -153,6 +153,7 @@ fn draw_once(rng: &mut StdRng, kinds: &[Kind], seed: u64, small: bool) -> Option
             frames: object.frames,
             substeps,
             integrator: IntegratorKind::Verlet,
+            metres_per_px: None,
         },
         render: RenderSettings::default(),
         has_render_table: true,
