@@ -2,7 +2,6 @@
 
 use anyhow::Context;
 use physfit_identify::{FitOptions, Method};
-use physfit_track::TrackTable;
 
 use crate::cli::{FitArgs, MethodArg};
 use crate::progress::{self, Verbosity};
@@ -31,8 +30,7 @@ impl physfit_identify::Observer for BarObserver {
 /// Fits a structure to tracks.
 pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let structure = super::load_scene(&args.structure)?;
-    let tracks = TrackTable::read_csv(&args.tracks)
-        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let tracks = super::read_tracks(&args.tracks, &structure)?;
     let mut options = FitOptions {
         method: method(args.method),
         seed: args.seed,

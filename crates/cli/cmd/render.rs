@@ -45,6 +45,7 @@ pub fn render_scene(
     out: &Path,
     verbosity: Verbosity,
 ) -> anyhow::Result<Rendered> {
+    crate::limits::check_scene(scene, source, true)?;
     let recording = super::simulate_scene(scene, source)?;
     std::fs::create_dir_all(out).with_context(|| format!("creating output folder {}", out.display()))?;
     let staging = out.join(format!(".physfit-render-{}", std::process::id()));

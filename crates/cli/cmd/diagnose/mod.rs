@@ -3,7 +3,6 @@
 
 use anyhow::Context;
 use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
-use physfit_track::TrackTable;
 
 use crate::cli::DiagnoseArgs;
 use crate::progress::Verbosity;
@@ -15,8 +14,7 @@ pub mod sections;
 /// Diagnoses a structure against tracks and writes `fitted.toml` and the reports into `--out`.
 pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let structure = super::load_scene(&args.structure)?;
-    let tracks = TrackTable::read_csv(&args.tracks)
-        .with_context(|| format!("reading tracks {}", args.tracks.display()))?;
+    let tracks = super::read_tracks(&args.tracks, &structure)?;
     let options = DiagnoseOptions {
         seed: args.seed,
         window: args.window,
@@ -60,6 +58,9 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         ],
     )?;
     if verbosity != Verbosity::Quiet {
+        for w in &d.warnings {
+            eprintln!("physfit: warning: {w}");
+        }
         print!("{}", sections::summary(&d));
         println!(
             "diagnosed model -> {}; report -> {}",
