@@ -81,7 +81,7 @@ fn frames_claiming_60000_by_60000_px_are_refused_unread() {
                 .arg(dir.path().join("t.csv"))
                 .assert(),
             &[
-                "f0.png",
+                ".png: the file declares",
                 "60000x60000 px = 3600 megapixels",
                 "`frame-megapixels` limit of 50",
                 "--limit frame-megapixels=",
@@ -89,7 +89,7 @@ fn frames_claiming_60000_by_60000_px_are_refused_unread() {
         );
         // Refused from the header: no 3.6 GB of samples, no 55 s.
         assert!(started.elapsed().as_secs_f64() < 5.0);
-        // With the size allowed, the file's 80 bytes still cannot hold the samples it claims.
+        // With the size allowed, the file's 68 bytes still cannot hold the samples it claims.
         refused(
             physfit()
                 .args(["--limit", "frame-megapixels=5000", "track"])
@@ -98,7 +98,7 @@ fn frames_claiming_60000_by_60000_px_are_refused_unread() {
                 .arg(dir.path().join("t.csv"))
                 .assert(),
             &[
-                "f0.png",
+                ".png: the file's",
                 "decompression ratio",
                 "`decompression-ratio` limit of 2000",
                 "--limit decompression-ratio=",
@@ -373,4 +373,226 @@ fn rows_of_tracks_the_structure_does_not_name_are_reported() {
             && stderr.contains("\"q9\" (1 row)"),
         "{stderr}"
     );
+}
+
+/// The names in `dir` that contain `physfit-`: staging folders.
+fn staging_in(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("physfit-") && n != ".physfit-outputs")
+        .collect()
+}
+
+#[test]
+fn the_users_files_are_never_replaced_or_deleted() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 4"),
+    );
+    let out = dir.path().join("out");
+    physfit()
+        .args(["-q", "render"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    write(&out, "notes.txt", "the user's notes");
+    write(
+        &out.join("frames"),
+        "keep.txt",
+        "the user's file among the frames",
+    );
+    // The frames folder would be replaced: refused, naming the file, nothing changed.
+    refused(
+        physfit()
+            .args(["-q", "render"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .assert(),
+        &["keep.txt", "not written by physfit", "nothing was changed"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("frames/keep.txt")).unwrap(),
+        "the user's file among the frames"
+    );
+    assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 5);
+    // Beside the outputs, the user's file is kept through a new render.
+    std::fs::remove_file(out.join("frames/keep.txt")).unwrap();
+    physfit()
+        .args(["-q", "render"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "the user's notes"
+    );
+    assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 4);
+    // A report of the user's where diagnose writes its own: refused before the work.
+    write(&out, "report.md", "the user's report");
+    refused(
+        physfit()
+            .args(["-q", "diagnose"])
+            .arg(out.join("truth.csv"))
+            .arg("--structure")
+            .arg(out.join("structure.toml"))
+            .arg("--out")
+            .arg(&out)
+            .assert(),
+        &["report.md", "not written by physfit"],
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("report.md")).unwrap(),
+        "the user's report"
+    );
+    assert!(staging_in(dir.path()).is_empty() && staging_in(&out).is_empty());
+}
+
+#[test]
+fn an_out_that_is_a_file_or_read_only_is_refused() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 2"),
+    );
+    let file = write(dir.path(), "plain", "a file");
+    refused(
+        physfit()
+            .args(["-q", "render"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&file)
+            .assert(),
+        &["--out", "plain", "is a file, not a folder"],
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "a file");
+    let ro = dir.path().join("ro");
+    std::fs::create_dir(&ro).unwrap();
+    let mut perms = std::fs::metadata(&ro).unwrap().permissions();
+    perms.set_readonly(true);
+    std::fs::set_permissions(&ro, perms.clone()).unwrap();
+    refused(
+        physfit()
+            .args(["-q", "render"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&ro)
+            .assert(),
+        &["--out", "ro", "read-only"],
+    );
+    #[allow(clippy::permissions_set_readonly_false)]
+    perms.set_readonly(false);
+    std::fs::set_permissions(&ro, perms).unwrap();
+    assert_eq!(std::fs::read_dir(&ro).unwrap().count(), 0);
+}
+
+#[test]
+fn staging_folders_of_killed_runs_are_removed_by_the_next() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 2"),
+    );
+    let out = dir.path().join("out");
+    // Left by processes that no longer run (no such pid), beside and (older versions) inside.
+    std::fs::create_dir_all(dir.path().join(".out.physfit-run-999999999/frames")).unwrap();
+    std::fs::create_dir_all(out.join(".physfit-render-999999999/frames")).unwrap();
+    physfit()
+        .args(["-q", "render"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    assert!(staging_in(dir.path()).is_empty(), "{:?}", staging_in(dir.path()));
+    assert!(staging_in(&out).is_empty(), "{:?}", staging_in(&out));
+}
+
+/// The files under `dir` (relative paths), with the content of the small text ones.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<String, Option<String>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
+                let text = (rel.ends_with(".txt") || rel.ends_with(".toml"))
+                    .then(|| std::fs::read_to_string(&p).unwrap());
+                out.insert(rel, text);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "short.toml",
+        &default_scene().replace("frames = 300", "frames = 100"),
+    );
+    let out = dir.path().join("out");
+    let run = || {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_physfit"));
+        cmd.args(["-q", "run"]).arg(&scene).arg("--out").arg(&out);
+        cmd.stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null());
+        cmd
+    };
+    let started = std::time::Instant::now();
+    assert!(run().status().unwrap().success());
+    let duration = started.elapsed().as_secs_f64();
+    assert!(crate::util::assert_finite_outputs(&out) == 4);
+    write(&out, "notes.txt", "the user's notes");
+    let before = snapshot(&out);
+    // Seeded moments spread over the run's time (xorshift, seed 24).
+    let mut state: u64 = 24;
+    let mut completed = 0;
+    for k in 0..20 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let at = duration * ((k as f64 + (state % 1000) as f64 / 1000.0) / 20.0);
+        let mut child = run().spawn().unwrap();
+        std::thread::sleep(std::time::Duration::from_secs_f64(at));
+        if child.try_wait().unwrap().is_some() {
+            completed += 1;
+        }
+        let _ = child.kill(); // SIGKILL
+        child.wait().unwrap();
+        // The same files as before (a complete run of the same scene writes the same set),
+        // the user's notes and the earlier model intact, and a report that parses.
+        let now = snapshot(&out);
+        assert_eq!(
+            now.keys().collect::<Vec<_>>(),
+            before.keys().collect::<Vec<_>>(),
+            "killed at {at:.2} s (run {k})"
+        );
+        assert_eq!(now["notes.txt"], before["notes.txt"]);
+        assert_eq!(now["fitted.toml"], before["fitted.toml"], "killed at {at:.2} s");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert!(report.get("findings").is_some());
+    }
+    assert!(
+        completed < 10,
+        "only {completed} of 20 runs were killed before they ended"
+    );
+    // The next run clears what the killed ones left beside the folder.
+    assert!(run().status().unwrap().success());
+    assert!(staging_in(dir.path()).is_empty(), "{:?}", staging_in(dir.path()));
 }

@@ -4,6 +4,7 @@ mod bench;
 mod cli;
 mod cmd;
 mod limits;
+mod output;
 mod progress;
 mod report;
 

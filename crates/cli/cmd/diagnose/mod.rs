@@ -14,6 +14,12 @@ pub mod sections;
 /// Diagnoses a structure against tracks and writes `fitted.toml` and the reports into `--out`.
 pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let structure = super::load_scene(&args.structure)?;
+    // Refuse an unusable --out before the work; everything is staged and swapped in at the end.
+    let staged = crate::output::Staged::begin(
+        &args.out,
+        "diagnose",
+        &["fitted.toml", "report.json", "report.md", "report.html"],
+    )?;
     let tracks = super::read_tracks(&args.tracks, &structure)?;
     let options = DiagnoseOptions {
         seed: args.seed,
@@ -30,11 +36,7 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             args.tracks.display()
         )
     })?;
-    let out = &args.out;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    for stale in ["report.json", "report.md", "report.html"] {
-        let _ = std::fs::remove_file(out.join(stale));
-    }
+    let out = staged.dir();
     d.final_scene
         .save(&out.join("fitted.toml"))
         .context("writing fitted.toml")?;
@@ -57,6 +59,8 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             &report::JsonExporter,
         ],
     )?;
+    staged.commit()?;
+    let out = &args.out;
     if verbosity != Verbosity::Quiet {
         for w in &d.warnings {
             eprintln!("physfit: warning: {w}");
