@@ -596,3 +596,33 @@ fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
     assert!(run().status().unwrap().success());
     assert!(staging_in(dir.path()).is_empty(), "{:?}", staging_in(dir.path()));
 }
+
+#[test]
+fn out_as_the_working_folder_keeps_the_folder_and_the_users_files() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 3"),
+    );
+    let out = dir.path().join("here");
+    std::fs::create_dir(&out).unwrap();
+    write(&out, "notes.txt", "the user's notes");
+    for _ in 0..2 {
+        physfit()
+            .current_dir(&out)
+            .args(["-q", "render"])
+            .arg(&scene)
+            .args(["--out", "."])
+            .assert()
+            .success();
+    }
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "the user's notes"
+    );
+    assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 3);
+    assert!(
+        out.join("truth.csv").exists() && staging_in(&out).is_empty() && staging_in(dir.path()).is_empty()
+    );
+}

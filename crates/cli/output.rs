@@ -27,6 +27,10 @@ pub struct Staged {
     target: PathBuf,
     /// Where the new content is built, beside `target`.
     staging: PathBuf,
+    /// True if and only if the working folder is `target` or inside it: the folder itself is
+    /// then kept (a shell sitting in it would otherwise be left in a deleted folder) and each
+    /// output is renamed into it, atomic file by file rather than as a whole.
+    in_place: bool,
 }
 
 /// The parent folder and name of `target`.
@@ -192,9 +196,16 @@ impl Staged {
                 staging.display()
             )
         })?;
+        let target = parent.join(&name);
+        let in_place = std::env::current_dir()
+            .and_then(|d| d.canonicalize())
+            .ok()
+            .zip(target.canonicalize().ok())
+            .is_some_and(|(cwd, t)| cwd.starts_with(t));
         Ok(Staged {
-            target: target.to_path_buf(),
+            target,
             staging,
+            in_place,
         })
     }
 
@@ -232,8 +243,10 @@ impl Staged {
                 if tops.contains(top) || f == MANIFEST {
                     continue;
                 }
-                carry(&self.target.join(&f), &self.staging.join(&f))
-                    .with_context(|| format!("keeping {}", self.target.join(&f).display()))?;
+                if !self.in_place {
+                    carry(&self.target.join(&f), &self.staging.join(&f))
+                        .with_context(|| format!("keeping {}", self.target.join(&f).display()))?;
+                }
                 if owned.contains(&f) {
                     manifest.insert(f);
                 }
@@ -242,8 +255,16 @@ impl Staged {
         let list: String = manifest.iter().map(|f| format!("{f}\n")).collect();
         physfit_model::write_atomic(&self.staging.join(MANIFEST), list.as_bytes())
             .context("writing the output list")?;
-        exchange(&self.staging, &self.target)
-            .with_context(|| format!("moving the outputs into {}", self.target.display()))
+        let moved = if self.in_place {
+            replace_entries(
+                &self.staging,
+                &self.target,
+                tops.iter().map(String::as_str).chain([MANIFEST]),
+            )
+        } else {
+            exchange(&self.staging, &self.target)
+        };
+        moved.with_context(|| format!("moving the outputs into {}", self.target.display()))
     }
 }
 
@@ -265,6 +286,23 @@ fn carry(from: &Path, to: &Path) -> std::io::Result<()> {
         return std::os::unix::fs::symlink(std::fs::read_link(from)?, to);
     }
     std::fs::hard_link(from, to).or_else(|_| std::fs::copy(from, to).map(|_| ()))
+}
+
+/// Moves each of the top-level entries `names` of `staged` into `target`, replacing the entry of
+/// that name (a folder is renamed into `staged` first, to be removed with it).
+fn replace_entries<'a>(
+    staged: &Path,
+    target: &Path,
+    names: impl Iterator<Item = &'a str>,
+) -> std::io::Result<()> {
+    for name in names {
+        let dest = target.join(name);
+        if dest.is_dir() {
+            std::fs::rename(&dest, staged.join(format!(".old-{name}")))?;
+        }
+        std::fs::rename(staged.join(name), dest)?;
+    }
+    Ok(())
 }
 
 /// Puts the folder `staged` in the place of `target`, in one step where the system allows, and
