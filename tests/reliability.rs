@@ -108,6 +108,44 @@ fn frames_claiming_60000_by_60000_px_are_refused_unread() {
 }
 
 #[test]
+fn a_jpeg_claiming_60000_by_60000_px_is_refused_unread() {
+    let dir = tempdir();
+    // A 16 x 16 grey JPEG whose frame header (SOF0) is made to claim 60000 x 60000 px.
+    let mut jpeg = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new(&mut jpeg)
+        .encode(&[128u8; 256], 16, 16, image::ExtendedColorType::L8)
+        .unwrap();
+    let sof = jpeg.windows(2).position(|w| w == [0xff, 0xc0]).unwrap();
+    jpeg[sof + 5..sof + 9].copy_from_slice(&[0xea, 0x60, 0xea, 0x60]);
+    let d = dir.path().join("jpg");
+    std::fs::create_dir(&d).unwrap();
+    std::fs::write(d.join("f0.jpg"), &jpeg).unwrap();
+    std::fs::write(d.join("f1.jpg"), &jpeg).unwrap();
+    let out = dir.path().join("t.csv");
+    refused(
+        physfit().arg("track").arg(&d).arg("--out").arg(&out).assert(),
+        &[
+            ".jpg: the file declares 60000x60000 px",
+            "`frame-megapixels` limit",
+            "--limit frame-megapixels=",
+        ],
+    );
+    refused(
+        physfit()
+            .args(["--limit", "frame-megapixels=4000", "track"])
+            .arg(&d)
+            .arg("--out")
+            .arg(&out)
+            .assert(),
+        &[
+            ".jpg: the file's",
+            "`decompression-ratio` limit",
+            "--limit decompression-ratio=",
+        ],
+    );
+}
+
+#[test]
 fn a_bad_limit_setting_is_refused() {
     refused(
         physfit()
