@@ -131,14 +131,21 @@ fn in_the_way(target: &Path, names: &BTreeSet<String>) -> anyhow::Result<Vec<Str
         return Ok(Vec::new());
     }
     let owned = owned(target);
-    let files = files_under(target).with_context(|| format!("reading {}", target.display()))?;
-    Ok(files
-        .into_iter()
-        .filter(|f| {
-            let top = f.split('/').next().unwrap_or(f);
-            names.contains(top) && !owned.contains(f)
-        })
-        .collect())
+    let mut files = Vec::new();
+    // Only the entries the outputs replace are walked: `--out` may be a large folder.
+    for name in names {
+        let path = target.join(name);
+        match std::fs::symlink_metadata(&path) {
+            Ok(meta) if meta.is_dir() => {
+                let under = files_under(&path).with_context(|| format!("reading {}", path.display()))?;
+                files.extend(under.into_iter().map(|f| format!("{name}/{f}")));
+            }
+            Ok(_) => files.push(name.clone()),
+            Err(_) => {}
+        }
+    }
+    files.retain(|f| !owned.contains(f));
+    Ok(files)
 }
 
 /// The error for files of the user's that outputs would replace.
