@@ -664,3 +664,34 @@ fn out_as_the_working_folder_keeps_the_folder_and_the_users_files() {
         out.join("truth.csv").exists() && staging_in(&out).is_empty() && staging_in(dir.path()).is_empty()
     );
 }
+
+#[test]
+fn temporary_files_of_killed_writes_are_removed_by_the_next() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 3"),
+    );
+    let out = dir.path().join("truth.csv");
+    // Left by writers killed between creating and renaming them (no such pid), and one of a
+    // running process (this test's) that must stay.
+    write(dir.path(), ".truth.csv.999999999.tmp", "half");
+    write(dir.path(), ".truth.csv.999999999.3.tmp", "half");
+    let live = format!(".truth.csv.{}.0.tmp", std::process::id());
+    write(dir.path(), &live, "being written");
+    physfit()
+        .args(["-q", "simulate"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let mut left: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    left.sort();
+    assert_eq!(left, [live]);
+}

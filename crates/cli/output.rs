@@ -93,6 +93,32 @@ fn clean_stale(parent: &Path, name: &str, target: &Path) {
     }
 }
 
+/// Removes the temporary files that writes of `path` by processes no longer running left beside
+/// it (`.NAME.PID.tmp` and `.NAME.PID.SERIAL.tmp`: killed between creating and renaming them);
+/// called by the commands that write one file (`simulate`, `track`, `fit`) before they write.
+pub fn clean_stale_temps(path: &Path) {
+    let (Some(name), dir) = (
+        path.file_name(),
+        path.parent().filter(|d| !d.as_os_str().is_empty()),
+    ) else {
+        return;
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir.unwrap_or(Path::new("."))) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".tmp")) else {
+            continue;
+        };
+        let pid = rest.split('.').next().and_then(|p| p.parse::<u32>().ok());
+        if pid.is_some_and(|p| !alive(p)) && entry.path().is_file() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// The files (relative paths, `/`-separated) under `dir`, recursively; symbolic links are
 /// listed, not followed.
 fn files_under(dir: &Path) -> std::io::Result<BTreeSet<String>> {
