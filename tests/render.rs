@@ -79,12 +79,21 @@ fn render_writes_frames_truth_structure_and_scene() {
     );
     let full = std::fs::read_to_string(out.join("scene.toml")).unwrap();
     assert!(full.contains("stiffness = 50.0"), "{full}");
-    // No staging leftovers.
-    let names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
+    // No staging leftovers, inside or beside; the list of physfit's outputs.
+    for d in [&out, &dir.path().to_path_buf()] {
+        let names: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            names
+                .iter()
+                .all(|n| !n.starts_with('.') || n == ".physfit-outputs"),
+            "{names:?}"
+        );
+    }
+    let listed = std::fs::read_to_string(out.join(".physfit-outputs")).unwrap();
+    assert!(listed.lines().any(|l| l == "frames/000004.png") && listed.contains("truth.csv\n"));
 }
 
 #[test]

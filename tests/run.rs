@@ -50,6 +50,7 @@ fn a_window_and_a_frame_rate_are_honoured_on_a_folder_of_frames() {
         .stdout(predicate::str::is_empty());
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(crate::util::assert_finite_outputs(&out), 4);
     assert_eq!(report["given"]["kind"], "recording");
     assert_eq!(report["tracking"]["frames"], serde_json::json!([a, b]));
     assert_eq!(report["window"], serde_json::json!([a, b]));
@@ -77,11 +78,14 @@ fn a_window_and_a_frame_rate_are_honoured_on_a_folder_of_frames() {
 }
 
 #[test]
-fn a_failed_stage_is_named_and_leaves_no_report() {
+fn a_failed_stage_is_named_and_leaves_the_folder_as_it_was() {
     let dir = tempdir();
     let out = dir.path().join("out");
     std::fs::create_dir(&out).unwrap();
+    // An earlier run's outputs, listed as physfit's.
     write(&out, "report.md", "an earlier run's report");
+    write(&out, "fitted.toml", "an earlier run's model");
+    write(&out, ".physfit-outputs", "fitted.toml\nreport.md\n");
     let structure = write(
         dir.path(),
         "s.toml",
@@ -98,10 +102,22 @@ fn a_failed_stage_is_named_and_leaves_no_report() {
         .assert()
         .failure()
         .stderr(predicate::str::contains("stage track").and(predicate::str::contains("no-such-frames")));
-    assert!(
-        !out.join("report.md").exists(),
-        "a stale report survived a failed run"
-    );
+    for (name, text) in [
+        ("report.md", "an earlier run's report"),
+        ("fitted.toml", "an earlier run's model"),
+    ] {
+        assert_eq!(
+            std::fs::read_to_string(out.join(name)).unwrap(),
+            text,
+            "{name} changed"
+        );
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("physfit-"))
+        .collect();
+    assert!(left.is_empty(), "staging left behind: {left:?}");
 
     physfit()
         .args(["run", "--frames"])

@@ -6,6 +6,7 @@ mod fit;
 mod getting_started;
 mod issue_21;
 mod real;
+mod reliability;
 mod render;
 mod run;
 mod tables;

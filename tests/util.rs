@@ -66,3 +66,38 @@ pub fn read_xy(path: &Path) -> Vec<(usize, String, f64, f64)> {
         })
         .collect()
 }
+
+/// Asserts that no report or model physfit wrote into `dir` holds a non-finite number: no
+/// `NaN`, `nan` or `inf` word in `report.json`, `report.md`, `fitted.toml`, and finite `x`, `y`
+/// in `tracks.csv` (whose `mass`, `size`, `ep` are NaN by contract when unknown). Returns the
+/// number of files scanned.
+pub fn assert_finite_outputs(dir: &Path) -> usize {
+    let mut scanned = 0;
+    for name in ["report.json", "report.md", "fitted.toml"] {
+        let Ok(text) = std::fs::read_to_string(dir.join(name)) else {
+            continue;
+        };
+        scanned += 1;
+        let bad = text
+            .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '.'))
+            .find(|w| ["nan", "inf", "infinity"].contains(&w.to_ascii_lowercase().as_str()));
+        assert!(
+            bad.is_none(),
+            "{} holds `{}`",
+            dir.join(name).display(),
+            bad.unwrap_or_default()
+        );
+    }
+    let tracks = dir.join("tracks.csv");
+    if tracks.exists() {
+        scanned += 1;
+        for (frame, particle, x, y) in read_xy(&tracks) {
+            assert!(
+                x.is_finite() && y.is_finite(),
+                "{}: frame {frame} {particle} at ({x}, {y})",
+                tracks.display()
+            );
+        }
+    }
+    scanned
+}

@@ -17,7 +17,7 @@ fn render_paper3(dir: &Path, frames: usize) {
         .unwrap()
         .replacen("frames = 400", &format!("frames = {frames}"), 1);
     assert!(scene.contains(&format!("frames = {frames}")));
-    let scene_path = write(dir, "scene.toml", &scene);
+    let scene_path = write(dir, "input-scene.toml", &scene);
     physfit()
         .args(["-q", "render"])
         .arg(&scene_path)
@@ -274,7 +274,7 @@ fn run_on_a_video_uses_its_frame_rate() {
         .replacen("width = 400", "width = 320", 1)
         .replacen("height = 400", "height = 320", 1);
     assert!(small.contains("frames = 60") && small.contains("height = 320"));
-    let scene_path = write(dir.path(), "scene.toml", &small);
+    let scene_path = write(dir.path(), "input-scene.toml", &small);
     physfit()
         .args(["-q", "render"])
         .arg(&scene_path)

@@ -17,6 +17,11 @@ pub struct Cli {
     /// Explain each stage as it runs.
     #[arg(short, long, global = true)]
     pub verbose: bool,
+    /// Raise (or lower) a size limit, `NAME=VALUE`; repeatable. Limits: frame-megapixels (50),
+    /// decompression-ratio (2000), frames-x-particles (2000000), scene-mb (10), tracks-mb (100);
+    /// see docs/limits.md.
+    #[arg(long = "limit", value_name = "NAME=VALUE", global = true)]
+    pub limits: Vec<String>,
     /// The stage to run.
     #[command(subcommand)]
     pub command: Command,

@@ -3,6 +3,8 @@
 mod bench;
 mod cli;
 mod cmd;
+mod limits;
+mod output;
 mod progress;
 mod report;
 
@@ -17,7 +19,10 @@ fn main() -> ExitCode {
     match run() {
         Ok(code) => code,
         Err(err) => {
-            eprintln!("physfit: error: {err:#}");
+            match limits::hint_for(&err) {
+                Some(hint) => eprintln!("physfit: error: {err:#} ({hint})"),
+                None => eprintln!("physfit: error: {err:#}"),
+            }
             ExitCode::from(1)
         }
     }
@@ -25,6 +30,7 @@ fn main() -> ExitCode {
 
 fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
+    limits::install(limits::Limits::from_settings(&cli.limits)?);
     let verbosity = if cli.quiet {
         Verbosity::Quiet
     } else if cli.verbose {

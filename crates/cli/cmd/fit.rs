@@ -66,6 +66,7 @@ pub fn run(args: &FitArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             eprintln!("physfit: warning: {w}");
         }
     }
+    crate::output::clean_stale_temps(&args.out);
     result
         .fitted
         .save(&args.out)

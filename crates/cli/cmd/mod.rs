@@ -16,8 +16,10 @@ use physfit_track::{FrameSource, FrameWindow, TableFormat, TableOptions, TrackPo
 use crate::cli::{FormatArg, TableArgs};
 use crate::progress::Verbosity;
 
-/// Loads and validates a scene file, naming it in any error.
+/// Loads and validates a scene file, naming it in any error; a file above the `scene-mb` limit
+/// is refused unread.
 pub fn load_scene(path: &Path) -> anyhow::Result<Scene> {
+    crate::limits::check_scene_file(path)?;
     Scene::load(path).with_context(|| format!("loading scene {}", path.display()))
 }
 
@@ -81,17 +83,35 @@ pub fn open_recording(
     Ok(OpenRecording { source, window, fps })
 }
 
-/// Simulates a complete scene over its recording, naming the scene in errors.
+/// Simulates a complete scene over its recording, naming the scene in errors; a scene above the
+/// `frames-x-particles` limit is refused before anything is allocated.
 pub fn simulate_scene(scene: &Scene, source: &Path) -> anyhow::Result<Recording> {
+    crate::limits::check_scene(scene, source, false)?;
     let model = scene
         .model()
         .with_context(|| format!("scene {} cannot be simulated", source.display()))?;
-    Ok(physfit_model::simulate(
+    let recording = physfit_model::simulate(
         &model,
         &scene.initial_state(),
         &scene.integration_parameters(),
         scene.recording.frames,
-    ))
+    );
+    if let Some((frame, k)) = recording.first_non_finite() {
+        let i = frame * recording.particle_count + k;
+        let (x, v) = (recording.positions[i], recording.velocities[i]);
+        anyhow::bail!(
+            "scene {}: the simulation diverged: particle \"{}\" at frame {frame} has position ({}, {}) px \
+             and velocity ({}, {}) px/s; the scene's values make the motion unstable at this time step \
+             (raise recording.substeps, or lower the stiffnesses)",
+            source.display(),
+            scene.particles[k].id,
+            x.x,
+            x.y,
+            v.x,
+            v.y
+        );
+    }
+    Ok(recording)
 }
 
 /// Sets the structure's scale from `--scale`, m/px, when given (it overrides the file's).
@@ -127,6 +147,7 @@ pub fn load_tracks(
         metres_per_px: structure.recording.metres_per_px,
         origin_px: table.origin,
     };
+    crate::limits::check_tracks_file(path)?;
     let read = physfit_track::read_track_table(path, &options)
         .with_context(|| format!("reading tracks {}", path.display()))?;
     let mut notes = read.warnings;
@@ -154,6 +175,7 @@ pub fn load_tracks(
         &named_start(structure),
         window.map(|w| w.0),
     ));
+    crate::limits::check_track_span(&tracks, structure, path)?;
     if verbosity != Verbosity::Quiet {
         if read.format != TableFormat::Physfit {
             eprintln!("physfit: read {} as a {} table", path.display(), read.format);

@@ -16,13 +16,19 @@ pub struct Rendered {
     pub frame_count: usize,
 }
 
+/// The outputs a render writes into its folder.
+pub const OUTPUTS: [&str; 4] = ["frames", "truth.csv", "structure.toml", "scene.toml"];
+
 /// Renders the scene file named in `args`.
 pub fn run(args: &RenderArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let mut scene = super::load_scene(&args.scene)?;
     if let Some(seed) = args.seed {
         scene.render.seed = seed;
     }
-    let out = render_scene(&scene, &args.scene, &args.out, verbosity)?;
+    crate::limits::check_scene(&scene, &args.scene, true)?;
+    let staged = crate::output::Staged::begin(&args.out, "render", &OUTPUTS)?;
+    let out = render_scene(&scene, &args.scene, staged.dir(), verbosity)?;
+    staged.commit()?;
     if verbosity != Verbosity::Quiet {
         println!(
             "rendered {} frames of {} ({}x{}) -> {}",
@@ -36,51 +42,34 @@ pub fn run(args: &RenderArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Simulates and renders `scene` into `out`: `frames/`, `truth.csv`, `structure.toml` and
-/// `scene.toml`. Everything is written into a staging folder first and moved into place at
-/// the end, so a failed render never leaves outputs that look complete.
+/// Simulates and renders `scene` into the folder `out` ([`OUTPUTS`]: `frames/`, `truth.csv`,
+/// `structure.toml` and `scene.toml`). `out` is a staging folder ([`crate::output::Staged`]),
+/// moved into place by the caller once everything is written, so that a failed render never
+/// leaves outputs that look complete.
 pub fn render_scene(
     scene: &Scene,
     source: &Path,
     out: &Path,
     verbosity: Verbosity,
 ) -> anyhow::Result<Rendered> {
+    crate::limits::check_scene(scene, source, true)?;
     let recording = super::simulate_scene(scene, source)?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating output folder {}", out.display()))?;
-    let staging = out.join(format!(".physfit-render-{}", std::process::id()));
-    let result = (|| -> anyhow::Result<()> {
-        let frames = staging.join("frames");
-        std::fs::create_dir_all(&frames).with_context(|| format!("creating {}", frames.display()))?;
-        let bar = progress::bar(verbosity, "render", recording.frame_count() as u64);
-        physfit_render::render_sequence(&recording, &scene.render, &frames, &|_| bar.inc(1))
-            .context("rendering frames")?;
-        bar.finish_and_clear();
-        super::truth_table(scene, &recording)
-            .write_csv(&staging.join("truth.csv"))
-            .context("writing truth.csv")?;
-        scene
-            .structure()
-            .save(&staging.join("structure.toml"))
-            .context("writing structure.toml")?;
-        scene
-            .save(&staging.join("scene.toml"))
-            .context("writing scene.toml")?;
-        Ok(())
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_dir_all(&staging);
-        return Err(e);
-    }
     let frames_dir = out.join("frames");
-    if frames_dir.exists() {
-        std::fs::remove_dir_all(&frames_dir)
-            .with_context(|| format!("replacing {}", frames_dir.display()))?;
-    }
-    for name in ["frames", "truth.csv", "structure.toml", "scene.toml"] {
-        std::fs::rename(staging.join(name), out.join(name))
-            .with_context(|| format!("moving {name} into {}", out.display()))?;
-    }
-    let _ = std::fs::remove_dir_all(&staging);
+    std::fs::create_dir_all(&frames_dir).with_context(|| format!("creating {}", frames_dir.display()))?;
+    let bar = progress::bar(verbosity, "render", recording.frame_count() as u64);
+    physfit_render::render_sequence(&recording, &scene.render, &frames_dir, &|_| bar.inc(1))
+        .context("rendering frames")?;
+    bar.finish_and_clear();
+    super::truth_table(scene, &recording)
+        .write_csv(&out.join("truth.csv"))
+        .context("writing truth.csv")?;
+    scene
+        .structure()
+        .save(&out.join("structure.toml"))
+        .context("writing structure.toml")?;
+    scene
+        .save(&out.join("scene.toml"))
+        .context("writing scene.toml")?;
     Ok(Rendered {
         frames_dir,
         frame_count: recording.frame_count(),

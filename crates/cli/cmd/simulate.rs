@@ -9,6 +9,7 @@ use crate::progress::Verbosity;
 pub fn run(args: &SimulateArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let scene = super::load_scene(&args.scene)?;
     let recording = super::simulate_scene(&scene, &args.scene)?;
+    crate::output::clean_stale_temps(&args.out);
     super::truth_table(&scene, &recording)
         .write_csv(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;

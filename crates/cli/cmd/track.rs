@@ -32,6 +32,7 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             eprintln!("physfit: warning: {w}");
         }
     }
+    crate::output::clean_stale_temps(&args.out);
     outcome
         .table
         .write_csv(&args.out)

@@ -47,6 +47,36 @@ pub struct Observations {
     pub warnings: Vec<String>,
 }
 
+/// The warning that rows of tracks `structure_ids` does not name are left out, naming each
+/// such track (the first 12) and its row count; `None` when every row is named.
+fn unnamed_rows_warning(
+    by_name: &std::collections::BTreeMap<&str, Vec<&physfit_track::TrackPoint>>,
+    structure_ids: &[String],
+) -> Option<String> {
+    let unnamed: Vec<(&str, usize)> = by_name
+        .iter()
+        .filter(|(name, _)| !structure_ids.iter().any(|id| id == *name))
+        .map(|(name, rows)| (*name, rows.len()))
+        .collect();
+    if unnamed.is_empty() {
+        return None;
+    }
+    let rows: usize = unnamed.iter().map(|(_, n)| n).sum();
+    let mut listed: Vec<String> = unnamed
+        .iter()
+        .take(12)
+        .map(|(name, n)| format!("\"{name}\" ({n} row{})", if *n == 1 { "" } else { "s" }))
+        .collect();
+    if unnamed.len() > 12 {
+        listed.push(format!("and {} more", unnamed.len() - 12));
+    }
+    Some(format!(
+        "{rows} rows of {} tracks the structure does not name were left out: {}",
+        unnamed.len(),
+        listed.join(", ")
+    ))
+}
+
 impl Observations {
     /// The observations of `structure`'s particles in `tracks`, over the analysed window
     /// `window = (A, B)` (inclusive frame indices; all tracked frames when `None`).
@@ -65,6 +95,7 @@ impl Observations {
         let n = ids.len();
         let by_name = tracks.by_particle();
         let mut warnings = Vec::new();
+        warnings.extend(unnamed_rows_warning(&by_name, &ids));
         let mut start = usize::MAX;
         let mut end = 0;
         for id in &ids {

@@ -29,6 +29,19 @@ impl Recording {
         &self.positions[k * self.particle_count..(k + 1) * self.particle_count]
     }
 
+    /// The first sample whose position or velocity is not finite, as (frame, particle index),
+    /// frame-major: where a simulation blew up. `None` when every number is finite.
+    pub fn first_non_finite(&self) -> Option<(usize, usize)> {
+        let finite = |v: &Vec2| v.x.is_finite() && v.y.is_finite();
+        let k = self
+            .positions
+            .iter()
+            .zip(&self.velocities)
+            .position(|(x, v)| !(finite(x) && finite(v)))?;
+        let n = self.particle_count.max(1);
+        Some((k / n, k % n))
+    }
+
     /// Full state (positions and velocities) at frame `k`.
     ///
     /// # Panics

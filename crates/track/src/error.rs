@@ -100,6 +100,17 @@ pub enum TrackError {
         /// What is wrong with each, a sentence each (naming the particle and frames).
         concerns: Vec<String>,
     },
+    /// A frame file declares a size above a limit ([`crate::FrameLimits`]); nothing of it was
+    /// allocated.
+    #[error("{path}: {message}")]
+    FrameLimit {
+        /// The frame file.
+        path: PathBuf,
+        /// The limit's name: `frame-megapixels` or `decompression-ratio`.
+        limit: &'static str,
+        /// The value seen and the limit (named), in words.
+        message: String,
+    },
     /// An option is invalid (a non-finite start position, a non-positive radius, ...).
     #[error("invalid tracking option: {0}")]
     Option(String),

@@ -274,6 +274,11 @@ impl FrameDecoder {
         if self.file.is_empty() {
             return Err(decode_err("the file is empty".into()));
         }
+        // Limits first: the header's claims are checked before any sample is allocated.
+        let declared_png = crate::png_reader::declared_size(&self.file);
+        if let Some((size, stored)) = declared_png {
+            crate::limits::check_frame_size(path, size, stored, self.file.len() as u64)?;
+        }
         // 8-bit PNG, the commonest frame file, through the tracker's own reader; every other
         // file through the general decoders.
         let png = read_png(&self.file, &mut self.samples, &mut self.png)
@@ -305,6 +310,10 @@ impl FrameDecoder {
             .into_decoder()
             .map_err(|e| decode_err(format!("corrupt or truncated image: {e}")))?;
         let (width, height) = decoder.dimensions();
+        if declared_png.is_none() {
+            let size = (u64::from(width), u64::from(height));
+            crate::limits::check_frame_size(path, size, decoder.total_bytes(), self.file.len() as u64)?;
+        }
         let colour = decoder.color_type();
         let bytes = usize::try_from(decoder.total_bytes())
             .map_err(|_| decode_err(format!("a {width}x{height} image is too large")))?;

@@ -14,6 +14,7 @@ mod error;
 mod frames;
 mod group_by_key;
 mod inpaint;
+mod limits;
 mod link;
 mod locate;
 mod pipeline;
@@ -35,6 +36,9 @@ pub use blind::BlindPixels;
 pub use detect::*;
 pub use error::TrackError;
 pub use frames::*;
+pub use limits::{
+    frame_limits, set_frame_limits, FrameLimits, DEFAULT_MAX_DECOMPRESSION_RATIO, DEFAULT_MAX_MEGAPIXELS,
+};
 pub use link::*;
 pub use locate::*;
 pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};

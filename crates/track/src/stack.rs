@@ -113,6 +113,14 @@ pub(crate) fn read_page<R: Read + Seek>(
             ))
         }
     };
+    let max = crate::limits::frame_limits().max_megapixels;
+    let megapixels = f64::from(width) * f64::from(height) / 1e6;
+    if megapixels > max {
+        return Err(format!(
+            "a page declares {width}x{height} px = {megapixels:.0} megapixels, above the \
+             `frame-megapixels` limit of {max} megapixels (raise it with --limit frame-megapixels=N)"
+        ));
+    }
     let size = (width as usize, height as usize);
     let expected = size.0 * size.1 * usize::from(colour.bytes_per_pixel());
     samples.clear();

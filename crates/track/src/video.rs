@@ -230,6 +230,8 @@ impl VideoFrames {
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
+        // A video's frames are decoded by ffmpeg, not here: only their size is limited.
+        crate::limits::check_frame_size(path, (info.width as u64, info.height as u64), 0, 1)?;
         let mut child = command.spawn().map_err(|e| missing_program(path, "ffmpeg", e))?;
         let mut stderr = child.stderr.take().expect("stderr is piped");
         // Read apart from stdout, so that a decoder with much to say cannot block on a full pipe.

@@ -15,6 +15,12 @@ pub mod sections;
 pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let mut structure = super::load_scene(&args.structure)?;
     super::apply_scale(&mut structure, args.scale)?;
+    // Refuse an unusable --out before the work; everything is staged and swapped in at the end.
+    let staged = crate::output::Staged::begin(
+        &args.out,
+        "diagnose",
+        &["fitted.toml", "report.json", "report.md", "report.html"],
+    )?;
     let tracks = super::load_tracks(&args.tracks, &args.table, &structure, args.window, verbosity)?;
     let options = DiagnoseOptions {
         seed: args.seed,
@@ -31,11 +37,7 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             args.tracks.display()
         )
     })?;
-    let out = &args.out;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    for stale in ["report.json", "report.md", "report.html"] {
-        let _ = std::fs::remove_file(out.join(stale));
-    }
+    let out = staged.dir();
     d.final_scene
         .save(&out.join("fitted.toml"))
         .context("writing fitted.toml")?;
@@ -58,7 +60,12 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             &report::JsonExporter,
         ],
     )?;
+    staged.commit()?;
+    let out = &args.out;
     if verbosity != Verbosity::Quiet {
+        for w in &d.warnings {
+            eprintln!("physfit: warning: {w}");
+        }
         print!("{}", sections::summary(&d));
         println!(
             "diagnosed model -> {}; report -> {}",

@@ -8,8 +8,9 @@
 //!
 //! Stages: render (scenes only), track, fit (the structure alone, by `lsq`), diagnose (name
 //! and add the missing physics, refit), report. Each stage's failure names the stage and its
-//! input; the reports are written last (and stale ones removed first), so a failed run never
-//! leaves a report that looks complete.
+//! input. Everything is written into a staging folder beside `--out` and swapped in at the end
+//! (`crate::output`), so a failed or killed run leaves the folder as it was (an earlier report
+//! with its own `fitted.toml`), never a mix.
 
 mod figures;
 mod note;
@@ -189,11 +190,20 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             bail!("--fps {fps}: the frame rate must be a positive number of frames per second");
         }
     }
-    std::fs::create_dir_all(out).with_context(|| format!("creating output folder {}", out.display()))?;
-    // A report left by an earlier run must not look like this run's.
-    for stale in ["report.json", "report.md", "report.html"] {
-        let _ = std::fs::remove_file(out.join(stale));
+    // Everything is written into a staging folder and swapped in at the end: a failed or
+    // killed run leaves the folder as it was, an earlier report included.
+    let mut names = vec![
+        "tracks.csv",
+        "fitted.toml",
+        "report.json",
+        "report.md",
+        "report.html",
+    ];
+    if matches!(input, Input::Scene { .. }) {
+        names.extend(super::render::OUTPUTS);
     }
+    let staged = crate::output::Staged::begin(out, "run", &names)?;
+    let dir = staged.dir().to_path_buf();
 
     // Stage render (scenes) or read the structure (recordings).
     let (frames_dir, mut structure, truth, source) = match input {
@@ -201,13 +211,13 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
             explain("render: simulate the scene with its hidden physics and draw every frame");
             let t = Instant::now();
             let rendered =
-                super::render::render_scene(&scene, &source, out, verbosity).context("stage render")?;
+                super::render::render_scene(&scene, &source, &dir, verbosity).context("stage render")?;
             times.render = t.elapsed().as_secs_f64();
             say(&format!(
                 "render: {} frames of {} -> {}",
                 rendered.frame_count,
                 scene.name,
-                rendered.frames_dir.display()
+                out.join("frames").display()
             ));
             (rendered.frames_dir, scene.structure(), Some(*scene), source)
         }
@@ -243,12 +253,12 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let tracks_path = out.join("tracks.csv");
     tracked
         .table
-        .write_csv(&tracks_path)
+        .write_csv(&dir.join("tracks.csv"))
         .with_context(|| format!("stage track: writing {}", tracks_path.display()))?;
     let score = match &truth {
         Some(_) => {
             let truth_tracks =
-                TrackTable::read_csv(&out.join("truth.csv")).context("stage track: reading truth.csv")?;
+                TrackTable::read_csv(&dir.join("truth.csv")).context("stage track: reading truth.csv")?;
             Some(physfit_track::score_tracks(
                 &tracked.table,
                 &truth_tracks,
@@ -326,12 +336,18 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     // Stage report.
     let t = Instant::now();
     d.final_scene
-        .save(&out.join("fitted.toml"))
+        .save(&dir.join("fitted.toml"))
         .context("stage report: writing fitted.toml")?;
     let given = Given {
         kind: if truth.is_some() { "scene" } else { "recording" },
         source: source.display().to_string(),
-        frames: frames_dir.display().to_string(),
+        frames: if truth.is_some() {
+            out.join("frames")
+        } else {
+            frames_dir.clone()
+        }
+        .display()
+        .to_string(),
         structure: structure.name.clone(),
         particles: structure.particles.len(),
         springs: structure.springs.len(),
@@ -342,8 +358,9 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         window: window.map(|(a, b)| [a, b]),
         seed: args.seed,
     };
-    let (pictures, mut outputs) = figures::figures(out, &recording.source, &tracked.table, base.as_ref(), &d)
-        .context("stage report: pictures")?;
+    let (pictures, mut outputs) =
+        figures::figures(&dir, &recording.source, &tracked.table, base.as_ref(), &d)
+            .context("stage report: pictures")?;
     outputs.splice(
         0..0,
         [
@@ -366,7 +383,8 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         outputs,
         times: &times,
     };
-    write_reports(out, &report, &pictures).context("stage report")?;
+    write_reports(&dir, &report, &pictures).context("stage report")?;
+    staged.commit().context("stage report")?;
     say(&format!(
         "report -> {} (also report.html, report.json) in {:.1} s",
         out.join("report.md").display(),

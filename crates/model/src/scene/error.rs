@@ -2,6 +2,15 @@
 
 use std::path::PathBuf;
 
+/// A number as an error shows it: huge and tiny ones in exponent form (`1e308`, not 309 digits).
+fn show(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-6..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// What is wrong with a scene's content; each names the key or id at fault.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -28,8 +37,8 @@ pub enum SceneProblem {
         /// The repeated id.
         id: String,
     },
-    /// A mass is zero or negative.
-    #[error("particle \"{id}\" has mass {mass}; masses must be positive")]
+    /// A mass is zero, negative or below [`crate::scene::MIN_MASS`].
+    #[error("particle \"{id}\" has mass {}; masses must be positive, from 1e-12 to 1e12", show(*.mass))]
     NonPositiveMass {
         /// Particle id.
         id: String,
@@ -37,7 +46,7 @@ pub enum SceneProblem {
         mass: f64,
     },
     /// A number is NaN or infinite.
-    #[error("{key} is {value}; it must be a finite number")]
+    #[error("{key} is {}; it must be a finite number", show(*.value))]
     NonFinite {
         /// The key, e.g. `particles "p0".position`.
         key: String,
@@ -45,7 +54,7 @@ pub enum SceneProblem {
         value: f64,
     },
     /// A value is outside its allowed range.
-    #[error("{key} is {value}; it must be {allowed}")]
+    #[error("{key} is {}; it must be {allowed}", show(*.value))]
     OutOfRange {
         /// The key.
         key: String,

@@ -103,9 +103,30 @@ pub struct Scene {
     pub physics: Physics,
 }
 
-fn check_finite(key: impl FnOnce() -> String, values: &[f64]) -> Result<(), SceneProblem> {
-    match values.iter().find(|v| !v.is_finite()) {
-        Some(&value) => Err(SceneProblem::NonFinite { key: key(), value }),
+/// Largest magnitude of any number in a scene (positions, px; velocities, px/s; bond and
+/// physics values): beyond it a simulation overflows long before it means anything.
+pub const MAX_MAGNITUDE: f64 = 1e12;
+
+/// Largest frame rate, frames/s.
+pub const MAX_FPS: f64 = 1e7;
+
+/// Most integration substeps per frame.
+pub const MAX_SUBSTEPS: u32 = 100_000;
+
+/// Smallest mass.
+pub const MIN_MASS: f64 = 1e-12;
+
+/// Checks that every value is finite and at most [`MAX_MAGNITUDE`] in magnitude.
+fn check_finite(key: impl Fn() -> String, values: &[f64]) -> Result<(), SceneProblem> {
+    if let Some(&value) = values.iter().find(|v| !v.is_finite()) {
+        return Err(SceneProblem::NonFinite { key: key(), value });
+    }
+    match values.iter().find(|v| v.abs() > MAX_MAGNITUDE) {
+        Some(&value) => Err(SceneProblem::OutOfRange {
+            key: key(),
+            value,
+            allowed: "at most 1e12 in magnitude",
+        }),
         None => Ok(()),
     }
 }
@@ -222,7 +243,12 @@ impl Scene {
     pub fn from_file(raw: SceneFile) -> Result<Scene, SceneProblem> {
         let rec = &raw.recording;
         check_finite(|| "recording.fps".into(), &[rec.fps])?;
-        check_range(|| "recording.fps".into(), rec.fps, rec.fps > 0.0, "positive")?;
+        check_range(
+            || "recording.fps".into(),
+            rec.fps,
+            rec.fps > 0.0 && rec.fps <= MAX_FPS,
+            "positive and at most 1e7 frames/s",
+        )?;
         check_range(
             || "recording.frames".into(),
             rec.frames as f64,
@@ -233,8 +259,8 @@ impl Scene {
         check_range(
             || "recording.substeps".into(),
             substeps as f64,
-            substeps >= 1,
-            "at least 1",
+            (1..=MAX_SUBSTEPS).contains(&substeps),
+            "from 1 to 100000",
         )?;
         let metres_per_px = scale_of(rec)?;
         let render = raw.render.clone().unwrap_or_default();
@@ -276,7 +302,7 @@ impl Scene {
                 return Err(SceneProblem::DuplicateId(p.id.clone()));
             }
             check_finite(|| format!("particle \"{}\" mass", p.id), &[p.mass])?;
-            if p.mass <= 0.0 {
+            if p.mass < MIN_MASS {
                 return Err(SceneProblem::NonPositiveMass {
                     id: p.id.clone(),
                     mass: p.mass,

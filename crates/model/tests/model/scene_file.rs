@@ -273,11 +273,43 @@ fn out_of_range_settings_are_named() {
         (wall, "physics.walls[0].restitution is 1.5; it must be in [0, 1]"),
         (
             BASE.replace("fps = 100.0", "fps = 0.0"),
-            "recording.fps is 0; it must be positive",
+            "recording.fps is 0; it must be positive and at most 1e7 frames/s",
+        ),
+        (
+            BASE.replace("fps = 100.0", "fps = 1e308"),
+            "recording.fps is 1e308; it must be at most 1e12 in magnitude",
+        ),
+        (
+            BASE.replace("fps = 100.0", "fps = 1e8"),
+            "recording.fps is 100000000; it must be positive and at most 1e7 frames/s",
         ),
         (
             BASE.replace("frames = 10", "frames = 10\nsubsteps = 0"),
-            "recording.substeps is 0; it must be at least 1",
+            "recording.substeps is 0; it must be from 1 to 100000",
+        ),
+        (
+            BASE.replace("frames = 10", "frames = 10\nsubsteps = 4000000000"),
+            "recording.substeps is 4000000000; it must be from 1 to 100000",
+        ),
+    ] {
+        assert_eq!(message(&text), format!("s.toml: {expected}"));
+    }
+    for (text, expected) in [
+        (
+            BASE.replace("mass = 1.0", "mass = 1e300"),
+            "particle \"a\" mass is 1e300; it must be at most 1e12 in magnitude",
+        ),
+        (
+            BASE.replace("mass = 1.0", "mass = 1e-20"),
+            "particle \"a\" has mass 1e-20; masses must be positive, from 1e-12 to 1e12",
+        ),
+        (
+            BASE.replace("position = [10.0, 20.0]", "position = [1e308, 20.0]"),
+            "particle \"a\" position is 1e308; it must be at most 1e12 in magnitude",
+        ),
+        (
+            BASE.replace("length = 40.0", "length = -2e16"),
+            "spring a-b length is -2e16; it must be at most 1e12 in magnitude",
         ),
     ] {
         assert_eq!(message(&text), format!("s.toml: {expected}"));

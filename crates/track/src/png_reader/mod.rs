@@ -17,6 +17,31 @@ const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
 /// decoder, whose limits then apply.
 const MAX_BYTES: usize = 1 << 30;
 
+/// The size a PNG file's header declares, read before anything is decoded: (width, height) in
+/// px and the bytes of its image data once inflated (the filtered rows as stored, which the
+/// compressed stream has to hold). `None` when `file` does not start with a PNG signature and
+/// an image header.
+pub(crate) fn declared_size(file: &[u8]) -> Option<((u64, u64), u64)> {
+    if !file.starts_with(&SIGNATURE) || file.get(12..16)? != b"IHDR" {
+        return None;
+    }
+    let word = |i: usize| -> Option<u64> {
+        let b = file.get(i..i + 4)?;
+        Some(u64::from(u32::from_be_bytes([b[0], b[1], b[2], b[3]])))
+    };
+    let (width, height) = (word(16)?, word(20)?);
+    let (depth, colour_type) = (u64::from(*file.get(24)?), *file.get(25)?);
+    let channels = match colour_type {
+        2 => 3,
+        4 => 2,
+        6 => 4,
+        _ => 1,
+    };
+    // One filter byte per row, then the row's samples rounded up to whole bytes.
+    let row = 1 + (width * channels * depth).div_ceil(8);
+    Some(((width, height), row.saturating_mul(height)))
+}
+
 /// Reusable buffers of [`read_png`]: the image data as stored and as inflated, and the
 /// unfiltering's.
 #[derive(Debug, Default)]
