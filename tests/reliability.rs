@@ -696,3 +696,53 @@ fn temporary_files_of_killed_writes_are_removed_by_the_next() {
     left.sort();
     assert_eq!(left, [live]);
 }
+
+/// A folder written by a physfit from before the output list was kept (no `.physfit-outputs`)
+/// is recognised by its `report.json` or its render outputs: its files of physfit's names
+/// are replaced, the user's others kept; without those marks the same files are refused.
+#[test]
+fn an_earlier_physfits_output_folder_is_taken_as_physfits() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "two.toml",
+        &default_scene().replace("frames = 300", "frames = 4"),
+    );
+    let out = dir.path().join("out");
+    physfit()
+        .args(["-q", "render"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    // As an earlier physfit left it: no list, an extra frame, and the user's notes.
+    std::fs::remove_file(out.join(".physfit-outputs")).unwrap();
+    std::fs::copy(out.join("frames/000000.png"), out.join("frames/000009.png")).unwrap();
+    write(&out, "notes.txt", "the user's notes");
+    physfit()
+        .args(["-q", "render"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 4);
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "the user's notes"
+    );
+    // The same frames in a folder with no mark of physfit's are the user's.
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(other.join("frames")).unwrap();
+    std::fs::copy(out.join("frames/000000.png"), other.join("frames/000000.png")).unwrap();
+    refused(
+        physfit()
+            .args(["-q", "render"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&other)
+            .assert(),
+        &["000000.png", "not written by physfit"],
+    );
+}

@@ -143,11 +143,44 @@ fn files_under(dir: &Path) -> std::io::Result<BTreeSet<String>> {
     Ok(out)
 }
 
-/// The files physfit listed as written into `target`.
-fn owned(target: &Path) -> BTreeSet<String> {
+/// The files physfit listed as written into `target`; `None` without a list.
+fn owned(target: &Path) -> Option<BTreeSet<String>> {
     std::fs::read_to_string(target.join(MANIFEST))
+        .ok()
         .map(|t| t.lines().filter(|l| !l.is_empty()).map(str::to_string).collect())
-        .unwrap_or_default()
+}
+
+/// True if and only if `target` holds the output of a physfit from before the list
+/// ([`MANIFEST`]) was kept: a `report.json` of `run` or `diagnose` (an object with `base` and
+/// `final`), or `render`'s `truth.csv` (header `frame,particle,x,y`) beside its `scene.toml`.
+/// Its files of physfit's names are then taken as physfit's, so that the README's first
+/// command, run again after an upgrade, is not refused.
+fn earlier_output(target: &Path) -> bool {
+    let report = std::fs::read_to_string(target.join("report.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .is_some_and(|v| v.get("base").is_some() && v.get("final").is_some());
+    let render = target.join("scene.toml").is_file()
+        && std::fs::read_to_string(target.join("truth.csv"))
+            .is_ok_and(|t| t.starts_with("frame,particle,x,y"));
+    report || render
+}
+
+/// True if and only if `file` (relative to an earlier output folder) has a name physfit gives
+/// its outputs: a top-level file, a frame `frames/NNNNNN.png` or an overlay
+/// `overlay/frame_NNNNNN.png`.
+fn physfit_named(file: &str) -> bool {
+    let numbered = |name: &str, prefix: &str| {
+        name.strip_prefix(prefix)
+            .and_then(|n| n.strip_suffix(".png"))
+            .is_some_and(|n| n.len() == 6 && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    match file.split_once('/') {
+        None => true,
+        Some(("frames", name)) => numbered(name, ""),
+        Some(("overlay", name)) => numbered(name, "frame_"),
+        Some(_) => false,
+    }
 }
 
 /// The files of `target` that physfit did not write and that outputs named `names` (top-level
@@ -170,7 +203,11 @@ fn in_the_way(target: &Path, names: &BTreeSet<String>) -> anyhow::Result<Vec<Str
             Err(_) => {}
         }
     }
-    files.retain(|f| !owned.contains(f));
+    match owned {
+        Some(owned) => files.retain(|f| !owned.contains(f)),
+        None if earlier_output(target) => files.retain(|f| !physfit_named(f)),
+        None => {}
+    }
     Ok(files)
 }
 
@@ -280,7 +317,7 @@ impl Staged {
                     carry(&self.target.join(&f), &self.staging.join(&f))
                         .with_context(|| format!("keeping {}", self.target.join(&f).display()))?;
                 }
-                if owned.contains(&f) {
+                if owned.as_ref().is_some_and(|o| o.contains(&f)) {
                     manifest.insert(f);
                 }
             }
