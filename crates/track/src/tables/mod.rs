@@ -327,6 +327,18 @@ impl Row<'_> {
 
 /// The column named `name` in `header`, or an error naming the missing column and the
 /// columns the format needs.
+/// The first record of `rows` (its line and cells): a table's header; an error naming `path`
+/// when there is none.
+fn header_of<'a>(rows: &'a [(u64, Vec<String>)], path: &Path) -> Result<(u64, &'a [String]), TrackError> {
+    rows.first()
+        .map(|(line, cells)| (*line, cells.as_slice()))
+        .ok_or_else(|| TrackError::Csv {
+            path: path.to_path_buf(),
+            line: 1,
+            message: "empty file: no header".into(),
+        })
+}
+
 fn column(header: &[String], name: &str, needs: &str, path: &Path, line: u64) -> Result<usize, TrackError> {
     header
         .iter()

@@ -8,7 +8,9 @@
 
 use std::path::Path;
 
-use super::{column, finish, records, unit_metres, ForeignTable, Parsed, Row, TableFormat, TableOptions};
+use super::{
+    column, finish, header_of, records, unit_metres, ForeignTable, Parsed, Row, TableFormat, TableOptions,
+};
 use crate::{TrackError, TrackPoint};
 
 const NEEDS: &str = "TRACK_ID, POSITION_X, POSITION_Y, FRAME";
@@ -16,14 +18,8 @@ const NEEDS: &str = "TRACK_ID, POSITION_X, POSITION_Y, FRAME";
 /// Reads a TrackMate spot table.
 pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<ForeignTable, TrackError> {
     let rows = records(text, path)?;
-    let Some((header_line, header)) = rows.first() else {
-        return Err(TrackError::Csv {
-            path: path.to_path_buf(),
-            line: 1,
-            message: "empty file: no header".into(),
-        });
-    };
-    let col = |name| column(header, name, NEEDS, path, *header_line);
+    let (header_line, header) = header_of(&rows, path)?;
+    let col = |name| column(header, name, NEEDS, path, header_line);
     let (track, x, y, frame) = (
         col("TRACK_ID")?,
         col("POSITION_X")?,

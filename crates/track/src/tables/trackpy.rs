@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::{column, finish, records, ForeignTable, Parsed, Row, TableFormat};
+use super::{column, finish, header_of, records, ForeignTable, Parsed, Row, TableFormat};
 use crate::{TrackError, TrackPoint};
 
 const NEEDS: &str = "frame, particle, x, y";
@@ -14,14 +14,8 @@ const NEEDS: &str = "frame, particle, x, y";
 /// Reads a trackpy CSV.
 pub(super) fn read(text: &str, path: &Path) -> Result<ForeignTable, TrackError> {
     let rows = records(text, path)?;
-    let Some((header_line, header)) = rows.first() else {
-        return Err(TrackError::Csv {
-            path: path.to_path_buf(),
-            line: 1,
-            message: "empty file: no header".into(),
-        });
-    };
-    let col = |name| column(header, name, NEEDS, path, *header_line);
+    let (header_line, header) = header_of(&rows, path)?;
+    let col = |name| column(header, name, NEEDS, path, header_line);
     let (f, p, x, y) = (col("frame")?, col("particle")?, col("x")?, col("y")?);
     let optional = |name: &str| header.iter().position(|h| h == name);
     let (mass, size, ep) = (optional("mass"), optional("size"), optional("ep"));
