@@ -265,7 +265,7 @@ fn tiff_stacks_track_as_their_png_frames() {
 }
 
 #[test]
-fn run_on_a_video_uses_its_frame_rate() {
+fn run_on_videos_and_a_tiff_stack_uses_their_frame_rates() {
     let dir = tempdir();
     // Three discs, 60 frames of 320x320 px: a short run.
     let scene = std::fs::read_to_string(scenes_dir().join("clean-triangle.toml")).unwrap();
@@ -282,28 +282,45 @@ fn run_on_a_video_uses_its_frame_rate() {
         .arg(dir.path())
         .assert()
         .success();
-    let video = dir.path().join("triangle.mp4");
-    encode(dir.path(), 30, H264, &video);
-    let out = dir.path().join("out");
-    physfit()
-        .args(["-q", "run", "--frames"])
-        .arg(&video)
-        .arg("--structure")
-        .arg(dir.path().join("structure.toml"))
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["given"]["kind"], "recording");
-    // The structure says 100 frames/s; the container's 30 frames/s wins.
-    assert_eq!(report["given"]["fps"], 30.0);
-    assert_eq!(report["tracking"]["frames"], serde_json::json!([0, 59]));
     let truth = read_xy(&dir.path().join("truth.csv"));
-    let (recall, rms) = recall_and_rms(&read_xy(&out.join("tracks.csv")), &truth);
-    assert!(recall > 0.9999 && rms < 0.3, "recall {recall}, RMS {rms} px");
-    assert!(out.join("report.html").is_file());
+    // Each recording the issue names: mp4, mov and avi at 30 frames/s, and a TIFF stack
+    // (no frame rate of its own: the structure's 100 frames/s).
+    let stack = dir.path().join("triangle.tif");
+    write_stack(&dir.path().join("frames"), Pages::Grey8, &stack);
+    for (name, codec) in [
+        ("triangle.mp4", Some(H264)),
+        ("triangle.mov", Some(H264)),
+        ("triangle.avi", Some(MJPEG)),
+        ("triangle.tif", None),
+    ] {
+        let recording = dir.path().join(name);
+        if let Some(codec) = codec {
+            encode(dir.path(), 30, codec, &recording);
+        }
+        let out = dir.path().join(format!("out-{name}"));
+        physfit()
+            .args(["-q", "run", "--frames"])
+            .arg(&recording)
+            .arg("--structure")
+            .arg(dir.path().join("structure.toml"))
+            .arg("--out")
+            .arg(&out)
+            .assert()
+            .success();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["given"]["kind"], "recording", "{name}");
+        // The structure says 100 frames/s; a container's 30 frames/s wins.
+        let fps = if codec.is_some() { 30.0 } else { 100.0 };
+        assert_eq!(report["given"]["fps"], fps, "{name}");
+        assert_eq!(report["tracking"]["frames"], serde_json::json!([0, 59]), "{name}");
+        let (recall, rms) = recall_and_rms(&read_xy(&out.join("tracks.csv")), &truth);
+        assert!(
+            recall > 0.9999 && rms < 0.3,
+            "{name}: recall {recall}, RMS {rms} px"
+        );
+        assert!(out.join("report.html").is_file(), "{name}");
+    }
 }
 
 /// H.264 changes a particle's mass by 1-3 % between its first frames, far beyond the 0.25 %
