@@ -575,6 +575,62 @@ fn snapshot(dir: &Path) -> std::collections::BTreeMap<String, Option<String>> {
     out
 }
 
+/// Runs `command` once to completion (it must succeed), then 20 times more, each killed with
+/// SIGKILL at a seeded moment spread over the first run's time; after each kill the folder
+/// `out` must hold the same files as after the complete run, with the same `.txt` and `.toml`
+/// contents (a complete run of the same input writes the same set), and `check` must hold.
+/// Returns the first run's time, s, and how many of the 20 had ended before their kill.
+fn kill_at_seeded_moments(
+    command: &dyn Fn() -> std::process::Command,
+    out: &Path,
+    check: &dyn Fn(&Path),
+) -> (f64, usize) {
+    let started = std::time::Instant::now();
+    assert!(command().status().unwrap().success());
+    let duration = started.elapsed().as_secs_f64();
+    write(out, "notes.txt", "the user's notes");
+    let before = snapshot(out);
+    // Seeded moments spread over the run's time (xorshift, seed 24).
+    let mut state: u64 = 24;
+    let mut completed = 0;
+    for k in 0..20 {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let at = duration * ((k as f64 + (state % 1000) as f64 / 1000.0) / 20.0);
+        let mut child = command().spawn().unwrap();
+        std::thread::sleep(std::time::Duration::from_secs_f64(at));
+        if child.try_wait().unwrap().is_some() {
+            completed += 1;
+        }
+        let _ = child.kill(); // SIGKILL
+        child.wait().unwrap();
+        // A killed single-file write may leave its hidden temporary file (`.NAME.PID.tmp`),
+        // removed by the next write (`temporary_files_of_killed_writes_are_removed_by_the_next`).
+        let mut now = snapshot(out);
+        now.retain(|f, _| !(f.starts_with('.') && f.ends_with(".tmp")));
+        assert_eq!(
+            now.keys().collect::<Vec<_>>(),
+            before.keys().collect::<Vec<_>>(),
+            "killed at {at:.2} s (run {k})"
+        );
+        for (file, text) in &now {
+            assert_eq!(text, &before[file], "{file}, killed at {at:.2} s (run {k})");
+        }
+        check(out);
+    }
+    (duration, completed)
+}
+
+/// A command of physfit's with `args`, its output silenced.
+fn quiet(args: &[&std::ffi::OsStr]) -> std::process::Command {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_physfit"));
+    cmd.arg("-q").args(args);
+    cmd.stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+    cmd
+}
+
 #[test]
 fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
     let dir = tempdir();
@@ -585,47 +641,19 @@ fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
     );
     let out = dir.path().join("out");
     let run = || {
-        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_physfit"));
-        cmd.args(["-q", "run"]).arg(&scene).arg("--out").arg(&out);
-        cmd.stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null());
-        cmd
+        quiet(&[
+            "run".as_ref(),
+            scene.as_os_str(),
+            "--out".as_ref(),
+            out.as_os_str(),
+        ])
     };
-    let started = std::time::Instant::now();
-    assert!(run().status().unwrap().success());
-    let duration = started.elapsed().as_secs_f64();
-    assert!(crate::util::assert_finite_outputs(&out) == 4);
-    write(&out, "notes.txt", "the user's notes");
-    let before = snapshot(&out);
-    // Seeded moments spread over the run's time (xorshift, seed 24).
-    let mut state: u64 = 24;
-    let mut completed = 0;
-    for k in 0..20 {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        let at = duration * ((k as f64 + (state % 1000) as f64 / 1000.0) / 20.0);
-        let mut child = run().spawn().unwrap();
-        std::thread::sleep(std::time::Duration::from_secs_f64(at));
-        if child.try_wait().unwrap().is_some() {
-            completed += 1;
-        }
-        let _ = child.kill(); // SIGKILL
-        child.wait().unwrap();
-        // The same files as before (a complete run of the same scene writes the same set),
-        // the user's notes and the earlier model intact, and a report that parses.
-        let now = snapshot(&out);
-        assert_eq!(
-            now.keys().collect::<Vec<_>>(),
-            before.keys().collect::<Vec<_>>(),
-            "killed at {at:.2} s (run {k})"
-        );
-        assert_eq!(now["notes.txt"], before["notes.txt"]);
-        assert_eq!(now["fitted.toml"], before["fitted.toml"], "killed at {at:.2} s");
+    let (duration, completed) = kill_at_seeded_moments(&run, &out, &|out| {
         let report: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
         assert!(report.get("findings").is_some());
-    }
+    });
+    assert!(crate::util::assert_finite_outputs(&out) == 4);
     eprintln!("killed 20 runs of a {duration:.1} s run; {completed} had already ended");
     assert!(
         completed < 10,
@@ -634,6 +662,74 @@ fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
     // The next run clears what the killed ones left beside the folder.
     assert!(run().status().unwrap().success());
     assert!(staging_in(dir.path()).is_empty(), "{:?}", staging_in(dir.path()));
+}
+
+/// `render`, `diagnose` and `track` killed at 20 seeded moments each: the folder as it was.
+#[test]
+fn render_diagnose_and_track_killed_at_any_moment_leave_the_folder_as_it_was() {
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "short.toml",
+        &default_scene().replace("frames = 300", "frames = 100"),
+    );
+    let rendered = dir.path().join("rendered");
+    let render = || {
+        quiet(&[
+            "render".as_ref(),
+            scene.as_os_str(),
+            "--out".as_ref(),
+            rendered.as_os_str(),
+        ])
+    };
+    let (duration, completed) = kill_at_seeded_moments(&render, &rendered, &|out| {
+        assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 100);
+    });
+    eprintln!("render: killed 20 of a {duration:.2} s run; {completed} had already ended");
+    let truth = rendered.join("truth.csv");
+    let structure = rendered.join("structure.toml");
+    let diagnosed = dir.path().join("diagnosed");
+    let diagnose = || {
+        quiet(&[
+            "diagnose".as_ref(),
+            truth.as_os_str(),
+            "--structure".as_ref(),
+            structure.as_os_str(),
+            "--window".as_ref(),
+            "0..40".as_ref(),
+            "--out".as_ref(),
+            diagnosed.as_os_str(),
+        ])
+    };
+    let (duration, completed) = kill_at_seeded_moments(&diagnose, &diagnosed, &|out| {
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+        assert!(report.get("findings").is_some());
+    });
+    eprintln!("diagnose: killed 20 of a {duration:.2} s run; {completed} had already ended");
+    // `track` writes one file: whole or as it was, never half.
+    let tracked = dir.path().join("tracked");
+    std::fs::create_dir_all(&tracked).unwrap();
+    let tracks = tracked.join("tracks.csv");
+    let frames = rendered.join("frames");
+    let track = || {
+        quiet(&[
+            "track".as_ref(),
+            frames.as_os_str(),
+            "--structure".as_ref(),
+            structure.as_os_str(),
+            "--out".as_ref(),
+            tracks.as_os_str(),
+        ])
+    };
+    let whole = |out: &Path| {
+        let text = std::fs::read_to_string(out.join("tracks.csv")).unwrap();
+        assert_eq!(text.lines().count(), 1 + 5 * 100, "a whole tracks.csv");
+    };
+    let (duration, completed) = kill_at_seeded_moments(&track, &tracked, &|out| {
+        whole(out);
+    });
+    eprintln!("track: killed 20 of a {duration:.2} s run; {completed} had already ended");
 }
 
 #[test]
