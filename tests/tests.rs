@@ -3,6 +3,7 @@
 mod bench_diagnose;
 mod diagnose;
 mod fit;
+mod fuzz_regressions;
 mod getting_started;
 mod issue_21;
 mod real;

@@ -42,6 +42,8 @@ pub use limits::{
 pub use link::*;
 pub use locate::*;
 pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};
+#[doc(hidden)]
+pub use png_reader::fuzz_read_png;
 pub use score::*;
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};

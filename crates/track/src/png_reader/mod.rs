@@ -148,6 +148,26 @@ pub(crate) fn read_png(
     }))
 }
 
+/// An image [`fuzz_read_png`] decoded: layout, size (width, height) in px, 8-bit samples.
+#[doc(hidden)]
+pub type FuzzPng = (ColorType, (usize, usize), Vec<u8>);
+
+/// Fuzzing hook, not an API (the `png_reader` target of `fuzz/`, see `docs/fuzzing.md`): `file`
+/// through the frame limits ([`crate::frame_limits`]) and [`read_png`] as a frame file is
+/// decoded, with fresh buffers. `Ok(None)` for a file left to the general decoder, else the
+/// colour layout, the size (width, height) in px and the 8-bit samples; an error message for a
+/// file refused.
+#[doc(hidden)]
+pub fn fuzz_read_png(file: &[u8]) -> Result<Option<FuzzPng>, String> {
+    if let Some((size, stored)) = declared_size(file) {
+        let path = std::path::Path::new("fuzz input");
+        crate::limits::check_frame_size(path, size, stored, file.len() as u64).map_err(|e| e.to_string())?;
+    }
+    let mut samples = Vec::new();
+    let image = read_png(file, &mut samples, &mut PngScratch::default())?;
+    Ok(image.map(|i| (i.colour, (i.width, i.height), samples)))
+}
+
 /// Gives `buffer` the length `len`, without clearing it when it has that length already (the
 /// next frame's buffers, every byte of which is written before it is read).
 fn sized(buffer: &mut Vec<u8>, len: usize) {

@@ -1,0 +1,43 @@
+//! Track table text through every reader (the format detected, then each format named) and,
+//! for a table read, the structure matching by first position: no panic, and a table read
+//! holds finite positions only.
+
+use std::path::Path;
+
+use physfit_track::{name_tracks_by_position, read_track_table_str, TableFormat, TableOptions};
+
+/// Panics when `data` breaks the property above.
+pub fn check(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let named = [
+        TableFormat::Physfit,
+        TableFormat::Trackpy,
+        TableFormat::TrackMate,
+        TableFormat::Tracker,
+    ]
+    .map(|f| TableOptions {
+        format: Some(f),
+        metres_per_px: Some(1e-3),
+        ..TableOptions::default()
+    });
+    for options in std::iter::once(TableOptions::default()).chain(named) {
+        let Ok(read) = read_track_table_str(text, Path::new("fuzz.csv"), &options) else {
+            continue;
+        };
+        let mut table = read.table;
+        assert!(table.points.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
+        let _ = table.frame_end();
+        let starts = [
+            ("a".to_string(), [10.0, 10.0]),
+            ("b".to_string(), [100.0, 50.0]),
+            ("c".to_string(), [0.0, 0.0]),
+        ];
+        for first_frame in [None, Some(0), Some(3)] {
+            let mut copy = table.clone();
+            let _ = name_tracks_by_position(&mut copy, &starts, first_frame);
+        }
+        let _ = name_tracks_by_position(&mut table, &starts[..1], None);
+    }
+}
