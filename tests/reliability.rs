@@ -13,6 +13,23 @@ fn default_scene() -> String {
     std::fs::read_to_string(scenes_dir().join("default.toml")).unwrap()
 }
 
+/// The default scene cut to `frames` frames, written into `dir`.
+fn short_scene(dir: &Path, frames: usize) -> PathBuf {
+    let text = default_scene().replace("frames = 300", &format!("frames = {frames}"));
+    assert!(text.contains(&format!("frames = {frames}")));
+    write(dir, &format!("short-{frames}.toml"), &text)
+}
+
+/// `physfit -q render SCENE --out OUT`.
+fn render(scene: &Path, out: &Path) -> Assert {
+    physfit()
+        .args(["-q", "render"])
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .assert()
+}
+
 /// Asserts that `assert` is a failure (exit code 1, not a crash) whose stderr holds every one
 /// of `needles` and no panic; returns stderr.
 fn refused(assert: Assert, needles: &[&str]) -> String {
@@ -425,19 +442,9 @@ fn staging_in(dir: &Path) -> Vec<String> {
 #[test]
 fn the_users_files_are_never_replaced_or_deleted() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 4"),
-    );
+    let scene = short_scene(dir.path(), 4);
     let out = dir.path().join("out");
-    physfit()
-        .args(["-q", "render"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
+    render(&scene, &out).success();
     write(&out, "notes.txt", "the user's notes");
     write(
         &out.join("frames"),
@@ -446,12 +453,7 @@ fn the_users_files_are_never_replaced_or_deleted() {
     );
     // The frames folder would be replaced: refused, naming the file, nothing changed.
     refused(
-        physfit()
-            .args(["-q", "render"])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&out)
-            .assert(),
+        render(&scene, &out),
         &["keep.txt", "not written by physfit", "nothing was changed"],
     );
     assert_eq!(
@@ -461,13 +463,7 @@ fn the_users_files_are_never_replaced_or_deleted() {
     assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 5);
     // Beside the outputs, the user's file is kept through a new render.
     std::fs::remove_file(out.join("frames/keep.txt")).unwrap();
-    physfit()
-        .args(["-q", "render"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
+    render(&scene, &out).success();
     assert_eq!(
         std::fs::read_to_string(out.join("notes.txt")).unwrap(),
         "the user's notes"
@@ -496,19 +492,10 @@ fn the_users_files_are_never_replaced_or_deleted() {
 #[test]
 fn an_out_that_is_a_file_or_read_only_is_refused() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 2"),
-    );
+    let scene = short_scene(dir.path(), 2);
     let file = write(dir.path(), "plain", "a file");
     refused(
-        physfit()
-            .args(["-q", "render"])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&file)
-            .assert(),
+        render(&scene, &file),
         &["--out", "plain", "is a file, not a folder"],
     );
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "a file");
@@ -517,15 +504,7 @@ fn an_out_that_is_a_file_or_read_only_is_refused() {
     let mut perms = std::fs::metadata(&ro).unwrap().permissions();
     perms.set_readonly(true);
     std::fs::set_permissions(&ro, perms.clone()).unwrap();
-    refused(
-        physfit()
-            .args(["-q", "render"])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&ro)
-            .assert(),
-        &["--out", "ro", "read-only"],
-    );
+    refused(render(&scene, &ro), &["--out", "ro", "read-only"]);
     #[allow(clippy::permissions_set_readonly_false)]
     perms.set_readonly(false);
     std::fs::set_permissions(&ro, perms).unwrap();
@@ -535,22 +514,12 @@ fn an_out_that_is_a_file_or_read_only_is_refused() {
 #[test]
 fn staging_folders_of_killed_runs_are_removed_by_the_next() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 2"),
-    );
+    let scene = short_scene(dir.path(), 2);
     let out = dir.path().join("out");
     // Left by processes that no longer run (no such pid), beside and (older versions) inside.
     std::fs::create_dir_all(dir.path().join(".out.physfit-run-999999999/frames")).unwrap();
     std::fs::create_dir_all(out.join(".physfit-render-999999999/frames")).unwrap();
-    physfit()
-        .args(["-q", "render"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
+    render(&scene, &out).success();
     assert!(staging_in(dir.path()).is_empty(), "{:?}", staging_in(dir.path()));
     assert!(staging_in(&out).is_empty(), "{:?}", staging_in(&out));
 }
@@ -634,11 +603,7 @@ fn quiet(args: &[&std::ffi::OsStr]) -> std::process::Command {
 #[test]
 fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "short.toml",
-        &default_scene().replace("frames = 300", "frames = 100"),
-    );
+    let scene = short_scene(dir.path(), 100);
     let out = dir.path().join("out");
     let run = || {
         quiet(&[
@@ -668,11 +633,7 @@ fn a_run_killed_at_any_moment_leaves_the_folder_as_it_was_or_complete() {
 #[test]
 fn render_diagnose_and_track_killed_at_any_moment_leave_the_folder_as_it_was() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "short.toml",
-        &default_scene().replace("frames = 300", "frames = 100"),
-    );
+    let scene = short_scene(dir.path(), 100);
     let rendered = dir.path().join("rendered");
     let render = || {
         quiet(&[
@@ -735,11 +696,7 @@ fn render_diagnose_and_track_killed_at_any_moment_leave_the_folder_as_it_was() {
 #[test]
 fn out_as_the_working_folder_keeps_the_folder_and_the_users_files() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 3"),
-    );
+    let scene = short_scene(dir.path(), 3);
     let out = dir.path().join("here");
     std::fs::create_dir(&out).unwrap();
     write(&out, "notes.txt", "the user's notes");
@@ -765,11 +722,7 @@ fn out_as_the_working_folder_keeps_the_folder_and_the_users_files() {
 #[test]
 fn temporary_files_of_killed_writes_are_removed_by_the_next() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 3"),
-    );
+    let scene = short_scene(dir.path(), 3);
     let out = dir.path().join("truth.csv");
     // Left by writers killed between creating and renaming them (no such pid), and one of a
     // running process (this test's) that must stay.
@@ -799,30 +752,14 @@ fn temporary_files_of_killed_writes_are_removed_by_the_next() {
 #[test]
 fn an_earlier_physfits_output_folder_is_taken_as_physfits() {
     let dir = tempdir();
-    let scene = write(
-        dir.path(),
-        "two.toml",
-        &default_scene().replace("frames = 300", "frames = 4"),
-    );
+    let scene = short_scene(dir.path(), 4);
     let out = dir.path().join("out");
-    physfit()
-        .args(["-q", "render"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
+    render(&scene, &out).success();
     // As an earlier physfit left it: no list, an extra frame, and the user's notes.
     std::fs::remove_file(out.join(".physfit-outputs")).unwrap();
     std::fs::copy(out.join("frames/000000.png"), out.join("frames/000009.png")).unwrap();
     write(&out, "notes.txt", "the user's notes");
-    physfit()
-        .args(["-q", "render"])
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out)
-        .assert()
-        .success();
+    render(&scene, &out).success();
     assert_eq!(std::fs::read_dir(out.join("frames")).unwrap().count(), 4);
     assert_eq!(
         std::fs::read_to_string(out.join("notes.txt")).unwrap(),
@@ -832,13 +769,5 @@ fn an_earlier_physfits_output_folder_is_taken_as_physfits() {
     let other = dir.path().join("other");
     std::fs::create_dir_all(other.join("frames")).unwrap();
     std::fs::copy(out.join("frames/000000.png"), other.join("frames/000000.png")).unwrap();
-    refused(
-        physfit()
-            .args(["-q", "render"])
-            .arg(&scene)
-            .arg("--out")
-            .arg(&other)
-            .assert(),
-        &["000000.png", "not written by physfit"],
-    );
+    refused(render(&scene, &other), &["000000.png", "not written by physfit"]);
 }
