@@ -237,18 +237,18 @@ fn track_frames(
         }
     }
     // The window's frame numbers.
-    let paths: Vec<usize> = (first..=last).collect();
+    let numbers: Vec<usize> = (first..=last).collect();
 
     // Background and noise from an even sample of the window.
     // The sampled frames are kept and reused by the locate pass: each file is decoded once.
     let workers = Workers::default();
-    let (picks, mut sample_frames) = load_sample(source, &paths, BACKGROUND_SAMPLES, &workers)?;
+    let (picks, mut sample_frames) = load_sample(source, &numbers, BACKGROUND_SAMPLES, &workers)?;
     let size = sample_frames[0].view().size();
-    let reference = &source.frame_name(paths[picks[0]]);
+    let reference = &source.frame_name(numbers[picks[0]]);
     for (&i, frame) in picks.iter().zip(&sample_frames) {
-        check_size(&source.frame_name(paths[i]), frame.view(), reference, size)?;
+        check_size(&source.frame_name(numbers[i]), frame.view(), reference, size)?;
     }
-    let mut sample_of: Vec<Option<usize>> = vec![None; paths.len()];
+    let mut sample_of: Vec<Option<usize>> = vec![None; numbers.len()];
     for (j, &i) in picks.iter().enumerate() {
         sample_of[i] = Some(j);
     }
@@ -372,15 +372,15 @@ fn track_frames(
                 // frame A that move steadily over the next two frames, as on named ones.
                 // Frames A to A + 2; those not among the samples are kept with them, so the
                 // locate pass does not decode them again.
-                if picks[0] + 2 < paths.len() {
+                if picks[0] + 2 < numbers.len() {
                     let mut three = [0usize; 3];
                     for (slot, k) in three.iter_mut().zip(picks[0]..) {
                         *slot = match sample_of[k] {
                             Some(j) => j,
                             None => {
                                 let frame =
-                                    workers.with(|w| source.load_decoded(paths[k], &mut w.decoder))?;
-                                check_size(&source.frame_name(paths[k]), frame.view(), reference, size)?;
+                                    workers.with(|w| source.load_decoded(numbers[k], &mut w.decoder))?;
+                                check_size(&source.frame_name(numbers[k]), frame.view(), reference, size)?;
                                 sample_frames.push(frame);
                                 sample_of[k] = Some(sample_frames.len() - 1);
                                 sample_frames.len() - 1
@@ -459,7 +459,7 @@ fn track_frames(
 
     let frames = WindowFrames {
         source,
-        paths: &paths,
+        numbers: &numbers,
         sample_of: &sample_of,
         samples: &sample_frames,
         reference,
@@ -483,7 +483,7 @@ fn track_frames(
                 &background,
                 &views(&sample_frames),
                 &sample_of,
-                &paths,
+                &numbers,
                 &pass,
                 largest_radius(&classes),
                 2.0 * largest_radius(&classes) + 1.0,
@@ -510,7 +510,7 @@ fn track_frames(
         relocated,
         concerns,
     } = pass;
-    let total = paths.len();
+    let total = numbers.len();
     let mut warnings = Vec::new();
     let empty: Vec<usize> = (0..total)
         .filter(|&i| by_class.iter().all(|c| c[i].detections.is_empty()))
@@ -640,9 +640,9 @@ impl Stage<'_> {
             last,
         } = *self;
         let done = std::sync::atomic::AtomicUsize::new(0);
-        let total = frames.paths.len();
+        let total = frames.numbers.len();
         let located: Result<Vec<Vec<FrameDetections>>, TrackError> = frames
-            .paths
+            .numbers
             .par_iter()
             .enumerate()
             .map(|(i, k)| {
@@ -774,7 +774,7 @@ impl Stage<'_> {
 struct WindowFrames<'a> {
     source: &'a FrameSource,
     /// Each frame's number in the source.
-    paths: &'a [usize],
+    numbers: &'a [usize],
     /// Each frame's place among `samples`, if it is one.
     sample_of: &'a [Option<usize>],
     samples: &'a [DecodedFrame],
@@ -795,7 +795,7 @@ impl WindowFrames<'_> {
         if let Some(j) = self.sample_of[i] {
             return Ok(self.samples[j].view());
         }
-        let k = self.paths[i];
+        let k = self.numbers[i];
         let view = self.source.load_view(k, decoder, buf)?;
         if view.size() != self.size {
             check_size(&self.source.frame_name(k), view, self.reference, self.size)?;
@@ -933,15 +933,15 @@ fn locate_window(radius: f64) -> f64 {
     radius + 1.0
 }
 
-/// Loads up to `count` frames of `source` spread evenly over `paths` (frame numbers), with
-/// the `workers`' decoders; returns their indices into `paths` and the decoded frames.
+/// Loads up to `count` frames of `source` spread evenly over `numbers` (frame numbers), with
+/// the `workers`' decoders; returns their indices into `numbers` and the decoded frames.
 fn load_sample(
     source: &FrameSource,
-    paths: &[usize],
+    numbers: &[usize],
     count: usize,
     workers: &Workers,
 ) -> Result<(Vec<usize>, Vec<DecodedFrame>), TrackError> {
-    let n = paths.len();
+    let n = numbers.len();
     let picks: Vec<usize> = if n <= count {
         (0..n).collect()
     } else {
@@ -953,7 +953,7 @@ fn load_sample(
     // paged its buffers in again for every few frames).
     let frames = picks
         .par_iter()
-        .map(|&i| workers.with(|w| source.load_decoded(paths[i], &mut w.decoder)))
+        .map(|&i| workers.with(|w| source.load_decoded(numbers[i], &mut w.decoder)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((picks, frames))
 }
@@ -1201,7 +1201,7 @@ fn background_without_tracks(
     background: &Background,
     samples: &[FrameView<'_>],
     sample_of: &[Option<usize>],
-    paths: &[usize],
+    numbers: &[usize],
     pass: &Pass,
     radius: f64,
     reach: f64,
@@ -1213,7 +1213,7 @@ fn background_without_tracks(
     {
         return None;
     }
-    let index: std::collections::HashMap<usize, usize> = paths
+    let index: std::collections::HashMap<usize, usize> = numbers
         .iter()
         .zip(sample_of)
         .filter_map(|(k, j)| j.map(|j| (*k, j)))
@@ -1502,10 +1502,10 @@ fn sample_skirts(
     radius: f64,
     workers: &Workers,
 ) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
-    let first = frames.paths.first().copied().unwrap_or(0);
+    let first = frames.numbers.first().copied().unwrap_or(0);
     // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
     // and each costs a pass over its points' rings.
-    let samples: Vec<usize> = (0..frames.paths.len())
+    let samples: Vec<usize> = (0..frames.numbers.len())
         .filter(|&i| frames.sample_of[i].is_some())
         .collect();
     let every = samples.len().div_ceil(SKIRT_FRAMES).max(1);
