@@ -299,6 +299,11 @@ pub struct BenchArgs {
     /// errors, times) to this JSON file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// With `diagnose`: keep each recording in `KEEP/seed-N` (`scene.toml`: the truth,
+    /// `structure.toml`, `tracks.csv`, `truth.csv`), so that `physfit diagnose` can be run on
+    /// it again.
+    #[arg(long)]
+    pub keep: Option<PathBuf>,
 }
 
 /// Benchmark groups.

@@ -79,6 +79,7 @@ fn run_diagnose(args: &BenchArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         count,
         small: args.small || args.quick,
         minutes: args.minutes,
+        keep: args.keep.clone(),
     };
     let (report, results) = diagnose::run(&options, verbosity)?;
     if let Some(path) = &args.json {

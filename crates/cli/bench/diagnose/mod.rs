@@ -12,7 +12,7 @@ pub mod score;
 pub mod table;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
@@ -42,6 +42,8 @@ pub struct BenchOptions {
     pub small: bool,
     /// Draw no new recording after this many minutes.
     pub minutes: Option<f64>,
+    /// Keep each recording's scene, structure and tracks in `keep/seed-N`.
+    pub keep: Option<PathBuf>,
 }
 
 /// Wall time of each stage of one recording, s.
@@ -101,7 +103,7 @@ pub fn run(options: &BenchOptions, verbosity: Verbosity) -> anyhow::Result<(Stri
             }
         }
         let seed = options.first_seed.wrapping_add(i as u64);
-        let result = run_one(seed, options.small);
+        let result = run_one(seed, options.small, options.keep.as_deref());
         if verbosity != Verbosity::Quiet {
             eprintln!(
                 "bench diagnose [{}/{}] {}",
@@ -118,7 +120,7 @@ pub fn run(options: &BenchOptions, verbosity: Verbosity) -> anyhow::Result<(Stri
 
 /// Draws, renders, tracks, diagnoses and judges recording `seed`; a failed stage (or a
 /// panic in one) is recorded in the result, never raised.
-pub fn run_one(seed: u64, small: bool) -> RecordingResult {
+pub fn run_one(seed: u64, small: bool, keep: Option<&Path>) -> RecordingResult {
     let mut result = RecordingResult {
         seed,
         class: String::new(),
@@ -130,7 +132,7 @@ pub fn run_one(seed: u64, small: bool) -> RecordingResult {
         error: None,
         times: Times::default(),
     };
-    let outcome = catch_unwind(AssertUnwindSafe(|| pipeline(seed, small, &mut result)));
+    let outcome = catch_unwind(AssertUnwindSafe(|| pipeline(seed, small, keep, &mut result)));
     let failure = match outcome {
         Ok(Ok(())) => None,
         Ok(Err(e)) => Some(format!("{e:#}")),
@@ -148,7 +150,7 @@ pub fn run_one(seed: u64, small: bool) -> RecordingResult {
 }
 
 /// The stages of [`run_one`], filling `result` as they go.
-fn pipeline(seed: u64, small: bool, result: &mut RecordingResult) -> anyhow::Result<()> {
+fn pipeline(seed: u64, small: bool, keep: Option<&Path>, result: &mut RecordingResult) -> anyhow::Result<()> {
     let t = Instant::now();
     let drawn = draw::draw(seed, small).context("drawing the recording")?;
     result.class = draw::class_label(&drawn.kinds());
@@ -181,6 +183,9 @@ fn pipeline(seed: u64, small: bool, result: &mut RecordingResult) -> anyhow::Res
     let track_error = ((score.rms_x.powi(2) + score.rms_y.powi(2)) / 2.0).sqrt();
     result.track_error = Some(track_error);
     result.times.track = t.elapsed().as_secs_f64();
+    if let Some(keep) = keep {
+        keep_recording(&keep.join(format!("seed-{seed}")), &drawn, &tracked.table, &dir.0)?;
+    }
 
     let t = Instant::now();
     let diagnosis = diagnose(&drawn.structure, &tracked.table, &DiagnoseOptions::default(), &())
@@ -190,5 +195,22 @@ fn pipeline(seed: u64, small: bool, result: &mut RecordingResult) -> anyhow::Res
     let t = Instant::now();
     result.judgement = Some(score::judge(&drawn, &diagnosis, &truth, track_error));
     result.times.judge = t.elapsed().as_secs_f64();
+    Ok(())
+}
+
+/// Writes the recording's truth scene, structure, tracks and true centres to `dir`.
+fn keep_recording(
+    dir: &Path,
+    drawn: &draw::Drawn,
+    tracks: &TrackTable,
+    scratch: &Path,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    drawn.truth.save(&dir.join("scene.toml"))?;
+    drawn.structure.save(&dir.join("structure.toml"))?;
+    tracks.write_csv(&dir.join("tracks.csv"))?;
+    let from = scratch.join("truth.csv");
+    std::fs::copy(&from, dir.join("truth.csv"))
+        .with_context(|| format!("copying {} to {}", from.display(), dir.display()))?;
     Ok(())
 }

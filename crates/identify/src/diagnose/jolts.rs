@@ -10,7 +10,9 @@
 //! The scale used is the larger of that and a robust spread (median absolute value) of all
 //! impulses, so a poor model does not make jolts of its misfit. A gap whose impulse exceeds
 //! [`JOLT_THRESHOLD`] times the scale, is the largest within `m` frames, and reverses the
-//! velocity along it (approaching, then leaving: a bounce, not a kick) is a jolt.
+//! velocity along it (approaching, then leaving: a bounce, not a kick; along a direction within
+//! [`JOLT_DIRECTION_ERRORS`] of the impulse's, whose angle is only known to the impulse's
+//! relative noise) is a jolt.
 //!
 //! A missing smooth force that turns a particle round (a stiff tether's radial oscillation)
 //! also makes a large, locally largest, reversing jump of the means, but spread over the
@@ -39,6 +41,10 @@ pub const JOLT_FIT_POINTS: usize = 4;
 
 /// A jump must exceed this many times its noise scale to be a jolt.
 pub const JOLT_THRESHOLD: f64 = 5.0;
+
+/// Angular standard errors of an impulse's direction within which a jolt must reverse the
+/// velocity (see `reverses`).
+pub const JOLT_DIRECTION_ERRORS: f64 = 3.0;
 
 /// Least distance (px) a tracked centre may seem to cross a proposed wall before the wall is
 /// dropped (also at least five track noises and a bounce's frame of travel): the line's
@@ -162,7 +168,7 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
             }
             // A bounce reverses the velocity along its impulse: approaching, then leaving.
             let n = imp / size;
-            if !(vb.dot(&n) < 0.0 && va.dot(&n) > 0.0) {
+            if !reverses(vb, va, n, scale / size) {
                 continue;
             }
             // Spread over the gaps rather than concentrated in one: smooth motion.
@@ -188,6 +194,21 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     (out, scale)
 }
 
+/// Returns true if and only if the velocity turns from approaching to leaving along some
+/// direction within [`JOLT_DIRECTION_ERRORS`] angular standard errors of the impulse's
+/// direction `n`, whose error is `relative` (the impulse's noise scale over its size) radians:
+/// a shallow bounce at speed along the wall leaks tangential speed into the normal component
+/// of a direction a few degrees off.
+fn reverses(before: Vec2, after: Vec2, n: Vec2, relative: f64) -> bool {
+    let spread = (JOLT_DIRECTION_ERRORS * relative).min(std::f64::consts::FRAC_PI_4);
+    let t = Vec2::new(-n.y, n.x);
+    (-10..=10).any(|i| {
+        let angle = spread * f64::from(i) / 10.0;
+        let d = n * angle.cos() + t * angle.sin();
+        before.dot(&d) < 0.0 && after.dot(&d) > 0.0
+    })
+}
+
 /// Groups jolts by jump direction and proposes one wall per group (see the module doc).
 pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
     let cos_limit = WALL_GROUP_DEGREES.to_radians().cos();
@@ -210,74 +231,103 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
         }
     }
     let dt = obs.frame_dt();
+    // Restitution (median of `-v_n after / v_n before`) and line position along normal `n`.
+    let line = |n: Vec2, members: &[usize]| -> (f64, f64) {
+        let mut es: Vec<f64> = members
+            .iter()
+            .filter_map(|&k| {
+                let j = &jolts[k];
+                let vb = Vec2::new(j.before[0], j.before[1]).dot(&n);
+                let va = Vec2::new(j.after[0], j.after[1]).dot(&n);
+                (vb < 0.0).then(|| (-va / vb).clamp(0.0, 1.0))
+            })
+            .collect();
+        es.sort_by(|a, b| a.total_cmp(b));
+        let e = if es.is_empty() { 0.8 } else { es[es.len() / 2] };
+        let offsets: Vec<f64> = members
+            .iter()
+            .filter_map(|&k| {
+                let j = &jolts[k];
+                let off = j.frame.checked_sub(obs.first_frame)?;
+                let x0 = obs.positions.get(off)?[j.particle]?;
+                let x1 = obs.positions.get(off + 1)?[j.particle]?;
+                let speed = (-Vec2::new(j.before[0], j.before[1]).dot(&n)).max(1e-9);
+                let drop = n.dot(&x0) - n.dot(&x1);
+                let tau = ((drop + e * speed * dt) / (speed * (1.0 + e))).clamp(0.0, dt);
+                Some(n.dot(&x0) - speed * tau)
+            })
+            .collect();
+        let offset = if offsets.is_empty() {
+            members
+                .iter()
+                .map(|&k| n.dot(&Vec2::new(jolts[k].position[0], jolts[k].position[1])))
+                .fold(f64::INFINITY, f64::min)
+        } else {
+            offsets.iter().sum::<f64>() / offsets.len() as f64
+        };
+        (offset, e)
+    };
+    // How far the deepest tracked centre lies beyond the line `n . x = offset`, px (negative
+    // when beyond it).
+    let deepest = |n: Vec2, offset: f64| {
+        obs.positions
+            .iter()
+            .flat_map(|f| {
+                f.iter()
+                    .zip(&obs.fixed)
+                    .filter(|(_, &fixed)| !fixed)
+                    .filter_map(|(x, _)| *x)
+            })
+            .map(|x| n.dot(&x) - offset)
+            .fold(f64::INFINITY, f64::min)
+    };
     groups
         .into_iter()
-        .map(|(n, members)| {
-            let mut es: Vec<f64> = members
-                .iter()
-                .filter_map(|&k| {
-                    let j = &jolts[k];
-                    let vb = Vec2::new(j.before[0], j.before[1]).dot(&n);
-                    let va = Vec2::new(j.after[0], j.after[1]).dot(&n);
-                    (vb < 0.0).then(|| (-va / vb).clamp(0.0, 1.0))
-                })
-                .collect();
-            es.sort_by(|a, b| a.total_cmp(b));
-            let e = if es.is_empty() { 0.8 } else { es[es.len() / 2] };
-            let offsets: Vec<f64> = members
-                .iter()
-                .filter_map(|&k| {
-                    let j = &jolts[k];
-                    let off = j.frame.checked_sub(obs.first_frame)?;
-                    let x0 = obs.positions.get(off)?[j.particle]?;
-                    let x1 = obs.positions.get(off + 1)?[j.particle]?;
-                    let speed = (-Vec2::new(j.before[0], j.before[1]).dot(&n)).max(1e-9);
-                    let drop = n.dot(&x0) - n.dot(&x1);
-                    let tau = ((drop + e * speed * dt) / (speed * (1.0 + e))).clamp(0.0, dt);
-                    Some(n.dot(&x0) - speed * tau)
-                })
-                .collect();
-            let offset = if offsets.is_empty() {
-                members
-                    .iter()
-                    .map(|&k| n.dot(&Vec2::new(jolts[k].position[0], jolts[k].position[1])))
-                    .fold(f64::INFINITY, f64::min)
-            } else {
-                offsets.iter().sum::<f64>() / offsets.len() as f64
-            };
-            WallGuess {
-                params: [n.y.atan2(n.x), offset, e],
-                jolts: members.iter().map(|&k| jolts[k].clone()).collect(),
-            }
-        })
         // A wall is never crossed: a line that some tracked centre goes beyond by more than a
-        // bounce's frame of travel is no wall; within that, the line moves to the deepest centre.
-        .filter_map(|mut g| {
-            let n = Vec2::new(g.params[0].cos(), g.params[0].sin());
-            let deepest = obs
-                .positions
+        // bounce's frame of travel is no wall; within that, the line moves to the deepest
+        // centre. The normal is the jumps' mean direction, known to about one over the
+        // jumps' combined significance (radians): within JOLT_DIRECTION_ERRORS of that, the
+        // direction nearest the jumps' whose line no centre crosses (beyond three track
+        // noises) is taken, else the least crossed (a shallow bounce along a long path tilts
+        // a line by a few degrees across the whole frame).
+        .filter_map(|(n, members)| {
+            let combined = members
                 .iter()
-                .flat_map(|f| {
-                    f.iter()
-                        .zip(&obs.fixed)
-                        .filter(|(_, &fixed)| !fixed)
-                        .filter_map(|(x, _)| *x)
-                })
-                .map(|x| n.dot(&x) - g.params[1])
-                .fold(f64::INFINITY, f64::min);
-            let travel = g
-                .jolts
+                .map(|&k| jolts[k].significance.powi(2))
+                .sum::<f64>()
+                .sqrt()
+                .max(1.0);
+            let spread = (JOLT_DIRECTION_ERRORS / combined).min(std::f64::consts::FRAC_PI_4);
+            let t = Vec2::new(-n.y, n.x);
+            let travel = members
                 .iter()
-                .map(|j| Vec2::new(j.before[0], j.before[1]).dot(&n).abs() * dt)
+                .map(|&k| Vec2::new(jolts[k].before[0], jolts[k].before[1]).dot(&n).abs() * dt)
                 .fold(0.0, f64::max);
             let tolerance = travel.max(5.0 * obs.noise).max(WALL_CROSSING_PX);
-            if deepest < -tolerance {
-                return None;
+            // The lines no centre crosses beyond three track noises form a fan about the
+            // bounce (between the approach's and the departure's directions): its middle is
+            // taken; else the least crossed line within the tolerance.
+            let mut clear: Vec<(f64, Vec2, f64, f64)> = Vec::new();
+            let mut least: Option<(f64, Vec2, f64, f64)> = None;
+            for i in -40..=40 {
+                let angle = spread * f64::from(i) / 40.0;
+                let normal = n * angle.cos() + t * angle.sin();
+                let (offset, e) = line(normal, &members);
+                let depth = deepest(normal, offset);
+                if depth >= -3.0 * obs.noise {
+                    clear.push((depth, normal, offset, e));
+                } else if depth >= -tolerance && least.as_ref().map_or(true, |l| depth > l.0) {
+                    least = Some((depth, normal, offset, e));
+                }
             }
-            if deepest < 0.0 {
-                g.params[1] += deepest;
+            if !clear.is_empty() {
+                least = Some(clear[clear.len() / 2]);
             }
-            Some(g)
+            let (depth, normal, offset, e) = least?;
+            Some(WallGuess {
+                params: [normal.y.atan2(normal.x), offset + depth.min(0.0), e],
+                jolts: members.iter().map(|&k| jolts[k].clone()).collect(),
+            })
         })
         .collect()
 }

@@ -472,7 +472,13 @@ fn diagnose_inner(
                 transfer::first_that_transfers(segments.as_ref(), &shot, &current, &mut verified[first..])
                     .map(|i| first + i);
         }
-        let best = chosen.map(|i| verified[i].clone());
+        let best = chosen.map(|i| {
+            let mut best = verified[i].clone();
+            if best.removes.is_none() {
+                ctx.refine_tethers(&current, &mut best);
+            }
+            best
+        });
         let mut one_path = false;
         for (i, v) in verified.iter().enumerate() {
             let fails = v.evidence.transfer.as_ref().is_some_and(report::Transfer::fails);
@@ -532,11 +538,9 @@ fn diagnose_inner(
         let mut evidence = best.evidence.clone();
         let o = next.family.effect_offset(current.family.effects.len());
         let without = next.fit.params[..o].to_vec();
-        let alt = if ctx.at_noise_level(&current) {
-            None
-        } else {
-            ctx.fit(&current.family, &without, &next.fit.state, true)
-        };
+        // Also at the noise level: a term worth a few variances there may be only the new
+        // fit's better optimum of the shared values.
+        let alt = ctx.fit(&current.family, &without, &next.fit.state, true);
         if let Some(alt) = alt {
             if alt.fit.sum_squares < current.fit.sum_squares {
                 current = alt;
@@ -731,10 +735,11 @@ fn rigid_tethers(ctx: &Context<'_>, mut next: Current, first_new: usize) -> Curr
     next
 }
 
-/// Backward elimination after a round: an effect accepted in an earlier round that the newer
-/// ones make redundant (the model refitted without it loses less held-out cost, in units of
-/// the fit's residual variance, than its `k ln N` penalty) is taken out, the most redundant
-/// first, until every one pays for its parameters.
+/// Backward elimination after a round: an effect accepted in an earlier round (or one of a
+/// pair accepted in this round) that the others make redundant (the model refitted without it
+/// loses less held-out cost, or less cost on the fitted frames, in units of the fit's
+/// residual variance, than its `k ln N` penalty) is taken out, the most redundant first,
+/// until every one pays for its parameters.
 fn prune(
     ctx: &Context<'_>,
     family0: &Family,
@@ -743,6 +748,9 @@ fn prune(
     replaced: &mut Vec<report::Replaced>,
     round: usize,
 ) {
+    // Effects that joined together this round (a wall with the field) were judged only as a
+    // pair: each must also pay for itself.
+    let joined_now = accepted.iter().filter(|e| e.2 == round).count();
     while accepted.len() >= 2 {
         let held = ctx.held_count(&current.family);
         let (n, before) = if held > 0 {
@@ -753,7 +761,7 @@ fn prune(
         let variance = ctx.noise_variance(current);
         let mut worst: Option<(f64, usize, Current)> = None;
         for (k, entry) in accepted.iter().enumerate() {
-            if entry.2 == round {
+            if entry.2 == round && joined_now < 2 {
                 continue;
             }
             let reduced = ctx.without(current, k);
@@ -765,8 +773,21 @@ fn prune(
             } else {
                 fit.fit.sum_squares
             };
-            let worth = (after - before) / variance
-                - current.family.effects[k].parameter_count() as f64 * (n.max(2) as f64).ln();
+            let k_params = current.family.effects[k].parameter_count();
+            let held_worth = (after - before) / variance - k_params as f64 * (n.max(2) as f64).ln();
+            // It must pay on the fitted frames too (see `Evidence::score_on`).
+            let fitted_worth = (fit.fit.sum_squares - current.fit.sum_squares) / variance
+                - ctx.train_penalty(current, k_params);
+            let worth = if held > 0 && current.family.effects[k].is_smooth() {
+                held_worth.min(fitted_worth)
+            } else {
+                held_worth
+            };
+            if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+                eprintln!(
+                    "   prune {k}: held-out worth {held_worth:.2}, fitted-frame worth {fitted_worth:.2}"
+                );
+            }
             if worth.is_finite() && worth < 0.0 && worst.as_ref().map_or(true, |w| worth < w.0) {
                 worst = Some((worth, k, fit));
             }
@@ -805,6 +826,9 @@ fn rejected_entry(
         held_out_cost_after: None,
         noise_variance: None,
         penalty: 0.0,
+        fitted_cost_before: None,
+        fitted_cost_after: None,
+        fitted_penalty: 0.0,
         score: None,
         parameter_count: p.effect.parameter_count(),
         transfer: None,

@@ -122,8 +122,16 @@ pub struct Evidence {
     pub noise_variance: Option<f64>,
     /// Penalty: parameters added times `ln(held-out residual count)`.
     pub penalty: f64,
-    /// `(before - after) / noise_variance - penalty` ([`Evidence::score_on`] its own
-    /// variance); accepted when positive and best.
+    /// Multi-step cost of the model without the term on the fitted frames, px² (`null` for
+    /// walls, which act only where they are met, or without held-out frames).
+    pub fitted_cost_before: Option<f64>,
+    /// The same with the term, px².
+    pub fitted_cost_after: Option<f64>,
+    /// Penalty on the fitted frames: parameters added times `ln(fitted residual count)`.
+    pub fitted_penalty: f64,
+    /// `(before - after) / noise_variance - penalty` on the held-out frames, or the same on
+    /// the fitted frames when smaller ([`Evidence::score_on`] its own variance); accepted
+    /// when positive and best.
     pub score: Option<f64>,
     /// Number of parameters the term adds.
     pub parameter_count: usize,
@@ -206,12 +214,25 @@ impl SegmentTransfer {
 impl Evidence {
     /// `(before - after) / variance - penalty`: the held-out cost the term removes in units
     /// of `variance` (px²), less its penalty; `None` when a cost is missing or not finite.
+    ///
+    /// A smooth term must also pay for itself on the frames it was fitted to: the smaller of
+    /// that score and the held-out one is returned. Multi-step residuals on held-out frames are
+    /// correlated (each is propagated from one fitted start state), so a term that barely
+    /// changes the fit can still move them by many variances; a term the fitted frames do not
+    /// ask for is noise fitted twice.
     pub fn score_on(&self, variance: f64) -> Option<f64> {
-        match (self.held_out_cost_before, self.held_out_cost_after) {
-            (Some(before), Some(after)) if before.is_finite() && after.is_finite() => {
-                Some((before - after) / variance - self.penalty)
-            }
+        let gain = |before: Option<f64>, after: Option<f64>, penalty: f64| match (before, after) {
+            (Some(b), Some(a)) if b.is_finite() && a.is_finite() => Some((b - a) / variance - penalty),
             _ => None,
+        };
+        let held = gain(self.held_out_cost_before, self.held_out_cost_after, self.penalty)?;
+        match gain(
+            self.fitted_cost_before,
+            self.fitted_cost_after,
+            self.fitted_penalty,
+        ) {
+            Some(fitted) => Some(held.min(fitted)),
+            None => Some(held),
         }
     }
 }

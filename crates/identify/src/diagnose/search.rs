@@ -32,6 +32,14 @@ pub const VERIFIED_PER_ROUND: usize = 3;
 /// Least screen score, per parameter, for a smooth candidate to be verified.
 pub const SCREEN_PER_PARAMETER: f64 = 2.0;
 
+/// Factors on a tether's anchor distance tried by [`Context::along_tether`].
+/// Negative: the anchor on the other side of the particle, at the same distance, the tether
+/// compressed where it was stretched (a stiff tether pulls nearly alike from either side).
+pub const ALONG_TETHER_FACTORS: [f64; 5] = [0.5, 0.75, 1.5, 2.5, -1.0];
+
+/// Most passes of [`Context::along_tether`] per tether.
+pub const ALONG_TETHER_PASSES: usize = 3;
+
 /// Most pairs of effects (the field with another candidate) verified per round.
 pub const VERIFIED_PAIRS_PER_ROUND: usize = 2;
 
@@ -609,6 +617,78 @@ impl Context<'_> {
         (added.is_finite() && added / variance < (n.max(2) as f64).ln()).then_some(best)
     }
 
+    /// `chosen` with each tether it adds to `current` refitted along its line (see
+    /// [`Context::along_tether`]; also at the noise level, where the mirror image and a far
+    /// anchor fit nearly alike), its evidence
+    /// against `current` updated (the transfer judgement kept).
+    pub fn refine_tethers(&self, current: &Current, chosen: &mut Verified) {
+        let Some(mut best) = chosen.current.clone() else {
+            return;
+        };
+        let mut improved = false;
+        for k in current.family.effects.len()..best.family.effects.len() {
+            // Again from each better fit (a few times): the valley is long.
+            for _ in 0..ALONG_TETHER_PASSES {
+                let Some(better) = self.along_tether(&best, k, &ALONG_TETHER_FACTORS) else {
+                    break;
+                };
+                best = better;
+                improved = true;
+            }
+        }
+        if improved {
+            let transfer = chosen.evidence.transfer.take();
+            let mut evidence = self.evidence(current, Some(&best), &chosen.proposals);
+            evidence.transfer = transfer;
+            chosen.evidence = evidence;
+            chosen.current = Some(best);
+        }
+    }
+
+    /// Effect `k` of `with`, a tether, refitted from anchors moved along the line from its
+    /// particle's mean position through the fitted anchor, either side of the particle (the
+    /// rest length changed to keep the pull at the mean position):
+    /// a stiff tether fixes the direction of its pull well but the anchor's distance poorly,
+    /// since moving the anchor out and lengthening the tether changes only how the pull turns
+    /// as the particle moves, so a fit can stop in that valley far from the anchor. Returns
+    /// the best such fit when it beats `with` on the fitted frames.
+    fn along_tether(&self, with: &Current, k: usize, factors: &[f64]) -> Option<Current> {
+        let family = &with.family;
+        let Effect::Tether { particle } = *family.effects.get(k)? else {
+            return None;
+        };
+        let o = family.effect_offset(k);
+        let xs: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[particle]).collect();
+        if xs.is_empty() {
+            return None;
+        }
+        let mean = xs.iter().sum::<Vec2>() / xs.len() as f64;
+        let p = &with.fit.params;
+        let anchor = Vec2::new(p[o], p[o + 1]);
+        let distance = (anchor - mean).norm();
+        if !(distance > 0.0 && distance.is_finite()) {
+            return None;
+        }
+        let direction = (anchor - mean) / distance;
+        let mut best: Option<Current> = None;
+        for &factor in factors {
+            let mut start = p.clone();
+            let moved = mean + direction * (distance * factor);
+            start[o] = moved.x;
+            start[o + 1] = moved.y;
+            // The same pull at the mean position: `L' = |f| D + sign(f) (L - D)`.
+            start[o + 2] = (distance * factor.abs() + factor.signum() * (p[o + 2] - distance)).max(1e-3);
+            let Some(fit) = self.fit(family, &start, &with.fit.state, true) else {
+                continue;
+            };
+            let bar = best.as_ref().map_or(with.fit.sum_squares, |b| b.fit.sum_squares);
+            if fit.fit.sum_squares < bar {
+                best = Some(fit);
+            }
+        }
+        best
+    }
+
     /// The anchor of a tether on `particle` that best explains the fitted rows, with the
     /// tether's stiffness and rest length solved linearly at each trial anchor.
     fn search_anchor(&self, family: &Family, base: &[&[f64]], particle: usize) -> Vec2 {
@@ -760,6 +840,7 @@ impl Context<'_> {
         // to take out is itself fitted (and an effect swapped for itself, refitted, must
         // gain that much to be worth a round).
         evidence.penalty += (1.0 - k_removed as f64) * (n.max(2) as f64).ln();
+        evidence.fitted_penalty += (1.0 - k_removed as f64) * (current.fit.residual_count.max(2) as f64).ln();
         evidence.score = evidence.noise_variance.and_then(|var| evidence.score_on(var));
         v.evidence = evidence;
         v.removes = Some(removed);
@@ -883,6 +964,9 @@ impl Context<'_> {
             )
         };
         let variance = with.map(|w| self.noise_variance(w));
+        // Smooth terms act on every frame, so must pay on the fitted ones too; a wall acts
+        // only where it is met, which may be in held-out frames alone.
+        let smooth = n_held > 0 && proposals.iter().all(|p| p.effect.is_smooth());
         let first = proposals.first();
         let mut evidence = Evidence {
             screen_score: first.and_then(|p| p.screen),
@@ -891,6 +975,9 @@ impl Context<'_> {
             held_out_cost_after: after,
             noise_variance: variance,
             penalty: k as f64 * (n.max(2) as f64).ln(),
+            fitted_cost_before: smooth.then_some(current.fit.sum_squares),
+            fitted_cost_after: with.filter(|_| smooth).map(|w| w.fit.sum_squares),
+            fitted_penalty: self.train_penalty(current, k),
             score: None,
             parameter_count: k,
             transfer: None,

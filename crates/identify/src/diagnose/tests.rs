@@ -658,3 +658,33 @@ fn a_stiff_tether_turning_a_ball_round_makes_no_jolts() {
     let found = jolts_of_ball(&late);
     assert_eq!(found.len(), 1, "late bounce missed: {found:?}");
 }
+
+#[test]
+fn a_shallow_bounce_at_speed_along_the_wall_proposes_the_wall() {
+    // 300 px/s along the floor, 12 px/s into it: the impulse (18 px/s, about seven jolt
+    // noise scales) is known in direction to about 8 degrees, and 8 degrees of 300 px/s
+    // (40 px/s) hide the normal velocity's reversal; the line through the bounce, tilted as
+    // much, would be crossed hundreds of px further on.
+    let truth = ball_over_a_floor("shallow", 40.0, 85, [20.0, 296.0], [300.0, 12.0], 0.0, 300.0, 0.5);
+    let found = jolts_of_ball(&truth);
+    assert_eq!(found.len(), 1, "the bounce: {found:?}");
+    let mut t = tracks(&truth, SIGMA, 1);
+    t.points.retain(|p| p.particle == "ball");
+    let obs = Observations::from_tracks(&t, &truth.structure(), None).unwrap_or_else(|e| panic!("{e}"));
+    let walls = jolts::propose_walls(&found, &obs);
+    assert_eq!(walls.len(), 1, "{walls:?}");
+    let [angle, offset, _] = walls[0].params;
+    let n = Vec2::new(angle.cos(), angle.sin());
+    // The floor: n = (0, -1), n . x = -300 px; the normal within 2 degrees (the fan of
+    // lines no centre crosses is 3.4 degrees wide), the line within 1 px at the bounce.
+    assert!(
+        n.dot(&Vec2::new(0.0, -1.0)) > 2f64.to_radians().cos(),
+        "normal {n:?}"
+    );
+    let x = found[0].position[0];
+    let y = (offset - n.x * x) / n.y;
+    assert!(
+        (y - 300.0).abs() < 1.0,
+        "the line is at y = {y:.2} px at the bounce (x = {x:.1} px)"
+    );
+}
