@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 
 use physfit_identify::diagnose::scene_costs;
 use physfit_model::{Scene, Vec2};
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 use serde_json::Value;
 
 use crate::util::{physfit, scenes_dir, tempdir};

@@ -1,6 +1,7 @@
 //! End-to-end tests of the `physfit` binary: one test binary, one module per stage.
 
 mod bench_diagnose;
+mod byte_identical;
 mod diagnose;
 mod fit;
 mod fuzz_regressions;

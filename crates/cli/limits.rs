@@ -10,7 +10,8 @@ use std::sync::OnceLock;
 
 use anyhow::bail;
 use physfit_model::Scene;
-use physfit_track::{FrameLimits, TrackError, TrackTable};
+use physfit_track::{FrameLimits, TrackError};
+use physfit_tracks::TrackTable;
 
 /// Largest scene (or structure) file read by default, MB.
 pub const DEFAULT_SCENE_MB: f64 = 10.0;

@@ -4,7 +4,8 @@
 
 use std::path::Path;
 
-use physfit_track::{name_tracks_by_position, read_track_table_str, TableFormat, TableOptions};
+use physfit_track::name_tracks_by_position;
+use physfit_tracks::{read_track_table_str, TableFormat, TableOptions};
 
 /// Panics when `data` breaks the property above.
 pub fn check(data: &[u8]) {

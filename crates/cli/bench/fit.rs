@@ -19,7 +19,7 @@ use physfit_identify::{
 };
 use physfit_model::scene::{ParticleFile, RecordingFile, SceneFile, SpringFile, TorsionFile};
 use physfit_model::{IntegratorKind, Scene};
-use physfit_track::{TrackPoint, TrackTable};
+use physfit_tracks::{TrackPoint, TrackTable};
 
 /// Position noise of the noisy runs, px.
 const NOISE_PX: f64 = 0.05;

@@ -12,7 +12,8 @@
 
 use anyhow::Context;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
-use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+use physfit_track::{score_tracks, track_folder, TrackOptions};
+use physfit_tracks::{TrackPoint, TrackTable};
 
 use super::Scratch;
 

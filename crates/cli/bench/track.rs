@@ -11,9 +11,8 @@ use std::time::Instant;
 use anyhow::Context;
 use physfit_model::{Colour, Recording, RenderSettings, Vec2};
 use physfit_render::render_sequence;
-use physfit_track::{
-    list_frames, score_tracks, track_folder, Frame, FrameDecoder, TrackOptions, TrackPoint, TrackTable,
-};
+use physfit_track::{list_frames, score_tracks, track_folder, Frame, FrameDecoder, TrackOptions};
+use physfit_tracks::{TrackPoint, TrackTable};
 
 use super::Scratch;
 

@@ -11,7 +11,8 @@ use std::path::Path;
 
 use anyhow::{bail, Context};
 use physfit_model::{Recording, Scene};
-use physfit_track::{FrameSource, FrameWindow, TableFormat, TableOptions, TrackPoint, TrackTable};
+use physfit_track::{FrameSource, FrameWindow};
+use physfit_tracks::{TableFormat, TableOptions, TrackPoint, TrackTable};
 
 use crate::cli::{FormatArg, TableArgs};
 use crate::progress::Verbosity;
@@ -148,7 +149,7 @@ pub fn load_tracks(
         origin_px: table.origin,
     };
     crate::limits::check_tracks_file(path)?;
-    let read = physfit_track::read_track_table(path, &options)
+    let read = physfit_tracks::read_track_table(path, &options)
         .with_context(|| format!("reading tracks {}", path.display()))?;
     let mut notes = read.warnings;
     let in_px = matches!(read.format, TableFormat::Physfit | TableFormat::Trackpy);

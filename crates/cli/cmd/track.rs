@@ -2,7 +2,8 @@
 //! [--truth T]`: RECORDING is a folder of frames, a video or a TIFF stack.
 
 use anyhow::Context;
-use physfit_track::{TrackOptions, TrackTable};
+use physfit_track::TrackOptions;
+use physfit_tracks::TrackTable;
 
 use crate::cli::TrackArgs;
 use crate::progress::{self, Verbosity};

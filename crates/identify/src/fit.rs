@@ -15,7 +15,7 @@ use std::str::FromStr;
 use std::time::Instant;
 
 use physfit_model::{step_frame, Scene, State, StepScratch};
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 use serde::{Deserialize, Serialize};
 
 use crate::solvers::{anneal, genetic, genetic_local, AnnealOptions, GaOptions};

@@ -2,7 +2,7 @@
 //! genetic algorithms and by linear least squares refined on the multi-step cost.
 //!
 //! This crate owns the path from a *structure* (a [`physfit_model::Scene`] whose bond values
-//! are unknown) and its tracks ([`physfit_track::TrackTable`]) to a *fitted model* (the same
+//! are unknown) and its tracks ([`physfit_tracks::TrackTable`]) to a *fitted model* (the same
 //! scene with every value filled in) and a [`FitReport`] (the `fit.json` contract): values,
 //! standard errors, Cramer-Rao bounds, identifiability warnings and costs.
 //!
@@ -22,7 +22,7 @@
 //! ```
 //! use physfit_identify::{fit, FitOptions, Method};
 //! use physfit_model::{simulate, Scene};
-//! use physfit_track::{TrackPoint, TrackTable};
+//! use physfit_tracks::{TrackPoint, TrackTable};
 //! let truth = Scene::from_toml_str(r#"
 //!     [recording]
 //!     fps = 100.0

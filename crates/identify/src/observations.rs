@@ -16,7 +16,8 @@
 //! local cubic, so it is an upper bound of the noise, never zero by assumption.
 
 use physfit_model::{Recording, Scene, State, Vec2};
-use physfit_track::TrackTable;
+use physfit_tracks::stats::median;
+use physfit_tracks::TrackTable;
 
 use crate::IdentifyError;
 
@@ -50,7 +51,7 @@ pub struct Observations {
 /// The warning that rows of tracks `structure_ids` does not name are left out, naming each
 /// such track (the first 12) and its row count; `None` when every row is named.
 fn unnamed_rows_warning(
-    by_name: &std::collections::BTreeMap<&str, Vec<&physfit_track::TrackPoint>>,
+    by_name: &std::collections::BTreeMap<&str, Vec<&physfit_tracks::TrackPoint>>,
     structure_ids: &[String],
 ) -> Option<String> {
     let unnamed: Vec<(&str, usize)> = by_name
@@ -399,16 +400,6 @@ fn frame_ranges(frames: &[usize]) -> String {
     parts.join(", ")
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// `sqrt(sum c_i^2)` of the interior 7-point cubic derivative filter (per frame).
 fn interior_velocity_gain() -> f64 {
     let c = [-22.0f64, 67.0, 58.0];
@@ -465,7 +456,7 @@ fn local_velocity(track: &[Option<Vec2>], k: usize, fps: f64) -> Option<Vec2> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use physfit_track::TrackPoint;
+    use physfit_tracks::TrackPoint;
 
     fn scene() -> Scene {
         Scene::from_toml_str(

@@ -3,7 +3,7 @@
 
 use physfit_model::scene::{ParticleFile, RecordingFile, SceneFile, SpringFile, TorsionFile};
 use physfit_model::{simulate, IntegratorKind, Recording, Scene};
-use physfit_track::{TrackPoint, TrackTable};
+use physfit_tracks::{TrackPoint, TrackTable};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 

@@ -19,6 +19,7 @@
 //! its change between two frames has spread `2 √2 ep / W`; the size's is about `√2 ep`.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use physfit_tracks::stats::{robust_spread_upper, MAD_TO_SIGMA};
 
 use crate::link::FrameDetections;
 use crate::locate::Detection;
@@ -404,13 +405,13 @@ impl SortedWindow {
     }
 }
 
-/// The median of sorted `values` as [`median`] takes it (the upper one of an even count);
+/// The median of sorted `values` as [`median_upper`] takes it (the upper one of an even count);
 /// NaN when empty.
 fn sorted_median(values: &[f64]) -> f64 {
     values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-/// [`robust_spread`] of sorted, non-empty `values`: the absolute deviations from the median
+/// [`robust_spread_upper`] of sorted, non-empty `values`: the absolute deviations from the median
 /// grow outwards from it on both sides, so the median deviation is found by merging the two
 /// runs up to the middle rank.
 fn sorted_robust_spread(values: &[f64]) -> f64 {
@@ -435,20 +436,17 @@ fn sorted_robust_spread(values: &[f64]) -> f64 {
             above += 1;
         }
     }
-    1.4826 * d
+    MAD_TO_SIGMA * d
 }
 
-/// 1.4826 times the median absolute value about the median (the standard deviation of a
-/// normal distribution), of a sample (reordered; its values are replaced by their absolute
-/// deviations); NaN when it is empty.
 /// The spread of `v` (reordered) that also covers its tail: the larger of
-/// [`robust_spread`] and the 99th percentile of the absolute deviations from the median over
+/// [`robust_spread_upper`] and the 99th percentile of the absolute deviations from the median over
 /// 2.576 (the two agree for normal values). Compressed video changes a particle's mass by
 /// 1-3 % between its first frames and by 0.25 % (the robust spread) in most others: an H.264
 /// recording of `concealed-gravity` had its 99th percentile at 0.44, and a gate of five robust
 /// spreads refused two particles their own blobs in frames 1-2, which then swapped names.
 fn tail_spread(v: &mut [f64]) -> f64 {
-    let spread = robust_spread(v);
+    let spread = robust_spread_upper(v);
     if v.is_empty() {
         return spread;
     }
@@ -457,32 +455,17 @@ fn tail_spread(v: &mut [f64]) -> f64 {
     spread.max(q99 / 2.576)
 }
 
-pub(crate) fn robust_spread(v: &mut [f64]) -> f64 {
-    let m = median(v);
-    v.iter_mut().for_each(|x| *x = (*x - m).abs());
-    1.4826 * median(v)
-}
-
-/// The median of `v` (reordered; the upper of the two middle values of an even count); NaN
-/// when it is empty.
-pub(crate) fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use physfit_tracks::stats::median_upper;
     use rand::{Rng, SeedableRng};
 
     #[test]
     fn robust_spread_ignores_an_outlier_and_the_sorted_window_matches_a_vector() {
         // |x - 3| = 2, 1, 0, 1, 97: median 1.
         let mut v = [1.0, 2.0, 3.0, 4.0, 100.0];
-        assert!((robust_spread(&mut v) - 1.4826).abs() < 1e-12);
+        assert!((robust_spread_upper(&mut v) - 1.4826).abs() < 1e-12);
         let history: Vec<f64> = (0..HISTORY).map(|k| ((k * 7919) % 31) as f64 * 0.1).collect();
         let mut window = SortedWindow::default();
         history.iter().for_each(|&x| window.update(x, true));
@@ -491,12 +474,12 @@ mod tests {
         let mut first = history.clone();
         assert_eq!(
             sorted_median(window.values()).to_bits(),
-            median(&mut first).to_bits()
+            median_upper(&mut first).to_bits()
         );
         let mut first = history.clone();
         assert_eq!(
             sorted_robust_spread(window.values()).to_bits(),
-            robust_spread(&mut first).to_bits()
+            robust_spread_upper(&mut first).to_bits()
         );
     }
 

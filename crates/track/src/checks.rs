@@ -148,9 +148,9 @@ pub(crate) fn check_tracks(
             continue;
         };
         let mut values: Vec<f64> = measured.iter().map(|m| m.1.level).collect();
-        let skirt = crate::appearance::median(&mut values);
+        let skirt = physfit_tracks::stats::median_upper(&mut values);
         let mut sides: Vec<f64> = measured.iter().map(|m| m.1.lopsided).collect();
-        let lopsided = crate::appearance::median(&mut sides);
+        let lopsided = physfit_tracks::stats::median_upper(&mut sides);
         if skirt > MAX_SKIRT || (skirt > LOPSIDED_SKIRT && lopsided > MAX_LOPSIDED) {
             out.push(TrackConcern {
                 particle: particle.to_string(),

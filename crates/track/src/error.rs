@@ -15,29 +15,9 @@ pub enum TrackError {
         #[source]
         source: std::io::Error,
     },
-    /// A track CSV is malformed; `line` is 1-based (the header is line 1).
-    #[error("{path}:{line}: {message}")]
-    Csv {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number.
-        line: u64,
-        /// What is wrong.
-        message: String,
-    },
-    /// A cell of a track table is bad (not a number, not finite, not a frame index...);
-    /// `line` is 1-based.
-    #[error("{path}:{line}: column `{column}`: {message}")]
-    Cell {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number.
-        line: u64,
-        /// The column's header.
-        column: String,
-        /// What is wrong.
-        message: String,
-    },
+    /// A track table could not be read or written (`--truth`, `--detections`, tracks.csv).
+    #[error(transparent)]
+    Table(#[from] physfit_tracks::TableError),
     /// A frame file could not be decoded (corrupt, truncated, empty or not an image).
     #[error("{path}: {message}")]
     Decode {

@@ -17,6 +17,7 @@ mod inpaint;
 mod limits;
 mod link;
 mod locate;
+mod naming;
 mod pipeline;
 mod png_reader;
 mod point_grid;
@@ -25,7 +26,6 @@ mod score;
 mod shared;
 mod source;
 mod stack;
-mod tables;
 mod track_table;
 mod video;
 
@@ -41,17 +41,20 @@ pub use limits::{
 };
 pub use link::*;
 pub use locate::*;
+pub use naming::name_tracks_by_position;
 pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};
 #[doc(hidden)]
 pub use png_reader::fuzz_read_png;
 pub use score::*;
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
-pub use tables::{
-    detect_format, name_tracks_by_position, read_track_table, read_track_table_str, ForeignTable,
-    TableFormat, TableOptions,
+// The track table and other trackers' tables live in physfit-tracks; re-exported so the
+// tracker's users keep one import path for what it returns.
+pub use physfit_tracks::{
+    detect_format, read_track_table, read_track_table_str, ForeignTable, PointFlag, TableError, TableFormat,
+    TableOptions, TrackPoint, TrackTable,
 };
-pub use track_table::{write_detections_csv, PointFlag, TrackPoint, TrackTable};
+pub use track_table::write_detections_csv;
 pub use video::{
     is_video_path, probe_video, VideoFrames, VideoInfo, NEUTRAL_LEVELS, VIDEO_EXTENSIONS, VIDEO_MEMORY_BYTES,
 };

@@ -11,6 +11,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use physfit_tracks::stats::median;
 use rayon::prelude::*;
 
 use crate::background::STRUCTURED_LIMIT;
@@ -1656,19 +1657,6 @@ fn expected_size(estimation: &Estimation, radius: f64, starts: Option<&[[f64; 2]
         area: median(&mut areas),
         extent: median(&mut extents),
     })
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
 }
 
 fn frame_list(frames: &[usize]) -> String {

@@ -17,7 +17,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
-use physfit_track::{score_tracks, TrackOptions, TrackTable};
+use physfit_track::{score_tracks, TrackOptions};
+use physfit_tracks::TrackTable;
 use serde::Serialize;
 
 use super::Scratch;

@@ -26,7 +26,7 @@ use std::path::Path;
 
 use physfit_identify::diagnose::{scene_costs, Diagnosis, Finding};
 use physfit_model::{Scene, Vec2};
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 use serde::Serialize;
 
 use super::draw::{Concealed, Drawn};

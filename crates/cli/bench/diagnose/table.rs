@@ -4,22 +4,15 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
+use physfit_tracks::stats::median;
+
 use super::draw::Kind;
 use super::score::{Detectability, DETECTABLE, MARGINAL};
 use super::{BenchOptions, RecordingResult};
 
 /// The median of `values` (`None` when empty).
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let m = values.len() / 2;
-    Some(if values.len() % 2 == 1 {
-        values[m]
-    } else {
-        (values[m - 1] + values[m]) / 2.0
-    })
+fn median_of(values: &mut [f64]) -> Option<f64> {
+    (!values.is_empty()).then(|| median(values))
 }
 
 /// `k` of `n` as a whole percentage (`-` when `n` is 0).
@@ -51,7 +44,7 @@ fn class_row(label: &str, rows: &[&RecordingResult]) -> String {
         percent(judged(&|j| j.unsure), n),
         percent(judged(&|j| !j.exactly_right && !j.unsure), n),
         count(&|r| r.judgement.is_none()),
-        median(&mut times).map_or("-".into(), |t| format!("{t:.1}")),
+        median_of(&mut times).map_or("-".into(), |t| format!("{t:.1}")),
     )
 }
 
@@ -122,7 +115,7 @@ fn effect_table(results: &[RecordingResult]) -> String {
         let error = named
             .iter_mut()
             .filter_map(|(name, unit, values)| {
-                median(values).map(|m| match *unit {
+                median_of(values).map(|m| match *unit {
                     "relative" => format!("{name} {:.2} %", 100.0 * m),
                     "px" => format!("{name} {m:.2} px"),
                     _ => format!("{name} {m:.3}"),

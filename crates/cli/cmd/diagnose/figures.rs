@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use physfit_identify::diagnose::Diagnosis;
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 
 use crate::report::{self, LineChart, LineStyle, Mismatch, ModelPaths, Series, Track, TrajectoryPlot};
 

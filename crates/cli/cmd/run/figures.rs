@@ -7,7 +7,8 @@ use std::path::Path;
 use anyhow::Context;
 use physfit_identify::diagnose::Diagnosis;
 use physfit_identify::FitResult;
-use physfit_track::{Frame, FrameSource, TrackTable};
+use physfit_track::{Frame, FrameSource};
+use physfit_tracks::TrackTable;
 
 use crate::cmd::diagnose::figures::{self as diagnosis_figures, Backdrop};
 use crate::report::{self, LineChart, Overlay, Prediction, Series, Tail};

@@ -23,7 +23,8 @@ use physfit_identify::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 use physfit_identify::{FitOptions, FitReport};
 use physfit_model::scene::{compare_scenes, SceneComparison};
 use physfit_model::Scene;
-use physfit_track::{TrackOptions, TrackScore, TrackTable};
+use physfit_track::{TrackOptions, TrackScore};
+use physfit_tracks::TrackTable;
 use serde::Serialize;
 
 use crate::cli::RunArgs;

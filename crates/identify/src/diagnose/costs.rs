@@ -127,7 +127,7 @@ pub fn standard_errors(j: &DMatrix<f64>, ssr: f64, dim: usize) -> Vec<Option<f64
 /// (fitted, forward from the first completely tracked frame).
 pub fn scene_costs(
     scene: &physfit_model::Scene,
-    tracks: &physfit_track::TrackTable,
+    tracks: &physfit_tracks::TrackTable,
 ) -> Result<ModelCosts, crate::IdentifyError> {
     let sequence = Observations::from_tracks(tracks, scene, None)?;
     let family = Family::new(scene, &sequence)?;

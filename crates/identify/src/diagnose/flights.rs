@@ -15,6 +15,7 @@
 //! near zero and so is the estimate.
 
 use physfit_model::Vec2;
+use physfit_tracks::stats::median;
 
 use crate::Observations;
 
@@ -110,16 +111,6 @@ pub fn field_from_flights(
         Vec2::new(mx, my),
         Vec2::new(se(median(&mut dx)), se(median(&mut dy))),
     ))
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 #[cfg(test)]

@@ -54,7 +54,7 @@ pub use verdict::EXPLAINED_RMS_RATIO;
 use std::time::Instant;
 
 use physfit_model::Scene;
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 

@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use physfit_model::{Scene, Vec2};
-use physfit_track::TrackTable;
+use physfit_tracks::TrackTable;
 
 use super::*;
 use crate::testutil::tracks;
@@ -544,7 +544,7 @@ fn shelf_ball(held: usize, sigma: f64, seed: u64) -> (Scene, TrackTable) {
     let normal = rand_distr::Normal::new(0.0, sigma).unwrap_or_else(|e| panic!("{e}"));
     use rand_distr::Distribution;
     for k in 0..held {
-        t.points.push(physfit_track::TrackPoint::new(
+        t.points.push(physfit_tracks::TrackPoint::new(
             k,
             "ball",
             x0 + vx * k as f64 / fps + normal.sample(&mut rng),

@@ -461,7 +461,7 @@ pub fn first_that_transfers(
 #[cfg(test)]
 mod tests {
     use physfit_model::Scene;
-    use physfit_track::{TrackPoint, TrackTable};
+    use physfit_tracks::{TrackPoint, TrackTable};
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 

@@ -33,13 +33,12 @@
 //! while it is in the image. Without them, every unmatched detection starts a track named
 //! by an integer, and tracks unseen for more than `memory` frames end.
 
-use crate::appearance::{
-    median, robust_spread, Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance,
-};
+use crate::appearance::{Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::point_grid::{nearest_other, PointGrid};
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
+use physfit_tracks::stats::{median_upper, robust_spread_upper};
 
 mod settle;
 mod step_bound;
@@ -848,10 +847,10 @@ impl SingleParticle {
     }
 }
 
-/// The median and [`robust_spread`] of the finite values of `v`.
+/// The [`median_upper`] and [`robust_spread_upper`] of the finite values of `v`.
 fn median_and_spread(mut v: Vec<f64>) -> (f64, f64) {
     v.retain(|x| x.is_finite());
-    (median(&mut v), robust_spread(&mut v))
+    (median_upper(&mut v), robust_spread_upper(&mut v))
 }
 
 fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
@@ -1010,10 +1009,10 @@ fn diagonal(o: &LinkOptions) -> f64 {
     (o.width as f64).hypot(o.height as f64)
 }
 
-/// The [`median`] of the finite values of `v`.
+/// The [`median_upper`] of the finite values of `v`.
 fn finite_median(mut v: Vec<f64>) -> f64 {
     v.retain(|x| x.is_finite());
-    median(&mut v)
+    median_upper(&mut v)
 }
 
 /// The tracks (indices into the frame's live tracks) that claim one detection: almost always

@@ -232,7 +232,7 @@ fn the_real_pendulum_is_a_field_and_a_tether_above_the_bob() {
         let v: Vec<&str> = line.split(',').collect();
         if let [frame, x, y] = v.as_slice() {
             let parse = |s: &str| s.trim().parse::<f64>().unwrap_or_else(|e| panic!("{line}: {e}"));
-            t.points.push(physfit_track::TrackPoint::new(
+            t.points.push(physfit_tracks::TrackPoint::new(
                 frame.trim().parse().unwrap_or_else(|e| panic!("{line}: {e}")),
                 "bob",
                 parse(x),

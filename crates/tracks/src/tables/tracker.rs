@@ -17,7 +17,7 @@
 use std::path::Path;
 
 use super::{finish, records, unit_metres, ForeignTable, Parsed, Row, TableFormat, TableOptions};
-use crate::{TrackError, TrackPoint};
+use crate::{TableError, TrackPoint};
 
 /// What a Tracker column holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,7 +60,7 @@ struct Group {
 }
 
 /// Reads a Tracker data export.
-pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<ForeignTable, TrackError> {
+pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<ForeignTable, TableError> {
     let rows = records(text, path)?;
     let kinds_of = |cells: &[String]| -> Vec<_> { cells.iter().map(|c| column_kind(c)).collect() };
     let is_header = |k: &[(Kind, Option<String>, Option<String>)]| {
@@ -69,7 +69,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
             .all(|want| k.iter().any(|c| c.0 == *want))
     };
     let Some(h) = (0..rows.len().min(2)).find(|&i| is_header(&kinds_of(&rows[i].1))) else {
-        return Err(TrackError::Csv {
+        return Err(TableError::Csv {
             path: path.to_path_buf(),
             line: rows.first().map_or(1, |r| r.0),
             message: "no `t, x, y` header in the first two lines (a Tracker data export has one)".into(),
@@ -95,7 +95,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
     let mut groups = Vec::new();
     for (c, k) in kinds.iter().enumerate().filter(|(_, k)| k.0 == Kind::X) {
         let (Some(t), Some(y)) = (find(Kind::T, &k.1, c), find(Kind::Y, &k.1, c)) else {
-            return Err(TrackError::Csv {
+            return Err(TableError::Csv {
                 path: path.to_path_buf(),
                 line: *header_line,
                 message: format!("column `{}` has no matching `t` and `y` columns", header[c]),
@@ -125,7 +125,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
             (Ok(None), _) => 1.0,
             (Ok(Some(m)), Some(mpp)) => m / mpp,
             (Ok(Some(_)), None) => {
-                return Err(TrackError::Csv {
+                return Err(TableError::Csv {
                     path: path.to_path_buf(),
                     line: *header_line,
                     message: format!(
@@ -134,7 +134,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
                 })
             }
             (Err(()), _) => {
-                return Err(TrackError::Csv {
+                return Err(TableError::Csv {
                     path: path.to_path_buf(),
                     line: *header_line,
                     message: format!("positions are in {u}, a unit physfit does not know: give --px-per-unit"),
@@ -192,7 +192,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
         spacings.extend(t.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0));
     }
     let Some(min) = spacings.iter().copied().reduce(f64::min) else {
-        return Err(TrackError::Csv {
+        return Err(TableError::Csv {
             path: path.to_path_buf(),
             line: *header_line,
             message: "fewer than two distinct times: the frame interval cannot be read".into(),
@@ -205,7 +205,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
     for &(line, g, t, x, y, tcol) in &raw {
         let k = (t - t0) / dt;
         if (k - k.round()).abs() > 0.2 {
-            return Err(TrackError::Cell {
+            return Err(TableError::Cell {
                 path: path.to_path_buf(),
                 line,
                 column: header[tcol].clone(),

@@ -11,12 +11,12 @@ use std::path::Path;
 use super::{
     column, finish, header_of, records, unit_metres, ForeignTable, Parsed, Row, TableFormat, TableOptions,
 };
-use crate::{TrackError, TrackPoint};
+use crate::{TableError, TrackPoint};
 
 const NEEDS: &str = "TRACK_ID, POSITION_X, POSITION_Y, FRAME";
 
 /// Reads a TrackMate spot table.
-pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<ForeignTable, TrackError> {
+pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<ForeignTable, TableError> {
     let rows = records(text, path)?;
     let (header_line, header) = header_of(&rows, path)?;
     let col = |name| column(header, name, NEEDS, path, header_line);
@@ -51,7 +51,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
             Ok(Some(m)) => match options.metres_per_px {
                 Some(mpp) => m / mpp,
                 None => {
-                    return Err(TrackError::Csv {
+                    return Err(TableError::Csv {
                         path: path.to_path_buf(),
                         line: *line,
                         message: format!(
@@ -61,7 +61,7 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
                 }
             },
             Err(()) => {
-                return Err(TrackError::Csv {
+                return Err(TableError::Csv {
                     path: path.to_path_buf(),
                     line: *line,
                     message: format!("positions are in {u}, a unit physfit does not know: give --px-per-unit"),
@@ -112,7 +112,7 @@ mod tests {
         Label,Spot ID,Track ID,Quality,X,Y,Z,T,Frame,Radius\n\
         Label,Spot ID,Track ID,Quality,X,Y,Z,T,Frame,R\n";
 
-    fn read_str(units: &str, body: &str, options: &TableOptions) -> Result<ForeignTable, TrackError> {
+    fn read_str(units: &str, body: &str, options: &TableOptions) -> Result<ForeignTable, TableError> {
         let text = format!("{HEADER},,,(quality),({units}),({units}),({units}),(sec),,({units})\n{body}");
         read(&text, Path::new("tm.csv"), options)
     }

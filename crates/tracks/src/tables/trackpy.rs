@@ -7,12 +7,12 @@
 use std::path::Path;
 
 use super::{column, finish, header_of, records, ForeignTable, Parsed, Row, TableFormat};
-use crate::{TrackError, TrackPoint};
+use crate::{TableError, TrackPoint};
 
 const NEEDS: &str = "frame, particle, x, y";
 
 /// Reads a trackpy CSV.
-pub(super) fn read(text: &str, path: &Path) -> Result<ForeignTable, TrackError> {
+pub(super) fn read(text: &str, path: &Path) -> Result<ForeignTable, TableError> {
     let rows = records(text, path)?;
     let (header_line, header) = header_of(&rows, path)?;
     let col = |name| column(header, name, NEEDS, path, header_line);
@@ -32,7 +32,7 @@ pub(super) fn read(text: &str, path: &Path) -> Result<ForeignTable, TrackError> 
             .ok_or_else(|| row.error(p, "empty particle (an unlinked feature?)".into()))?;
         let mut point = TrackPoint::new(row.index(f)?, particle, row.number(x)?, row.number(y)?);
         // Optional columns: an empty cell, or NaN (trackpy's ep of a bad fit), stays unknown.
-        let extra = |c: Option<usize>| -> Result<f64, TrackError> {
+        let extra = |c: Option<usize>| -> Result<f64, TableError> {
             match c.map(|c| row.cell(c)).transpose()? {
                 None | Some("") => Ok(f64::NAN),
                 Some(s) => s
@@ -59,7 +59,7 @@ mod tests {
 
     const HEADER: &str = ",y,x,mass,size,ecc,signal,raw_mass,ep,frame,particle\n";
 
-    fn read_str(body: &str) -> Result<ForeignTable, TrackError> {
+    fn read_str(body: &str) -> Result<ForeignTable, TableError> {
         read(&format!("{HEADER}{body}"), Path::new("tp.csv"))
     }
 

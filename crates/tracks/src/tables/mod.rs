@@ -7,12 +7,11 @@
 //! the file, the 1-based line and the column, so `fit` and `diagnose` see one kind of input
 //! whatever made it. The format is detected from the header ([`detect_format`]) or named.
 //! Track names that are not the structure's particle ids are matched to the structure by
-//! first-frame position ([`name_tracks_by_position`]), with the optimal assignment that
-//! names tracks in `track --structure` ([`crate::match_to_starts`]).
+//! first-frame position afterwards, by the tracker's `name_tracks_by_position` (it needs
+//! the tracker's optimal assignment, so it lives in `physfit-track`).
 //!
 //! What each format's columns mean and what is assumed is in `docs/tables.md`.
 
-mod naming;
 mod tracker;
 mod trackmate;
 mod trackpy;
@@ -20,9 +19,7 @@ mod trackpy;
 use std::collections::HashSet;
 use std::path::Path;
 
-use crate::{TrackError, TrackTable};
-
-pub use naming::name_tracks_by_position;
+use crate::{TableError, TrackTable};
 
 /// A track table's format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -98,12 +95,12 @@ pub struct ForeignTable {
 
 /// Reads a track table in any supported format (see [`TableOptions`]). Errors name the file,
 /// the 1-based line and, for a bad cell, the column.
-pub fn read_track_table(path: &Path, options: &TableOptions) -> Result<ForeignTable, TrackError> {
-    let bytes = std::fs::read(path).map_err(|source| TrackError::Io {
+pub fn read_track_table(path: &Path, options: &TableOptions) -> Result<ForeignTable, TableError> {
+    let bytes = std::fs::read(path).map_err(|source| TableError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let text = String::from_utf8(bytes).map_err(|e| TrackError::Csv {
+    let text = String::from_utf8(bytes).map_err(|e| TableError::Csv {
         path: path.to_path_buf(),
         line: 1 + e.as_bytes()[..e.utf8_error().valid_up_to()]
             .iter()
@@ -119,7 +116,7 @@ pub fn read_track_table_str(
     text: &str,
     path: &Path,
     options: &TableOptions,
-) -> Result<ForeignTable, TrackError> {
+) -> Result<ForeignTable, TableError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     for (key, v) in [
         ("px per unit", options.px_per_unit),
@@ -127,13 +124,13 @@ pub fn read_track_table_str(
     ] {
         if let Some(v) = v {
             if !(v.is_finite() && v > 0.0) {
-                return Err(TrackError::Option(format!("{key} {v} must be a positive number")));
+                return Err(TableError::Option(format!("{key} {v} must be a positive number")));
             }
         }
     }
     let format = match options.format {
         Some(f) => f,
-        None => detect_format(text).ok_or_else(|| TrackError::Csv {
+        None => detect_format(text).ok_or_else(|| TableError::Csv {
             path: path.to_path_buf(),
             line: 1,
             message: format!(
@@ -154,7 +151,7 @@ pub fn read_track_table_str(
         TableFormat::Tracker => tracker::read(text, path, options)?,
     };
     if out.table.points.is_empty() {
-        return Err(TrackError::Csv {
+        return Err(TableError::Csv {
             path: path.to_path_buf(),
             line: text.lines().count().max(1) as u64,
             message: format!("no track points in this {format} table"),
@@ -220,7 +217,7 @@ fn delimiter_of(line: &str) -> u8 {
 }
 
 /// Every record of `text` with its 1-based line, cells trimmed; blank lines are left out.
-fn records(text: &str, path: &Path) -> Result<Vec<(u64, Vec<String>)>, TrackError> {
+fn records(text: &str, path: &Path) -> Result<Vec<(u64, Vec<String>)>, TableError> {
     // A Tracker export may open with a one-cell name line: look at the second line too.
     let first: String = text
         .lines()
@@ -236,7 +233,7 @@ fn records(text: &str, path: &Path) -> Result<Vec<(u64, Vec<String>)>, TrackErro
         .from_reader(text.as_bytes());
     let mut out = Vec::new();
     for rec in rdr.records() {
-        let rec = rec.map_err(|e| TrackError::Csv {
+        let rec = rec.map_err(|e| TableError::Csv {
             path: path.to_path_buf(),
             line: e.position().map_or(0, |p| p.line()),
             message: e.to_string(),
@@ -260,8 +257,8 @@ struct Row<'a> {
 
 impl Row<'_> {
     /// An error at this row naming `col`'s header.
-    fn error(&self, col: usize, message: String) -> TrackError {
-        TrackError::Cell {
+    fn error(&self, col: usize, message: String) -> TableError {
+        TableError::Cell {
             path: self.path.to_path_buf(),
             line: self.line,
             column: self
@@ -274,11 +271,11 @@ impl Row<'_> {
     }
 
     /// The cell in column `col`, or an error for a row too short (a truncated file).
-    fn cell(&self, col: usize) -> Result<&str, TrackError> {
+    fn cell(&self, col: usize) -> Result<&str, TableError> {
         self.cells
             .get(col)
             .map(String::as_str)
-            .ok_or_else(|| TrackError::Csv {
+            .ok_or_else(|| TableError::Csv {
                 path: self.path.to_path_buf(),
                 line: self.line,
                 message: format!(
@@ -290,7 +287,7 @@ impl Row<'_> {
     }
 
     /// The cell in column `col` as a finite number.
-    fn number(&self, col: usize) -> Result<f64, TrackError> {
+    fn number(&self, col: usize) -> Result<f64, TableError> {
         let s = self.cell(col)?;
         let v: f64 = s
             .parse()
@@ -303,7 +300,7 @@ impl Row<'_> {
 
     /// The cell in column `col` as a frame index: a non-negative integer, possibly written as
     /// a float (`3.0`).
-    fn index(&self, col: usize) -> Result<usize, TrackError> {
+    fn index(&self, col: usize) -> Result<usize, TableError> {
         let v = self.number(col)?;
         if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 {
             return Err(self.error(col, format!("{v} is not a frame index (a whole number >= 0)")));
@@ -313,7 +310,7 @@ impl Row<'_> {
 
     /// The cell in column `col` as a track name: integers written as floats (`3.0`) lose
     /// their `.0`; an empty cell is `None`.
-    fn name(&self, col: usize) -> Result<Option<String>, TrackError> {
+    fn name(&self, col: usize) -> Result<Option<String>, TableError> {
         let s = self.cell(col)?;
         if s.is_empty() {
             return Ok(None);
@@ -325,25 +322,25 @@ impl Row<'_> {
     }
 }
 
-/// The column named `name` in `header`, or an error naming the missing column and the
-/// columns the format needs.
 /// The first record of `rows` (its line and cells): a table's header; an error naming `path`
 /// when there is none.
-fn header_of<'a>(rows: &'a [(u64, Vec<String>)], path: &Path) -> Result<(u64, &'a [String]), TrackError> {
+fn header_of<'a>(rows: &'a [(u64, Vec<String>)], path: &Path) -> Result<(u64, &'a [String]), TableError> {
     rows.first()
         .map(|(line, cells)| (*line, cells.as_slice()))
-        .ok_or_else(|| TrackError::Csv {
+        .ok_or_else(|| TableError::Csv {
             path: path.to_path_buf(),
             line: 1,
             message: "empty file: no header".into(),
         })
 }
 
-fn column(header: &[String], name: &str, needs: &str, path: &Path, line: u64) -> Result<usize, TrackError> {
+/// The column named `name` in `header`, or an error naming the missing column and the
+/// columns the format needs.
+fn column(header: &[String], name: &str, needs: &str, path: &Path, line: u64) -> Result<usize, TableError> {
     header
         .iter()
         .position(|h| h == name)
-        .ok_or_else(|| TrackError::Csv {
+        .ok_or_else(|| TableError::Csv {
             path: path.to_path_buf(),
             line,
             message: format!("missing column `{name}` (need {needs})"),
@@ -373,7 +370,7 @@ struct Parsed {
 
 /// The table of `points` sorted by frame then by track order of first appearance; a second
 /// point of one track in one frame is an error naming both lines.
-fn finish(points: Vec<Parsed>, path: &Path) -> Result<TrackTable, TrackError> {
+fn finish(points: Vec<Parsed>, path: &Path) -> Result<TrackTable, TableError> {
     let mut order: Vec<&str> = Vec::new();
     let mut seen_names = HashSet::new();
     for p in &points {
@@ -392,7 +389,7 @@ fn finish(points: Vec<Parsed>, path: &Path) -> Result<TrackTable, TrackError> {
     for w in keyed.windows(2) {
         if (w[0].0, w[0].1) == (w[1].0, w[1].1) {
             let p = &points[w[1].3].point;
-            return Err(TrackError::Csv {
+            return Err(TableError::Csv {
                 path: path.to_path_buf(),
                 line: w[1].2,
                 message: format!(

@@ -1,0 +1,292 @@
+//! The track table: the CSV contract between tracking and identification.
+//!
+//! Columns `frame,particle,x,y,mass,size` are trackpy's names and meanings; physfit adds `ep`
+//! (estimated position error) and `flag` (how the point was obtained). Readers need only
+//! `frame,particle,x,y` and ignore columns they do not know, so truth files
+//! (`frame,particle,x,y`) are track tables too.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::TableError;
+
+/// How a track point was obtained.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PointFlag {
+    /// Located in the frame from its own blob.
+    #[default]
+    Detected,
+    /// Located by splitting a blob that held several particles.
+    Split,
+    /// Not seen as a blob of its own: bridged from the track's motion prediction (with a
+    /// structure, placed from the image where it shares a blob with other particles).
+    Interpolated,
+}
+
+/// One particle's position in one frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrackPoint {
+    /// 0-based frame index (the frame file's index in natural name order).
+    pub frame: usize,
+    /// Track name: a structure particle id, or an integer for unnamed tracks.
+    pub particle: String,
+    /// Column coordinate, px (pixel centres at integers, x right).
+    pub x: f64,
+    /// Row coordinate, px (y down).
+    pub y: f64,
+    /// Integrated brightness above background, grey levels · px² (NaN when unknown).
+    #[serde(default = "nan", deserialize_with = "empty_as_nan")]
+    pub mass: f64,
+    /// Blob radius of gyration, px (NaN when unknown).
+    #[serde(default = "nan", deserialize_with = "empty_as_nan")]
+    pub size: f64,
+    /// Estimated standard error of `x` and `y`, px (NaN when unknown).
+    #[serde(default = "nan", deserialize_with = "empty_as_nan")]
+    pub ep: f64,
+    /// How the point was obtained.
+    #[serde(default)]
+    pub flag: PointFlag,
+}
+
+fn nan() -> f64 {
+    f64::NAN
+}
+
+fn empty_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let s: Option<String> = Option::deserialize(d)?;
+    match s.as_deref().map(str::trim) {
+        None | Some("") => Ok(f64::NAN),
+        Some(t) => t.parse().map_err(serde::de::Error::custom),
+    }
+}
+
+impl TrackPoint {
+    /// A detected point with unknown mass, size and error.
+    pub fn new(frame: usize, particle: impl Into<String>, x: f64, y: f64) -> Self {
+        TrackPoint {
+            frame,
+            particle: particle.into(),
+            x,
+            y,
+            mass: f64::NAN,
+            size: f64::NAN,
+            ep: f64::NAN,
+            flag: PointFlag::Detected,
+        }
+    }
+}
+
+/// All track points of a recording, sorted by frame then by track order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrackTable {
+    /// The points.
+    pub points: Vec<TrackPoint>,
+}
+
+impl TrackTable {
+    /// Reads a track CSV. Needs the columns `frame,particle,x,y`; others are optional.
+    /// Errors name the file and line; non-finite coordinates are errors.
+    pub fn read_csv(path: &Path) -> Result<TrackTable, TableError> {
+        let file = std::fs::File::open(path).map_err(|source| TableError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::read_from(file, path)
+    }
+
+    /// Reads a track CSV from any reader; `path` names it in errors.
+    pub fn read_from(reader: impl std::io::Read, path: &Path) -> Result<TrackTable, TableError> {
+        let mut rdr = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(reader);
+        let csv_err = |line: u64, message: String| TableError::Csv {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+        let headers = rdr.headers().map_err(|e| csv_err(1, e.to_string()))?.clone();
+        for need in ["frame", "particle", "x", "y"] {
+            if !headers.iter().any(|h| h == need) {
+                return Err(csv_err(
+                    1,
+                    format!("missing column `{need}` (need frame,particle,x,y)"),
+                ));
+            }
+        }
+        let mut points = Vec::new();
+        for (k, rec) in rdr.deserialize::<TrackPoint>().enumerate() {
+            let line = k as u64 + 2;
+            let p = rec.map_err(|e| {
+                let line = e.position().map_or(line, |p| p.line());
+                let msg = match e.kind() {
+                    csv::ErrorKind::Deserialize { err, .. } => match err.field() {
+                        Some(f) => format!(
+                            "column `{}`: {}",
+                            headers.get(f as usize).unwrap_or("?"),
+                            err.kind()
+                        ),
+                        None => err.kind().to_string(),
+                    },
+                    _ => e.to_string(),
+                };
+                csv_err(line, msg)
+            })?;
+            if !(p.x.is_finite() && p.y.is_finite()) {
+                return Err(csv_err(
+                    line,
+                    format!(
+                        "particle {} has a non-finite position ({}, {})",
+                        p.particle, p.x, p.y
+                    ),
+                ));
+            }
+            points.push(p);
+        }
+        Ok(TrackTable { points })
+    }
+
+    /// Writes the table as CSV (`frame,particle,x,y,mass,size,ep,flag`) atomically: a
+    /// temporary file renamed into place.
+    pub fn write_csv(&self, path: &Path) -> Result<(), TableError> {
+        let io_err = |source| TableError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut w = csv::Writer::from_writer(Vec::new());
+        if self.points.is_empty() {
+            // serde writes the header with the first row; an empty table still needs it.
+            w.write_record(["frame", "particle", "x", "y", "mass", "size", "ep", "flag"])
+                .map_err(|e| io_err(std::io::Error::other(e)))?;
+        }
+        for p in &self.points {
+            w.serialize(p).map_err(|e| io_err(std::io::Error::other(e)))?;
+        }
+        let bytes = w
+            .into_inner()
+            .map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
+        write_atomic(path, &bytes)
+    }
+
+    /// Track names in order of first appearance.
+    pub fn particle_ids(&self) -> Vec<String> {
+        let mut seen = std::collections::HashSet::new();
+        self.points
+            .iter()
+            .filter(|p| seen.insert(p.particle.as_str()))
+            .map(|p| p.particle.clone())
+            .collect()
+    }
+
+    /// The points of each track, by name, each sorted by frame.
+    pub fn by_particle(&self) -> BTreeMap<&str, Vec<&TrackPoint>> {
+        let mut out: BTreeMap<&str, Vec<&TrackPoint>> = BTreeMap::new();
+        for p in &self.points {
+            out.entry(p.particle.as_str()).or_default().push(p);
+        }
+        for v in out.values_mut() {
+            v.sort_by_key(|p| p.frame);
+        }
+        out
+    }
+
+    /// One past the largest frame index (0 for an empty table).
+    pub fn frame_end(&self) -> usize {
+        self.points.iter().map(|p| p.frame + 1).max().unwrap_or(0)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder, renamed into place:
+/// a failed write never leaves a half-written file under the final name. (physfit-model has
+/// its own `write_atomic`; this crate sits below it and cannot use it.)
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TableError> {
+    let io_err = |source| TableError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let tmp = dir.join(format!(
+        ".{}.{}.tmp",
+        path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
+        std::process::id()
+    ));
+    std::fs::write(&tmp, bytes)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            io_err(e)
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_truth_columns_and_extra_columns() {
+        let text = "frame,particle,x,y,extra\n0,p0,1.5,2.5,z\n1,p0,2.0,3.0,z\n";
+        let t = TrackTable::read_from(text.as_bytes(), Path::new("t.csv")).unwrap();
+        assert_eq!(t.points.len(), 2);
+        assert_eq!(t.points[1].frame, 1);
+        assert!((t.points[1].y - 3.0).abs() < 1e-12);
+        assert!(t.points[0].mass.is_nan());
+        assert_eq!(t.points[0].flag, PointFlag::Detected);
+    }
+
+    #[test]
+    fn error_names_file_line_and_column() {
+        let text = "frame,particle,x,y\n0,p0,1.5,2.5\n1,p0,abc,3.0\n";
+        let e = TrackTable::read_from(text.as_bytes(), Path::new("bad.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("bad.csv:3:"), "{e}");
+        assert!(e.contains("`x`"), "{e}");
+    }
+
+    #[test]
+    fn missing_column_is_named() {
+        let e = TrackTable::read_from("frame,particle,x\n".as_bytes(), Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("missing column `y`"), "{e}");
+    }
+
+    #[test]
+    fn non_finite_position_is_an_error() {
+        let text = "frame,particle,x,y\n0,p0,NaN,2.5\n";
+        let e = TrackTable::read_from(text.as_bytes(), Path::new("t.csv"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("t.csv:2") && e.contains("non-finite"), "{e}");
+    }
+
+    #[test]
+    fn an_empty_table_keeps_its_header() {
+        let dir = std::env::temp_dir().join(format!("physfit-tt-empty-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.csv");
+        TrackTable::default().write_csv(&path).unwrap();
+        assert!(TrackTable::read_csv(&path).unwrap().points.is_empty());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn round_trip_through_csv() {
+        let dir = std::env::temp_dir().join(format!("physfit-tt-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.csv");
+        let mut p = TrackPoint::new(3, "a", 1.25, -2.5);
+        p.flag = PointFlag::Interpolated;
+        p.mass = 10.0;
+        let t = TrackTable { points: vec![p] };
+        t.write_csv(&path).unwrap();
+        let back = TrackTable::read_csv(&path).unwrap();
+        assert_eq!(back.points[0].flag, PointFlag::Interpolated);
+        assert_eq!(back.points[0].particle, "a");
+        assert!(back.points[0].size.is_nan());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
