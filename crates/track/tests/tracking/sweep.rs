@@ -263,11 +263,11 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (32 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (33 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on.
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1012, 1013, 1014, 1015, 1016, 1020, 1021, 1022, 1023, 1024,
-    1027, 1028, 1029, 1032, 1034, 1035, 1036,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1010, 1012, 1013, 1014, 1015, 1016, 1020, 1021, 1022, 1023,
+    1024, 1027, 1028, 1029, 1032, 1034, 1035, 1036,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -289,7 +289,7 @@ fn styles_followed_today_stay_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 16 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
+#[ignore = "tracker issue 20: 15 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     let mut rows: Vec<Row> = SYNTH_SEEDS.map(synth_row).collect();
