@@ -14,8 +14,6 @@
 //! Without this, an estimate started at a fixed small radius found a large disc as the
 //! fragments of its rim and converged on them: discs of radius 6 px and more were lost.
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
-
 /// A blob found at one radius of the ladder.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ScaleBlob {
@@ -96,7 +94,7 @@ pub(crate) fn strongest(mut blobs: Vec<ScaleBlob>) -> Vec<ScaleBlob> {
 /// strongly with fragments of its rim at a small scale, and [`strongest`] keeps those; but
 /// none of them holds the ring's centre, where a structure names it, while the whole ring's
 /// answer at its own scale does. A disc's own answer is its strongest anyway. Each radius's
-/// blobs are searched through a k-d tree (thousands of named particles, a dozen radii).
+/// blobs are searched sorted by column (thousands of named particles, a dozen radii).
 pub(crate) fn holding(blobs: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<Option<ScaleBlob>> {
     let mut best: Vec<Option<ScaleBlob>> = vec![None; starts.len()];
     let mut radii: Vec<f64> = blobs.iter().map(|b| b.radius).collect();
@@ -104,14 +102,18 @@ pub(crate) fn holding(blobs: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<Option<Sc
     radii.dedup();
     for r in radii {
         // The radii are copies of the ladder's values, so equality picks one level exactly.
-        let level: Vec<&ScaleBlob> = blobs.iter().filter(|b| b.radius.total_cmp(&r).is_eq()).collect();
-        let at: Vec<[f64; 2]> = level.iter().map(|b| [b.x, b.y]).collect();
-        let tree = ImmutableKdTree::<f64, 2>::new_from_slice(&at);
+        let mut level: Vec<&ScaleBlob> = blobs.iter().filter(|b| b.radius.total_cmp(&r).is_eq()).collect();
+        // Sorted by column, each start searches the columns within `r` of its own. (kiddo
+        // 4.2's immutable k-d tree, used before, panicked while it was built ("mid > len") on
+        // one scan of `pendulum-scale`, whose grid lines put many maxima on equal columns.)
+        level.sort_by(|a, b| a.x.total_cmp(&b.x));
         for (s, best) in starts.iter().zip(best.iter_mut()) {
-            for n in tree.within_unsorted::<SquaredEuclidean>(s, r * r) {
-                let b = level[n.item as usize];
-                if best.map_or(true, |k| b.peak > k.peak) {
-                    *best = Some(*b);
+            let from = level.partition_point(|b| b.x < s[0] - r);
+            for b in level[from..].iter().take_while(|b| b.x <= s[0] + r) {
+                if (b.x - s[0]).powi(2) + (b.y - s[1]).powi(2) <= r * r
+                    && best.map_or(true, |k| b.peak > k.peak)
+                {
+                    *best = Some(**b);
                 }
             }
         }

@@ -263,11 +263,11 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (32 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (33 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on.
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1012, 1013, 1014, 1015, 1016, 1020, 1021, 1022, 1023, 1024,
-    1027, 1028, 1029, 1032, 1034, 1035, 1036,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1010, 1012, 1013, 1014, 1015, 1016, 1020, 1021, 1022, 1023,
+    1024, 1027, 1028, 1029, 1032, 1034, 1035, 1036,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -289,7 +289,7 @@ fn styles_followed_today_stay_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 16 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
+#[ignore = "tracker issue 20: 15 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     let mut rows: Vec<Row> = SYNTH_SEEDS.map(synth_row).collect();
@@ -312,4 +312,82 @@ fn sweep_of_random_styles_is_followed_within_the_bound() {
     ));
     println!("{report}");
     assert_eq!(failed, 0, "\n{report}");
+}
+
+/// A ring style: the style drawn from `seed` (its light, camera, polarity, colours, blur,
+/// count and motion) with rings of rim width `width` (a fraction of the radius) and radius
+/// `radius` px, one size, under pixel noise `noise` (lowered where the rings would not be
+/// visible, as [`Style::random`] does).
+fn ring_row(seed: u64, radius: f64, width: f64, noise: f64) -> Row {
+    let mut style = Style::random(seed);
+    style.profile = Profile::Ring { width };
+    style.radius = radius;
+    style.mixed = false;
+    style.particle_count = style.particle_count.min(((48.0 / radius) as usize).clamp(1, 8));
+    style.fit_frame(1.1);
+    style.noise = noise.min(style.visible_noise());
+    let seq = Sequence::new(style);
+    let dir = TempDir::new("sweep-ring");
+    seq.write_frames(dir.path()).expect("write frames");
+    run("ring", &seq, dir.path())
+}
+
+/// Radii of the ring neighbours, px.
+const RING_RADII: [f64; 5] = [4.0, 6.0, 9.0, 14.0, 20.0];
+
+/// The rim width of ring neighbour `(seed, radius index)`, a fraction of the radius
+/// (0.2-0.35, spread over the seeds and radii).
+fn ring_width(seed: u64, i: usize) -> f64 {
+    0.2 + 0.15 * ((seed as usize + i) % 4) as f64 / 3.0
+}
+
+/// Rings beyond the sweep's seeds: radius 4-20 px, rim 0.2-0.35 of it, noise 5 and 15,
+/// each seed's own light and camera. Prints the table; asserts nothing (an exploration of
+/// the class, `--ignored`).
+#[test]
+#[ignore = "exploration: prints the ring neighbours' table"]
+fn ring_neighbours_table() {
+    let mut report = format!("{HEADER}\n");
+    let mut failed = 0;
+    let mut count = 0;
+    for seed in 3000..3006u64 {
+        for (i, &radius) in RING_RADII.iter().enumerate() {
+            for &noise in &[5.0, 15.0] {
+                let row = ring_row(seed, radius, ring_width(seed, i), noise);
+                failed += usize::from(!row.passed());
+                count += 1;
+                report.push_str(&row.line());
+                report.push('\n');
+            }
+        }
+    }
+    println!("{report}\n{failed} of {count} ring styles fail");
+}
+
+/// Rings of radius 6 and 9 px beside their neighbours (seeds 3001, 3002 and 3005: no
+/// gradient, a gradient of 0.17 with vignetting 0.22, none), noise 5 and 15: each is
+/// followed within the bound or refused (never tracks that are wrong), and every ring of
+/// 6 px is followed. Before estimates that end within a radius of each other were joined,
+/// the band-pass answer between two rings' near rims took half a ring, 2r/pi off its
+/// centre: 0.66/0.50 px RMS at 6 px and noise 5 under seed 3002's light (0.05 now), and
+/// 1.85/1.91 px at 9 px. (Rings of 14-20 px, and rings under a saturating exposure, still
+/// fail: `ring_neighbours_table`.)
+#[test]
+fn rings_beside_neighbours_are_not_split_between_them() {
+    let mut bad = Vec::new();
+    for seed in [3001u64, 3002, 3005] {
+        for i in [1usize, 2] {
+            for noise in [5.0, 15.0] {
+                let row = ring_row(seed, RING_RADII[i], ring_width(seed, i), noise);
+                let refused = row
+                    .failure
+                    .as_deref()
+                    .is_some_and(|f| f.starts_with("tracking failed"));
+                if !(row.passed() || (refused && i > 1)) {
+                    bad.push(row.line());
+                }
+            }
+        }
+    }
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
