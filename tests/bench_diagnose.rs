@@ -150,3 +150,29 @@ fn bench_seed_11() {
 fn bench_seed_12() {
     bench_seed(12);
 }
+
+#[test]
+fn the_time_table_counts_every_recording_once() {
+    let dir = tempdir();
+    let table = dir.path().join("table.md");
+    physfit()
+        .args(["-q", "bench", "diagnose", "--quick", "--count", "3", "--out"])
+        .arg(&table)
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(&table).expect("table.md");
+    let start = text.find("Diagnosis time by recording size").expect("time table");
+    let rows: Vec<&str> = text[start..]
+        .lines()
+        .skip(4)
+        .take_while(|l| l.starts_with('|'))
+        .collect();
+    assert_eq!(rows.len(), 3, "{}", &text[start..]);
+    // Cells read `n: median / longest; under of n`.
+    let counted: usize = rows
+        .iter()
+        .flat_map(|r| r.split('|').skip(2))
+        .filter_map(|cell| cell.trim().split(':').next()?.parse::<usize>().ok())
+        .sum();
+    assert_eq!(counted, 3, "{}", &text[start..]);
+}

@@ -320,6 +320,24 @@ fn files_above_the_size_limits_are_refused_unread() {
             "--limit tracks-mb=",
         ],
     );
+    // The same limit for the truth `track` scores against.
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/gaussian-blobs");
+    refused(
+        physfit()
+            .args(["--limit", "tracks-mb=0.001", "track"])
+            .arg(fixture.join("frames"))
+            .arg("--truth")
+            .arg(fixture.join("truth.csv"))
+            .arg("--out")
+            .arg(dir.path().join("tracked.csv"))
+            .assert(),
+        &[
+            "truth.csv",
+            "track table is",
+            "`tracks-mb` limit of 0.001 MB",
+            "--limit tracks-mb=",
+        ],
+    );
 }
 
 #[test]

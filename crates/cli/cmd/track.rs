@@ -65,6 +65,7 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         println!("tracks -> {}", args.out.display());
     }
     if let Some(truth_path) = &args.truth {
+        crate::limits::check_tracks_file(truth_path)?;
         let truth = TrackTable::read_csv(truth_path)
             .with_context(|| format!("reading truth {}", truth_path.display()))?;
         let score = physfit_track::score_tracks(&outcome.table, &truth, outcome.stats.match_radius());

@@ -271,10 +271,57 @@ pub fn markdown(options: &BenchOptions, results: &[RecordingResult], elapsed: f6
     out.push_str(&class_table(results));
     out.push('\n');
     out.push_str(&effect_table(results));
+    out.push('\n');
+    out.push_str(&time_table(results));
     let failures: Vec<&RecordingResult> = results.iter().filter(|r| !r.exactly_right()).collect();
     let _ = writeln!(out, "\n#### Not exactly right ({})\n", failures.len());
     for r in failures {
         out.push_str(&failure_line(r, options.small));
+        out.push('\n');
+    }
+    out
+}
+
+/// Particle counts and frame counts grouping the diagnosis times.
+const TIME_PARTICLES: [(usize, usize); 3] = [(1, 3), (4, 6), (7, 10)];
+const TIME_FRAMES: [(usize, usize); 3] = [(10, 99), (100, 299), (300, 600)];
+
+/// Diagnosis time by recording size: count, median and longest per cell (issue 21's target:
+/// a 300-frame, 5-particle recording in under 10 s).
+fn time_table(results: &[RecordingResult]) -> String {
+    let mut out = String::from(
+        "Diagnosis time by recording size (recordings: median / longest, s; under 10 s):\n\n| particles |",
+    );
+    for (lo, hi) in TIME_FRAMES {
+        let _ = write!(out, " {lo}-{hi} frames |");
+    }
+    out.push_str("\n|---|");
+    for _ in TIME_FRAMES {
+        out.push_str("---:|");
+    }
+    out.push('\n');
+    for (plo, phi) in TIME_PARTICLES {
+        let _ = write!(out, "| {plo}-{phi} |");
+        for (flo, fhi) in TIME_FRAMES {
+            let mut times: Vec<f64> = results
+                .iter()
+                .filter(|r| r.error.is_none())
+                .filter_map(|r| {
+                    let g = r.regime.as_ref()?;
+                    ((plo..=phi).contains(&g.particles) && (flo..=fhi).contains(&g.frames))
+                        .then_some(r.times.diagnose)
+                })
+                .collect();
+            let n = times.len();
+            let under = times.iter().filter(|&&t| t < 10.0).count();
+            let longest = times.iter().copied().fold(f64::NAN, f64::max);
+            match median_of(&mut times) {
+                Some(m) => {
+                    let _ = write!(out, " {n}: {m:.1} / {longest:.1}; {under} of {n} |");
+                }
+                None => out.push_str(" - |"),
+            }
+        }
         out.push('\n');
     }
     out
