@@ -37,6 +37,13 @@ pub const SCREEN_PER_PARAMETER: f64 = 2.0;
 /// compressed where it was stretched (a stiff tether pulls nearly alike from either side).
 pub const ALONG_TETHER_FACTORS: [f64; 5] = [0.5, 0.75, 1.5, 2.5, -1.0];
 
+/// An anchor farther than this many data length scales from its particle is also tried at
+/// [`ALONG_TETHER_SCALES`] length scales by [`Context::along_tether`].
+pub const ALONG_TETHER_FAR: f64 = 8.0;
+
+/// Anchor distances, in data length scales, tried for a far anchor.
+pub const ALONG_TETHER_SCALES: [f64; 3] = [1.0, 2.0, 4.0];
+
 /// Most passes of [`Context::along_tether`] per tether.
 pub const ALONG_TETHER_PASSES: usize = 3;
 
@@ -670,8 +677,16 @@ impl Context<'_> {
             return None;
         }
         let direction = (anchor - mean) / distance;
+        // An anchor run off far beyond the data (many times its length scale) is also tried
+        // at the data's own scale: the valley is long, and factors of its distance step
+        // through it slowly.
+        let scale = self.scales.length;
+        let mut all: Vec<f64> = factors.to_vec();
+        if distance > ALONG_TETHER_FAR * scale {
+            all.extend(ALONG_TETHER_SCALES.iter().map(|s| s * scale / distance));
+        }
         let mut best: Option<Current> = None;
-        for &factor in factors {
+        for &factor in &all {
             let mut start = p.clone();
             let moved = mean + direction * (distance * factor);
             start[o] = moved.x;
@@ -681,6 +696,12 @@ impl Context<'_> {
             let Some(fit) = self.fit(family, &start, &with.fit.state, true) else {
                 continue;
             };
+            if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+                eprintln!(
+                    "   along tether {k}: distance {distance:.1} x {factor}: cost {:.4} (from {:.4})",
+                    fit.fit.sum_squares, with.fit.sum_squares
+                );
+            }
             let bar = best.as_ref().map_or(with.fit.sum_squares, |b| b.fit.sum_squares);
             if fit.fit.sum_squares < bar {
                 best = Some(fit);
