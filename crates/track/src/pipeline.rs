@@ -896,20 +896,23 @@ impl Finder {
         let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
         let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
         let (width, height) = frame.size();
-        let found = refine_centroids_with_scratch(
-            &self.signal,
-            width,
-            height,
-            &seeds,
-            &areas,
-            window,
-            background.noise_sigma,
-            &mut self.locate,
-        );
+        let noise = background.noise_sigma;
+        let mut locate = |seeds: &[[f64; 2]], areas: &[f64]| {
+            refine_centroids_with_scratch(
+                &self.signal,
+                width,
+                height,
+                seeds,
+                areas,
+                window,
+                noise,
+                &mut self.locate,
+            )
+        };
+        let mut found = locate(&seeds, &areas);
         if parts == Parts::Keep {
             return found;
         }
-        let mut found = found;
         // Joined estimates move, and may then end within a radius of another: joined again,
         // a few rounds at most (each round leaves fewer estimates). One round left a ring of
         // 9 px 0.62 / 0.98 px RMS off (test `rings_beside_neighbours_are_not_split_between_them`,
@@ -920,16 +923,7 @@ impl Finder {
             let Some((seeds, areas)) = join_close(&found, params.radius) else {
                 break;
             };
-            found = refine_centroids_with_scratch(
-                &self.signal,
-                width,
-                height,
-                &seeds,
-                &areas,
-                window,
-                background.noise_sigma,
-                &mut self.locate,
-            );
+            found = locate(&seeds, &areas);
         }
         found
     }
