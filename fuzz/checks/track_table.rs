@@ -1,6 +1,6 @@
 //! Track table text through every reader (the format detected, then each format named) and,
 //! for a table read, the structure matching by first position: no panic, and a table read
-//! holds finite positions only.
+//! holds finite positions only and frame indices up to `u32::MAX` (the readers' bound).
 
 use std::path::Path;
 
@@ -29,7 +29,12 @@ pub fn check(data: &[u8]) {
         };
         let mut table = read.table;
         assert!(table.points.iter().all(|p| p.x.is_finite() && p.y.is_finite()));
-        let _ = table.frame_end();
+        // Frame indices fit the limits' arithmetic, and the frame count is past every one.
+        let end = table.frame_end();
+        assert!(table
+            .points
+            .iter()
+            .all(|p| p.frame <= u32::MAX as usize && p.frame < end));
         let starts = [
             ("a".to_string(), [10.0, 10.0]),
             ("b".to_string(), [100.0, 50.0]),

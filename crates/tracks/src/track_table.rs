@@ -192,7 +192,11 @@ impl TrackTable {
 
     /// One past the largest frame index (0 for an empty table).
     pub fn frame_end(&self) -> usize {
-        self.points.iter().map(|p| p.frame + 1).max().unwrap_or(0)
+        self.points
+            .iter()
+            .map(|p| p.frame.saturating_add(1))
+            .max()
+            .unwrap_or(0)
     }
 }
 

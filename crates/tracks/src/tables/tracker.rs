@@ -204,6 +204,17 @@ pub(super) fn read(text: &str, path: &Path, options: &TableOptions) -> Result<Fo
     let mut points = Vec::with_capacity(raw.len());
     for &(line, g, t, x, y, tcol) in &raw {
         let k = (t - t0) / dt;
+        if k.round() > f64::from(u32::MAX) {
+            return Err(TableError::Cell {
+                path: path.to_path_buf(),
+                line,
+                column: header[tcol].clone(),
+                message: format!(
+                    "time {t} s is frame {:.0} of the grid (interval {dt} s from {t0} s): not a frame index",
+                    k.round()
+                ),
+            });
+        }
         if (k - k.round()).abs() > 0.2 {
             return Err(TableError::Cell {
                 path: path.to_path_buf(),
@@ -309,6 +320,13 @@ mod tests {
         .to_string();
         assert!(
             e.starts_with("tr.csv:5: column `t`") && e.contains("frame grid"),
+            "{e}"
+        );
+        let e = read("t,x,y\n0,1,1\n0.5,1,1\n1e30,1,1\n", Path::new("tr.csv"), &opts())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("tr.csv:4: column `t`") && e.contains("not a frame index"),
             "{e}"
         );
         let e = read("t,x,y\n0,1,1\n", Path::new("tr.csv"), &opts())
