@@ -135,3 +135,56 @@ fn a_failed_stage_is_named_and_leaves_the_folder_as_it_was() {
         .failure()
         .stderr(predicate::str::contains("--fps -3").and(predicate::str::contains("frame rate")));
 }
+
+#[test]
+fn a_fixed_pivot_out_of_view_is_not_tracked() {
+    // A pendulum whose pivot lies 200 px above the frame: the camera sees the bob alone. The
+    // pivot's position is in the scene; tracking it was refused ("detected in 0 frames").
+    let dir = tempdir();
+    let scene = write(
+        dir.path(),
+        "pendulum.toml",
+        r#"
+        name = "pendulum-out-of-view"
+        [recording]
+        fps = 60.0
+        frames = 60
+        substeps = 10
+        [render]
+        width = 200
+        height = 200
+        radius = 5.0
+        [[particles]]
+        id = "bob"
+        mass = 1.0
+        position = [100.0, 150.0]
+        velocity = [60.0, 0.0]
+        [[particles]]
+        id = "pivot"
+        mass = 1.0
+        position = [100.0, -200.0]
+        fixed = true
+        [[springs]]
+        between = ["bob", "pivot"]
+        length = 349.0
+        stiffness = 3000.0
+        [physics]
+        gravity = [0.0, 600.0]
+    "#,
+    );
+    let out = dir.path().join("out");
+    physfit()
+        .args(["-q", "run"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .assert()
+        .success();
+    let tracks = std::fs::read_to_string(out.join("tracks.csv")).expect("tracks.csv");
+    let rows: Vec<&str> = tracks.lines().skip(1).collect();
+    assert_eq!(rows.len(), 60, "one bob point per frame: {tracks}");
+    assert!(
+        rows.iter().all(|r| r.split(',').nth(1) == Some("bob")),
+        "{tracks}"
+    );
+}

@@ -45,6 +45,32 @@ pub fn named_start(structure: &Scene) -> Vec<(String, [f64; 2])> {
         .collect()
 }
 
+/// [`named_start`] less the fixed particles outside the recording's frames (a pendulum's
+/// pivot out of view): a fixed particle's position is known from the structure, and one the
+/// camera cannot see cannot be tracked.
+pub fn named_start_in_view(
+    structure: &Scene,
+    source: &FrameSource,
+) -> anyhow::Result<Vec<(String, [f64; 2])>> {
+    let all = named_start(structure);
+    if !structure.particles.iter().any(|p| p.fixed) || source.is_empty() {
+        return Ok(all);
+    }
+    let (width, height) = {
+        let f = source
+            .load_frame(0)
+            .with_context(|| format!("reading {}", source.path().display()))?;
+        (f.width as f64, f.height as f64)
+    };
+    let inside = |x: [f64; 2]| x[0] >= -0.5 && x[1] >= -0.5 && x[0] <= width - 0.5 && x[1] <= height - 0.5;
+    Ok(all
+        .into_iter()
+        .zip(&structure.particles)
+        .filter(|((_, x), p)| !p.fixed || inside(*x))
+        .map(|(named, _)| named)
+        .collect())
+}
+
 /// A recording opened for tracking ([`open_recording`]).
 pub struct OpenRecording {
     /// Its frames (of a video: those of the window only).

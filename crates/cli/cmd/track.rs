@@ -10,11 +10,14 @@ use crate::progress::{self, Verbosity};
 
 /// Tracks a recording.
 pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
+    let recording = super::open_recording(&args.frames, args.window, args.fps, None)?;
     let named_start = match &args.structure {
-        Some(path) => Some(super::named_start(&super::load_scene(path)?)),
+        Some(path) => Some(super::named_start_in_view(
+            &super::load_scene(path)?,
+            &recording.source,
+        )?),
         None => None,
     };
-    let recording = super::open_recording(&args.frames, args.window, args.fps, None)?;
     let options = TrackOptions {
         window: recording.window,
         named_start,

@@ -241,7 +241,7 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let t = Instant::now();
     let options = TrackOptions {
         window,
-        named_start: Some(super::named_start(&structure)),
+        named_start: Some(super::named_start_in_view(&structure, &recording.source).context("stage track")?),
         ..TrackOptions::default()
     };
     let bar = progress::bar(verbosity, "track", 0);
