@@ -201,12 +201,16 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
 /// of a direction a few degrees off.
 fn reverses(before: Vec2, after: Vec2, n: Vec2, relative: f64) -> bool {
     let spread = (JOLT_DIRECTION_ERRORS * relative).min(std::f64::consts::FRAC_PI_4);
-    let t = Vec2::new(-n.y, n.x);
     (-10..=10).any(|i| {
-        let angle = spread * f64::from(i) / 10.0;
-        let d = n * angle.cos() + t * angle.sin();
+        let d = turned(n, spread * f64::from(i) / 10.0);
         before.dot(&d) < 0.0 && after.dot(&d) > 0.0
     })
+}
+
+/// The unit vector `n` turned by `angle` radians (counter-clockwise in image axes: towards
+/// `(-n.y, n.x)`).
+fn turned(n: Vec2, angle: f64) -> Vec2 {
+    n * angle.cos() + Vec2::new(-n.y, n.x) * angle.sin()
 }
 
 /// Groups jolts by jump direction and proposes one wall per group (see the module doc).
@@ -298,7 +302,6 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
                 .sqrt()
                 .max(1.0);
             let spread = (JOLT_DIRECTION_ERRORS / combined).min(std::f64::consts::FRAC_PI_4);
-            let t = Vec2::new(-n.y, n.x);
             let travel = members
                 .iter()
                 .map(|&k| Vec2::new(jolts[k].before[0], jolts[k].before[1]).dot(&n).abs() * dt)
@@ -311,7 +314,7 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
             let mut least: Option<(f64, Vec2, f64, f64)> = None;
             for i in -40..=40 {
                 let angle = spread * f64::from(i) / 40.0;
-                let normal = n * angle.cos() + t * angle.sin();
+                let normal = turned(n, angle);
                 let (offset, e) = line(normal, &members);
                 let depth = deepest(normal, offset);
                 if depth >= -3.0 * obs.noise {
