@@ -514,3 +514,47 @@ fn print_table() {
         println!("{}", from_pixels(name).measure(concealed).row());
     }
 }
+
+/// `--seeds 3` repeats the diagnosis with seeds 1-3 and reports how many found each finding;
+/// every finding carries its inclusion rate over resampled frames; `--seeds 0` is refused.
+#[test]
+fn diagnose_reports_other_search_seeds_and_inclusion_rates() {
+    let run = from_pixels("concealed-gravity");
+    let dir = tempdir();
+    let d = dir.path();
+    let structure = d.join("structure.toml");
+    run.truth.structure().save(&structure).expect("structure");
+    let tracks = d.join("tracks.csv");
+    run.tracks.write_csv(&tracks).expect("tracks");
+    physfit()
+        .args(["-q", "diagnose", "--seeds", "3", "--structure"])
+        .arg(&structure)
+        .arg(&tracks)
+        .arg("--out")
+        .arg(d.join("out"))
+        .assert()
+        .success();
+    let text = std::fs::read_to_string(d.join("out/report.json")).expect("report.json");
+    let report: Value = serde_json::from_str(&text).expect("report.json parses");
+    let st = &report["stability"];
+    assert_eq!(st["seeds"], serde_json::json!([1, 2, 3]), "{st}");
+    assert_eq!(st["same_findings"], true, "{st}");
+    let findings = report["findings"].as_array().expect("findings");
+    assert!(!findings.is_empty());
+    for f in findings {
+        let r = f["inclusion_rate"].as_f64().expect("inclusion_rate");
+        assert!(r > 0.95 && r <= 1.0, "{}: inclusion {r}", f["label"]);
+    }
+    let md = std::fs::read_to_string(d.join("out/report.md")).expect("report.md");
+    assert!(md.contains("## Other seeds of the search"), "{md}");
+    assert!(md.contains("found with 3 of 3 seeds"), "{md}");
+    physfit()
+        .args(["diagnose", "--seeds", "0", "--structure"])
+        .arg(&structure)
+        .arg(&tracks)
+        .arg("--out")
+        .arg(d.join("out0"))
+        .assert()
+        .failure()
+        .stderr(predicates::str::contains("--seeds"));
+}

@@ -168,6 +168,10 @@ pub struct DiagnoseArgs {
     /// Seed of every random choice (which frames are held out).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Also diagnose with the `N - 1` seeds after `--seed` and report how many found each
+    /// finding (the report's `stability`); N times the time.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=100))]
+    pub seeds: u64,
 }
 
 /// How `fit` and `diagnose` read their tracks table (see `docs/tables.md`).
@@ -304,6 +308,10 @@ pub struct BenchArgs {
     /// it again.
     #[arg(long)]
     pub keep: Option<PathBuf>,
+    /// With `diagnose`: also diagnose each recording with the search seeds 2..=N and count
+    /// the recordings whose findings are the same for every seed (N times the time).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=100))]
+    pub search_seeds: u64,
 }
 
 /// Benchmark groups.

@@ -80,6 +80,7 @@ fn run_diagnose(args: &BenchArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         small: args.small || args.quick,
         minutes: args.minutes,
         keep: args.keep.clone(),
+        search_seeds: args.search_seeds as usize,
     };
     let (report, results) = diagnose::run(&options, verbosity)?;
     if let Some(path) = &args.json {

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
+use physfit_identify::diagnose::{check_seeds, diagnose, DiagnoseOptions, Stability};
 use physfit_track::{score_tracks, TrackOptions};
 use physfit_tracks::TrackTable;
 use serde::Serialize;
@@ -45,6 +45,8 @@ pub struct BenchOptions {
     pub minutes: Option<f64>,
     /// Keep each recording's scene, structure and tracks in `keep/seed-N`.
     pub keep: Option<PathBuf>,
+    /// Seeds of the diagnosis's search run on each recording (1: the default seed only).
+    pub search_seeds: usize,
 }
 
 /// Wall time of each stage of one recording, s.
@@ -58,6 +60,8 @@ pub struct Times {
     pub diagnose: f64,
     /// Judging (the detectability simulations).
     pub judge: f64,
+    /// The diagnoses with the other search seeds (0 without `--search-seeds`).
+    pub other_seeds: f64,
 }
 
 /// One recording's result.
@@ -77,6 +81,8 @@ pub struct RecordingResult {
     pub track_error: Option<f64>,
     /// The diagnosis judged (absent when a stage failed).
     pub judgement: Option<Judgement>,
+    /// The findings of the other search seeds (with `--search-seeds`).
+    pub stability: Option<Stability>,
     /// The stage that failed and why.
     pub error: Option<String>,
     /// Wall times.
@@ -104,7 +110,7 @@ pub fn run(options: &BenchOptions, verbosity: Verbosity) -> anyhow::Result<(Stri
             }
         }
         let seed = options.first_seed.wrapping_add(i as u64);
-        let result = run_one(seed, options.small, options.keep.as_deref());
+        let result = run_one(seed, options);
         if verbosity != Verbosity::Quiet {
             eprintln!(
                 "bench diagnose [{}/{}] {}",
@@ -121,7 +127,7 @@ pub fn run(options: &BenchOptions, verbosity: Verbosity) -> anyhow::Result<(Stri
 
 /// Draws, renders, tracks, diagnoses and judges recording `seed`; a failed stage (or a
 /// panic in one) is recorded in the result, never raised.
-pub fn run_one(seed: u64, small: bool, keep: Option<&Path>) -> RecordingResult {
+pub fn run_one(seed: u64, options: &BenchOptions) -> RecordingResult {
     let mut result = RecordingResult {
         seed,
         class: String::new(),
@@ -130,10 +136,11 @@ pub fn run_one(seed: u64, small: bool, keep: Option<&Path>) -> RecordingResult {
         concealed: Vec::new(),
         track_error: None,
         judgement: None,
+        stability: None,
         error: None,
         times: Times::default(),
     };
-    let outcome = catch_unwind(AssertUnwindSafe(|| pipeline(seed, small, keep, &mut result)));
+    let outcome = catch_unwind(AssertUnwindSafe(|| pipeline(seed, options, &mut result)));
     let failure = match outcome {
         Ok(Ok(())) => None,
         Ok(Err(e)) => Some(format!("{e:#}")),
@@ -151,7 +158,8 @@ pub fn run_one(seed: u64, small: bool, keep: Option<&Path>) -> RecordingResult {
 }
 
 /// The stages of [`run_one`], filling `result` as they go.
-fn pipeline(seed: u64, small: bool, keep: Option<&Path>, result: &mut RecordingResult) -> anyhow::Result<()> {
+fn pipeline(seed: u64, bench: &BenchOptions, result: &mut RecordingResult) -> anyhow::Result<()> {
+    let (small, keep) = (bench.small, bench.keep.as_deref());
     let t = Instant::now();
     let drawn = draw::draw(seed, small).context("drawing the recording")?;
     result.class = draw::class_label(&drawn.kinds());
@@ -189,9 +197,22 @@ fn pipeline(seed: u64, small: bool, keep: Option<&Path>, result: &mut RecordingR
     }
 
     let t = Instant::now();
-    let diagnosis = diagnose(&drawn.structure, &tracked.table, &DiagnoseOptions::default(), &())
+    let mut diagnosis = diagnose(&drawn.structure, &tracked.table, &DiagnoseOptions::default(), &())
         .context("stage diagnose")?;
     result.times.diagnose = t.elapsed().as_secs_f64();
+    if bench.search_seeds > 1 {
+        let t = Instant::now();
+        check_seeds(
+            &drawn.structure,
+            &tracked.table,
+            &DiagnoseOptions::default(),
+            bench.search_seeds,
+            &mut diagnosis,
+        )
+        .context("stage diagnose: other search seeds")?;
+        result.stability = diagnosis.stability.clone();
+        result.times.other_seeds = t.elapsed().as_secs_f64();
+    }
 
     let t = Instant::now();
     result.judgement = Some(score::judge(&drawn, &diagnosis, &truth, track_error));

@@ -118,6 +118,11 @@ pub struct Judgement {
     pub false_additions: Vec<String>,
     /// Labels of the undecided findings.
     pub undecided: Vec<String>,
+    /// Inclusion rates (`Finding::inclusion_rate`) of the findings that match a concealed
+    /// effect.
+    pub inclusion_right: Vec<f64>,
+    /// Inclusion rates of the false additions.
+    pub inclusion_false: Vec<f64>,
     /// The position noise, px (see the module doc).
     pub noise: f64,
     /// Every detectable effect found and nothing falsely added.
@@ -179,6 +184,16 @@ pub fn judge(drawn: &Drawn, d: &Diagnosis, truth: &TrackTable, track_error: f64)
         .filter(|(f, &u)| !u && !drawn.concealed.iter().any(|c| same_class_any_place(c, f)))
         .map(|(f, _)| f.label.clone())
         .collect();
+    let rates = |matched: bool| -> Vec<f64> {
+        d.findings
+            .iter()
+            .zip(&used)
+            .filter(|(_, &u)| u == matched)
+            .filter(|(f, _)| matched || false_additions.contains(&f.label))
+            .filter_map(|(f, _)| f.inclusion_rate)
+            .collect()
+    };
+    let (inclusion_right, inclusion_false) = (rates(true), rates(false));
     let missed = effects
         .iter()
         .any(|e| e.detectability == Detectability::Detectable && e.found.is_none());
@@ -186,6 +201,8 @@ pub fn judge(drawn: &Drawn, d: &Diagnosis, truth: &TrackTable, track_error: f64)
     Judgement {
         found: d.findings.iter().map(|f| f.label.clone()).collect(),
         undecided: d.undecided.iter().map(|u| u.finding.label.clone()).collect(),
+        inclusion_right,
+        inclusion_false,
         noise,
         exactly_right: !missed && !falsely_added,
         missed,

@@ -273,6 +273,19 @@ pub fn markdown(options: &BenchOptions, results: &[RecordingResult], elapsed: f6
     out.push_str(&effect_table(results));
     out.push('\n');
     out.push_str(&time_table(results));
+    out.push('\n');
+    out.push_str(&inclusion_line(results));
+    if options.search_seeds > 1 {
+        let checked: Vec<&super::Stability> = results.iter().filter_map(|r| r.stability.as_ref()).collect();
+        let same = checked.iter().filter(|s| s.same_findings).count();
+        let _ = writeln!(
+            out,
+            "Same findings for all {} search seeds: {same} of {} recordings ({}).",
+            options.search_seeds,
+            checked.len(),
+            percent(same, checked.len())
+        );
+    }
     let failures: Vec<&RecordingResult> = results.iter().filter(|r| !r.exactly_right()).collect();
     let _ = writeln!(out, "\n#### Not exactly right ({})\n", failures.len());
     for r in failures {
@@ -280,6 +293,31 @@ pub fn markdown(options: &BenchOptions, results: &[RecordingResult], elapsed: f6
         out.push('\n');
     }
     out
+}
+
+/// The findings' inclusion rates over resampled frames, right findings against false
+/// additions: how many, their median and how many fall below one half.
+fn inclusion_line(results: &[RecordingResult]) -> String {
+    let gather = |pick: &dyn Fn(&super::score::Judgement) -> &Vec<f64>| -> Vec<f64> {
+        results
+            .iter()
+            .filter_map(|r| r.judgement.as_ref())
+            .flat_map(|j| pick(j).iter().copied())
+            .collect()
+    };
+    let describe = |mut rates: Vec<f64>| {
+        let below = rates.iter().filter(|&&r| r < 0.5).count();
+        let n = rates.len();
+        format!(
+            "{n} (median {}, {below} below 50 %)",
+            median_of(&mut rates).map_or("-".into(), |m| format!("{:.0} %", 100.0 * m))
+        )
+    };
+    format!(
+        "Inclusion over resampled frames: right findings {}, false additions {}.\n",
+        describe(gather(&|j| &j.inclusion_right)),
+        describe(gather(&|j| &j.inclusion_false))
+    )
 }
 
 /// Particle counts and frame counts grouping the diagnosis times.

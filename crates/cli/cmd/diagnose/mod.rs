@@ -1,8 +1,8 @@
-//! `physfit diagnose TRACKS --structure S --out DIR [--window A..B] [--seed N]`: locate the
+//! `physfit diagnose TRACKS --structure S --out DIR [--window A..B] [--seed N] [--seeds N]`: locate the
 //! mismatch between the fitted model and the tracks, name the missing physics, refit.
 
 use anyhow::Context;
-use physfit_identify::diagnose::{diagnose, DiagnoseOptions};
+use physfit_identify::diagnose::{check_seeds, diagnose, DiagnoseOptions};
 
 use crate::cli::DiagnoseArgs;
 use crate::progress::Verbosity;
@@ -28,7 +28,10 @@ pub fn run(args: &DiagnoseArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         ..DiagnoseOptions::default()
     };
     let spinner = crate::progress::spinner(verbosity, "diagnose");
-    let diagnosed = diagnose(&structure, &tracks, &options, &spinner);
+    let diagnosed = diagnose(&structure, &tracks, &options, &spinner).and_then(|mut d| {
+        check_seeds(&structure, &tracks, &options, args.seeds as usize, &mut d)?;
+        Ok(d)
+    });
     spinner.finish();
     let d = diagnosed.with_context(|| {
         format!(

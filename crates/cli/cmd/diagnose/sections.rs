@@ -155,6 +155,8 @@ pub fn findings(d: &Diagnosis) -> String {
                     e.held_out_cost_after.map_or("-".into(), |v| format!("{v:.4}")),
                     improvement(e.held_out_cost_before, e.held_out_cost_after),
                     e.score.map_or("-".into(), |v| format!("{v:.1}")),
+                    f.inclusion_rate
+                        .map_or("-".into(), |v| format!("{:.0} %", 100.0 * v)),
                 ]
             })
             .collect();
@@ -167,6 +169,7 @@ pub fn findings(d: &Diagnosis) -> String {
                 "after, px²",
                 "held-out improvement",
                 "score",
+                "inclusion over resampled frames",
             ],
             &rows,
         ));
@@ -218,6 +221,32 @@ pub fn findings(d: &Diagnosis) -> String {
         if d.rejected.iter().any(|r| r.reason.is_some()) {
             s.push('\n');
         }
+    }
+    s
+}
+
+/// How many seeds of the search found each finding, as Markdown.
+pub fn stability(st: &physfit_identify::diagnose::Stability) -> String {
+    let n = st.seeds.len();
+    let mut s = format!(
+        "{} with {n} seeds ({}):\n\n",
+        if st.same_findings {
+            "The same findings"
+        } else {
+            "Findings that depend on the seed"
+        },
+        st.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ")
+    );
+    for f in &st.findings {
+        s.push_str(&format!("- {}: found with {} of {n} seeds\n", f.label, f.seeds));
+    }
+    for f in &st.elsewhere {
+        s.push_str(&format!(
+            "- {}: not found with this seed, found with {} of the other {}\n",
+            f.label,
+            f.seeds,
+            n - 1
+        ));
     }
     s
 }
@@ -287,6 +316,10 @@ pub fn markdown(d: &Diagnosis, pictures: &str) -> String {
     s.push_str(&verdict(d));
     s.push_str("\n## Findings\n\n");
     s.push_str(&findings(d));
+    if let Some(st) = &d.stability {
+        s.push_str("\n## Other seeds of the search\n\n");
+        s.push_str(&stability(st));
+    }
     s.push_str("\n## Where the base model disagreed\n\n");
     s.push_str(&localisation(d));
     s.push_str("\n## Costs over the whole sequence\n\n");

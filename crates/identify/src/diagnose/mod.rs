@@ -25,6 +25,7 @@ mod costs;
 mod effect;
 mod family;
 mod flights;
+mod inclusion;
 mod jolts;
 mod localise;
 mod outcome;
@@ -32,6 +33,7 @@ mod report;
 mod score_test;
 mod search;
 mod shooting;
+mod stability;
 mod support;
 #[cfg(test)]
 mod tests;
@@ -45,9 +47,10 @@ pub use effect::Effect;
 pub use jolts::Jolt;
 pub use report::{
     BondResidual, Diagnosis, Evidence, Finding, FittedValue, Holdout, Localisation, ModelCosts, ModelSummary,
-    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, Seen,
-    SegmentTransfer, Transfer, Undecided, Verdict, VerdictParticle,
+    ParticleResidual, Predictions, RejectedCandidate, Replaced, ResidualSeries, SearchSummary, SeedAgreement,
+    Seen, SegmentTransfer, Stability, Transfer, Undecided, Verdict, VerdictParticle,
 };
+pub use stability::check_seeds;
 pub use support::Support;
 pub use verdict::EXPLAINED_RMS_RATIO;
 
@@ -147,9 +150,9 @@ fn diagnose_inner(
     // 1. Held-out blocks.
     let w = options.test_window.unwrap_or_else(|| test_window(&scales, &obs));
     let w = (w.max(4) + 1) & !1;
-    let (held, holdout) = holdout_blocks(&obs, w, options);
+    let (mut held, mut holdout) = holdout_blocks(&obs, w, options, &[]);
     let train_mask: Vec<bool> = held.iter().map(|h| !h).collect();
-    let shot = Shot::new(&obs, &family0, Some(train_mask))?;
+    let mut shot = Shot::new(&obs, &family0, Some(train_mask))?;
     let start = shot.observed_state();
 
     // 2. Jolts, and the frames the smooth analysis leaves out: first without a model, then
@@ -231,6 +234,13 @@ fn diagnose_inner(
     }
     for s in held_before.iter().rev() {
         supports.insert(0, s.clone());
+    }
+    // Held-out blocks that took every frame after a bounce would leave its wall to be fitted
+    // from no frames: choose the blocks again, knowing the jolts.
+    let jolt_offsets: Vec<usize> = jolt_list.iter().map(|j| j.frame - obs.first_frame).collect();
+    if starves_a_jolt(&held, &jolt_offsets) {
+        (held, holdout) = holdout_blocks(&obs, w, options, &jolt_offsets);
+        shot.mask = held.iter().map(|h| !h).collect();
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
     // Transfer segments: a few typical periods each (twice the test window), within half the
@@ -616,12 +626,7 @@ fn diagnose_inner(
             break;
         }
         let n = final_fit.residual_count;
-        let p = current.family.dim() + 4 * current.family.free.len();
-        let variance = if n > p {
-            (final_fit.sum_squares / (n - p) as f64).max(obs.noise * obs.noise)
-        } else {
-            f64::INFINITY
-        };
+        let variance = final_variance(&current.family, &final_fit, obs.noise);
         let ln_n = (n.max(2) as f64).ln();
         let mut out: Option<(usize, Current, ShotFit, report::Undecided)> = None;
         for (k, f) in outcome.findings.iter().enumerate() {
@@ -676,6 +681,22 @@ fn diagnose_inner(
         undecided_list.push(entry);
         outcome = assemble(&current.family, &final_fit, &accepted);
     }
+    // 7. How the evidence for each finding is spread over the frames (see `inclusion`).
+    let variance = final_variance(&current.family, &final_fit, obs.noise);
+    if variance.is_finite() {
+        let rates = inclusion::inclusion_rates(
+            &ctx,
+            &all_shot,
+            &current.family,
+            &final_fit,
+            variance,
+            w,
+            options.seed,
+        );
+        for (f, r) in outcome.findings.iter_mut().zip(rates) {
+            f.inclusion_rate = r;
+        }
+    }
     let tq = Instant::now();
     if std::env::var_os("PHYSFIT_DEBUG").is_some() {
         eprintln!(
@@ -713,6 +734,7 @@ fn diagnose_inner(
             stop_reason: stop,
         },
         warnings,
+        stability: None,
         seconds: t0.elapsed().as_secs_f64(),
         units: None,
         final_scene: outcome.scene,
@@ -805,6 +827,19 @@ fn prune(
     }
 }
 
+/// Residual variance of a fit on every frame (px²): its sum of squares over the residuals
+/// less the fitted unknowns (parameters and four start coordinates per free particle), at
+/// least the squared track noise `noise` (px); infinite with no degrees of freedom left.
+fn final_variance(family: &Family, fit: &ShotFit, noise: f64) -> f64 {
+    let n = fit.residual_count;
+    let p = family.dim() + 4 * family.free.len();
+    if n > p {
+        (fit.sum_squares / (n - p) as f64).max(noise * noise)
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Returns true if and only if two walls' parameters (`[angle, offset, restitution]`) are
 /// the same line within `WALL_GROUP_DEGREES` and a twentieth of the data's length scale.
 fn same_wall(a: &[f64; 3], b: &[f64], scales: &DataScales) -> bool {
@@ -873,30 +908,45 @@ fn test_window(scales: &DataScales, obs: &Observations) -> usize {
 
 /// The held-out mask (by frame offset) and its description: blocks of at least `w + 2`
 /// frames, about four held-out blocks, every `round(1 / fraction)`-th block held out, the
-/// phase drawn from the seed.
-fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (Vec<bool>, Holdout) {
+/// phase drawn from the seed. A phase that holds out every frame between two of the jolts
+/// at offsets `jolts` (or between one and an end) is passed over for the next one that
+/// does not (see [`starves_a_jolt`]), where there is one.
+fn holdout_blocks(
+    obs: &Observations,
+    w: usize,
+    options: &DiagnoseOptions,
+    jolts: &[usize],
+) -> (Vec<bool>, Holdout) {
     let frames = obs.frame_count();
     let cycle = (1.0 / options.holdout_fraction).round().max(2.0) as usize;
     let block = (w + 2).max((frames as f64 * options.holdout_fraction / 4.0).ceil() as usize);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(options.seed);
     // The first block keeps the start state constrained: never hold it out.
-    let phase = rng.gen_range(0..cycle - 1);
-    let mut held = vec![false; frames];
-    let mut ranges = Vec::new();
-    if frames >= 2 * block {
-        let mut b = 1;
-        while b * block < frames {
-            if (b + phase) % cycle == 0 {
-                let lo = b * block;
-                let hi = ((b + 1) * block).min(frames) - 1;
-                for h in &mut held[lo..=hi] {
-                    *h = true;
+    let phases = cycle - 1;
+    let seeded = rng.gen_range(0..phases);
+    let mask = |phase: usize| {
+        let mut held = vec![false; frames];
+        let mut ranges = Vec::new();
+        if frames >= 2 * block {
+            let mut b = 1;
+            while b * block < frames {
+                if (b + phase) % cycle == 0 {
+                    let lo = b * block;
+                    let hi = ((b + 1) * block).min(frames) - 1;
+                    for h in &mut held[lo..=hi] {
+                        *h = true;
+                    }
+                    ranges.push([obs.first_frame + lo, obs.first_frame + hi]);
                 }
-                ranges.push([obs.first_frame + lo, obs.first_frame + hi]);
+                b += 1;
             }
-            b += 1;
         }
-    }
+        (held, ranges)
+    };
+    let (held, ranges) = (0..phases)
+        .map(|i| mask((seeded + i) % phases))
+        .find(|(held, _)| !starves_a_jolt(held, jolts))
+        .unwrap_or_else(|| mask(seeded));
     (
         held,
         Holdout {
@@ -906,6 +956,30 @@ fn holdout_blocks(obs: &Observations, w: usize, options: &DiagnoseOptions) -> (V
             test_window: w,
         },
     )
+}
+
+/// Fitted frames a stretch between jolts must keep: three positions give a velocity and an
+/// acceleration, without which the fits cannot learn what a bounce did (its wall's line and
+/// restitution).
+const FITTED_BETWEEN_JOLTS: usize = 3;
+
+/// Returns true if and only if the held-out mask `held` leaves fewer than
+/// [`FITTED_BETWEEN_JOLTS`] fitted frames in a stretch between the jolts at offsets `jolts`
+/// (or between one and an end of the recording) that has at least that many frames.
+fn starves_a_jolt(held: &[bool], jolts: &[usize]) -> bool {
+    if jolts.is_empty() {
+        return false;
+    }
+    let mut cuts: Vec<usize> = jolts.iter().copied().filter(|&k| k < held.len()).collect();
+    cuts.sort_unstable();
+    cuts.dedup();
+    let mut bounds = vec![0];
+    bounds.extend(cuts.iter().map(|k| k + 1));
+    let mut ends = cuts.clone();
+    ends.push(held.len());
+    bounds.iter().zip(&ends).any(|(&lo, &hi)| {
+        hi >= lo + FITTED_BETWEEN_JOLTS && held[lo..hi].iter().filter(|h| !**h).count() < FITTED_BETWEEN_JOLTS
+    })
 }
 
 /// The rough model's accelerations at every complete frame (px/s²) and its uniform field

@@ -351,6 +351,7 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             round: *round,
             identified,
             note: (!notes.is_empty()).then(|| notes.join("; ")),
+            inclusion_rate: None,
         });
     }
 

@@ -273,6 +273,28 @@ pub struct Replaced {
     pub by: Vec<String>,
 }
 
+/// How many seeds of the search found one finding.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SeedAgreement {
+    /// The finding's label (a second wall's `wall 2`, ...).
+    pub label: String,
+    /// Seeds whose diagnosis found it.
+    pub seeds: usize,
+}
+
+/// The diagnosis repeated with other seeds of its search (`physfit diagnose --seeds N`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Stability {
+    /// Seeds run, this diagnosis's first.
+    pub seeds: Vec<u64>,
+    /// This diagnosis's findings, with how many seeds found each.
+    pub findings: Vec<SeedAgreement>,
+    /// Findings of other seeds that this diagnosis does not hold, with how many found each.
+    pub elsewhere: Vec<SeedAgreement>,
+    /// True when every seed found exactly these findings.
+    pub same_findings: bool,
+}
+
 /// How the greedy search ended.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct SearchSummary {
@@ -342,6 +364,11 @@ pub struct Finding {
     /// What the tracks do not determine and the simpler equivalent, or how a value was held
     /// (a tether taken as rigid); `null` when there is nothing to say.
     pub note: Option<String>,
+    /// Share of bootstrap resamples of the frames (blocks of one test window) in which the
+    /// finding still removes more cost than its penalty, both fits held fixed: 1 when every
+    /// part of the recording supports it, near 1/2 or below when it rests on a few frames
+    /// (`null` when the model without it could not be fitted).
+    pub inclusion_rate: Option<f64>,
 }
 
 impl Finding {
@@ -555,9 +582,9 @@ pub struct Diagnosis {
     pub final_model: ModelSummary,
     /// Residual series before and after.
     pub residuals: ResidualSeries,
-    /// Effects accepted and later taken out (swapped for a better explanation or made
     /// The final model against the track noise.
     pub verdict: Verdict,
+    /// Effects accepted and later taken out (swapped for a better explanation or made
     /// redundant).
     pub replaced: Vec<Replaced>,
     /// Findings the tracks cannot decide ("not enough data"), taken out of the model.
@@ -566,6 +593,9 @@ pub struct Diagnosis {
     pub search: SearchSummary,
     /// What went wrong or was worked around.
     pub warnings: Vec<String>,
+    /// The findings of other seeds of the search, when asked for (`--seeds`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stability: Option<Stability>,
     /// Wall time, s.
     pub seconds: f64,
     /// The scale and mass unit of the SI values, when a scale is known (see

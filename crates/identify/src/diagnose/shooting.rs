@@ -167,31 +167,38 @@ impl<'a> Shot<'a> {
     }
 
     /// Sum of squared residuals over the frames where `select[k]` (and the particle is
-    /// tracked), with their count; infinite if the simulation fails.
+    /// tracked), with their count; infinite (count 0) if the simulation fails.
     pub fn cost_on(&self, family: &Family, params: &[f64], initial: &State, select: &[bool]) -> (f64, usize) {
-        let mut sum = 0.0;
-        let mut count = 0;
+        match self.frame_costs(family, params, initial) {
+            Some(costs) => costs
+                .iter()
+                .zip(select)
+                .filter(|(_, &s)| s)
+                .fold((0.0, 0), |(sum, count), (c, _)| (sum + c.0, count + c.1)),
+            None => (f64::INFINITY, 0),
+        }
+    }
+
+    /// Per frame offset: the sum of squared position residuals of the free tracked particles,
+    /// px², and their number of coordinates (zero before the anchor); `None` if the simulation
+    /// is not finite.
+    pub fn frame_costs(&self, family: &Family, params: &[f64], initial: &State) -> Option<Vec<(f64, usize)>> {
         let obs = self.obs;
+        let mut out = vec![(0.0, 0); obs.frame_count()];
         let ok = self.simulate(family, params, initial, usize::MAX, |k, x| {
-            if select[k] {
-                for &p in &family.free {
-                    if let Some(o) = obs.positions[k][p] {
-                        let e = (x[p] - o).norm_squared();
-                        if !e.is_finite() {
-                            return false;
-                        }
-                        sum += e;
-                        count += 2;
+            for &p in &family.free {
+                if let Some(o) = obs.positions[k][p] {
+                    let e = (x[p] - o).norm_squared();
+                    if !e.is_finite() {
+                        return false;
                     }
+                    out[k].0 += e;
+                    out[k].1 += 2;
                 }
             }
             true
         });
-        if ok {
-            (sum, count)
-        } else {
-            (f64::INFINITY, count)
-        }
+        ok.then_some(out)
     }
 }
 

@@ -688,3 +688,43 @@ fn a_shallow_bounce_at_speed_along_the_wall_proposes_the_wall() {
         "the line is at y = {y:.2} px at the bounce (x = {x:.1} px)"
     );
 }
+
+#[test]
+fn held_out_blocks_never_take_every_frame_after_a_bounce() {
+    // 28 frames, a bounce at frame 19: the last block (20-27) may not be all held out.
+    let mut held = vec![false; 28];
+    for h in &mut held[20..] {
+        *h = true;
+    }
+    assert!(starves_a_jolt(&held, &[19]));
+    assert!(!starves_a_jolt(&held, &[]));
+    // Held out before the bounce, with 10 fitted frames on either side: fine.
+    let mut held = vec![false; 28];
+    for h in &mut held[10..19] {
+        *h = true;
+    }
+    assert!(!starves_a_jolt(&held, &[19]));
+    // A stretch of two frames between two bounces cannot keep three fitted frames: not
+    // counted against the mask.
+    let held = vec![false; 28];
+    assert!(!starves_a_jolt(&held, &[10, 12]));
+}
+
+#[test]
+fn every_finding_reports_its_inclusion_over_resampled_frames() {
+    // A clear field over 200 frames: found, and kept by every resample of the frames.
+    let truth = scene("concealed-gravity");
+    let structure = truth.structure();
+    let data = tracks(&truth, SIGMA, 7);
+    let d = diagnose(&structure, &data, &DiagnoseOptions::default(), &()).expect("diagnosis");
+    assert!(!d.findings.is_empty(), "nothing found");
+    for f in &d.findings {
+        let r = f.inclusion_rate.expect("an inclusion rate");
+        assert!((0.0..=1.0).contains(&r), "{}: {r}", f.label);
+        assert!(
+            r > 0.95,
+            "{}: a clear finding kept by only {r} of the resamples",
+            f.label
+        );
+    }
+}

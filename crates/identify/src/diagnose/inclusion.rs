@@ -1,0 +1,147 @@
+//! Each finding's inclusion rate over bootstrap resamples of the frames.
+//!
+//! The final model is refitted on every analysed frame without each finding in turn. Per
+//! frame, the finding's worth is the multi-step cost it removes there (without minus with,
+//! px²). A resample draws blocks of consecutive frames (one weak-form test window long, so
+//! that the residuals' correlation in time is kept) with replacement until it holds as many
+//! frames as the recording; the finding is included in that resample when the cost it removes
+//! there, over the residual variance, still exceeds its penalty (parameters times
+//! `ln(residual count)`), the criterion the search accepted it by. The rate is the share of
+//! [`RESAMPLES`] resamples that include it: near 1 when every part of the recording supports
+//! the finding, near 1/2 when it rests on a few frames or barely pays.
+//!
+//! Both fits are held fixed over the resamples (a fit per resample and finding would cost
+//! hundreds of refits): the rate measures how the evidence is spread over the frames, not
+//! the search's sensitivity to them.
+
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+use super::family::Family;
+use super::search::{Context, Current};
+use super::shooting::{Shot, ShotFit};
+
+/// Bootstrap resamples drawn per finding.
+pub const RESAMPLES: usize = 200;
+
+/// Stream of the seed the resamples are drawn from (kept apart from the held-out blocks').
+const SEED_STREAM: u64 = 0x1bc1_0de5;
+
+/// Inclusion rate of each effect of `family` (in `[0, 1]`; `None` where the model without
+/// it cannot be fitted or simulated). `fit` is `family`'s fit on every frame of `shot`,
+/// `variance` the residual variance the costs are divided by (px²), `block` the resampled
+/// block length (frames).
+pub fn inclusion_rates(
+    ctx: &Context<'_>,
+    shot: &Shot<'_>,
+    family: &Family,
+    fit: &ShotFit,
+    variance: f64,
+    block: usize,
+    seed: u64,
+) -> Vec<Option<f64>> {
+    let Some(with) = shot.frame_costs(family, &fit.params, &fit.state) else {
+        return vec![None; family.effects.len()];
+    };
+    let current = Current {
+        family: family.clone(),
+        fit: fit.clone(),
+        held_cost: 0.0,
+    };
+    let frames: Vec<usize> = (shot.anchor..with.len()).collect();
+    let coordinates: usize = frames.iter().map(|&k| with[k].1).sum();
+    let ln_n = (coordinates.max(2) as f64).ln();
+    (0..family.effects.len())
+        .into_par_iter()
+        .map(|k| {
+            let reduced = ctx.without(&current, k);
+            let refit = super::shooting::fit_shot(
+                shot,
+                &reduced.family,
+                &reduced.fit.params,
+                &reduced.fit.state,
+                ctx.scales,
+                super::search::SHOT_ITERATIONS,
+                true,
+                &(),
+            )?;
+            let without = shot.frame_costs(&reduced.family, &refit.params, &refit.state)?;
+            let worth: Vec<f64> = frames
+                .iter()
+                .map(|&f| (without[f].0 - with[f].0) / variance)
+                .collect();
+            let penalty = family.effects[k].parameter_count() as f64 * ln_n;
+            let stream = seed ^ SEED_STREAM ^ (k as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            Some(rate(&worth, penalty, block, stream))
+        })
+        .collect()
+}
+
+/// Share of [`RESAMPLES`] moving-block resamples of `worth` (per frame) whose sum exceeds
+/// `penalty`.
+fn rate(worth: &[f64], penalty: f64, block: usize, seed: u64) -> f64 {
+    let n = worth.len();
+    if n == 0 || worth.iter().any(|w| !w.is_finite()) {
+        return 0.0;
+    }
+    let block = block.clamp(1, n);
+    // Prefix sums: a block's worth in one subtraction.
+    let mut prefix = vec![0.0; n + 1];
+    for (i, w) in worth.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + w;
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut included = 0;
+    for _ in 0..RESAMPLES {
+        let mut total = 0.0;
+        let mut left = n;
+        while left > 0 {
+            let len = block.min(left);
+            let start = rng.gen_range(0..=n - len);
+            total += prefix[start + len] - prefix[start];
+            left -= len;
+        }
+        if total > penalty {
+            included += 1;
+        }
+    }
+    included as f64 / RESAMPLES as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evenly_spread_worth_is_always_included() {
+        let worth = vec![1.0; 300];
+        assert!((rate(&worth, 10.0, 20, 1) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn worth_below_the_penalty_is_never_included() {
+        let worth = vec![0.01; 300];
+        assert!(rate(&worth, 10.0, 20, 1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn worth_on_one_block_is_included_about_as_often_as_resamples_draw_it() {
+        // 300 frames, the worth all on frames 100..120: a resample of 15 blocks of 20
+        // includes it when some block overlaps it enough; the share lies well inside (0, 1).
+        let mut worth = vec![0.0; 300];
+        for w in &mut worth[100..120] {
+            *w = 5.0;
+        }
+        let r = rate(&worth, 50.0, 20, 3);
+        assert!(r > 0.3 && r < 0.95, "rate {r}");
+    }
+
+    #[test]
+    fn the_same_seed_gives_the_same_rate() {
+        let worth: Vec<f64> = (0..200).map(|i| ((i as f64) * 0.37).sin()).collect();
+        assert_eq!(
+            rate(&worth, 0.5, 10, 9).to_bits(),
+            rate(&worth, 0.5, 10, 9).to_bits()
+        );
+    }
+}
