@@ -10,8 +10,8 @@
 //! line within 1 px and its restitution within 0.05, a tether's fixed point within 2 % of its
 //! length.
 //!
-//! Three full-size recordings of the N = 100 run (seeds 20, 71 and 84, each a class this
-//! issue's work fixed) are judged the same way.
+//! Five full-size recordings of the N = 100 run (seeds 20, 23, 53, 71 and 84, each a class
+//! this issue's work fixed) are judged the same way.
 //!
 //! Seeds the diagnosis gets wrong today are ignored, with what goes wrong; `cargo test --test
 //! integration bench_seed -- --include-ignored` runs them all.
@@ -144,8 +144,9 @@ fn bench_seed_08() {
     bench_seed(8);
 }
 
+// Its wall came out with restitution 0 while the held-out block took every frame after the
+// bounce; the blocks are now chosen knowing the jolts.
 #[test]
-#[ignore = "diagnosis issue 21: seed 9: missing spring and wall: the wall found with restitution 0.000 (truth 0.606)"]
 fn bench_seed_09() {
     bench_seed(9);
 }
@@ -183,6 +184,20 @@ fn bench_full_seed_71() {
 #[test]
 fn bench_full_seed_84() {
     judge_seed(84, false);
+}
+
+// A tether of p6 added beside the concealed dashpots, kept by 87 % of resamples of the frames
+// (23: now undecided); a missing spring of length 0 +- 8000 px that, refitted on every frame,
+// no longer paid for its parameters (53: now taken out).
+
+#[test]
+fn bench_full_seed_23() {
+    judge_seed(23, false);
+}
+
+#[test]
+fn bench_full_seed_53() {
+    judge_seed(53, false);
 }
 
 #[test]

@@ -111,7 +111,9 @@ pub fn verdict(d: &Diagnosis) -> String {
             r.label,
             r.added_round,
             r.round,
-            if r.by.is_empty() {
+            if let Some(reason) = &r.reason {
+                format!(": {reason}")
+            } else if r.by.is_empty() {
                 ": the effects that joined after it made it redundant".to_string()
             } else {
                 format!(", replaced by {}", r.by.join(" and "))

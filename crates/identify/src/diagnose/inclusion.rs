@@ -24,13 +24,28 @@ use super::shooting::{Shot, ShotFit};
 /// Bootstrap resamples drawn per finding.
 pub const RESAMPLES: usize = 200;
 
+/// Share of the resamples a finding must be kept by to stay in the model (the conventional
+/// 95 % level): below it, it rests on a few frames and is reported as undecided.
+pub const INCLUSION_LEVEL: f64 = 0.95;
+
 /// Stream of the seed the resamples are drawn from (kept apart from the held-out blocks').
 const SEED_STREAM: u64 = 0x1bc1_0de5;
 
-/// Inclusion rate of each effect of `family` (in `[0, 1]`; `None` where the model without
-/// it cannot be fitted or simulated). `fit` is `family`'s fit on every frame of `shot`,
-/// `variance` the residual variance the costs are divided by (px²), `block` the resampled
-/// block length (frames).
+/// One finding's support over the frames.
+pub struct Inclusion {
+    /// Share of the resamples that include it, in `[0, 1]`.
+    pub rate: f64,
+    /// Over all frames: the cost it removes over the residual variance, less its penalty
+    /// (negative: it does not pay for its parameters on the whole recording).
+    pub worth: f64,
+    /// The model without it, fitted on every frame.
+    pub without: Current,
+}
+
+/// The support of each effect of `family` (`None` where the model without it cannot be
+/// fitted or simulated). `fit` is `family`'s fit on every frame of `shot`, `variance` the
+/// residual variance the costs are divided by (px²), `block` the resampled block length
+/// (frames).
 pub fn inclusion_rates(
     ctx: &Context<'_>,
     shot: &Shot<'_>,
@@ -39,9 +54,9 @@ pub fn inclusion_rates(
     variance: f64,
     block: usize,
     seed: u64,
-) -> Vec<Option<f64>> {
+) -> Vec<Option<Inclusion>> {
     let Some(with) = shot.frame_costs(family, &fit.params, &fit.state) else {
-        return vec![None; family.effects.len()];
+        return (0..family.effects.len()).map(|_| None).collect();
     };
     let current = Current {
         family: family.clone(),
@@ -54,7 +69,7 @@ pub fn inclusion_rates(
     (0..family.effects.len())
         .into_par_iter()
         .map(|k| {
-            let reduced = ctx.without(&current, k);
+            let mut reduced = ctx.without(&current, k);
             let refit = super::shooting::fit_shot(
                 shot,
                 &reduced.family,
@@ -72,7 +87,13 @@ pub fn inclusion_rates(
                 .collect();
             let penalty = family.effects[k].parameter_count() as f64 * ln_n;
             let stream = seed ^ SEED_STREAM ^ (k as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            Some(rate(&worth, penalty, block, stream))
+            let rate = rate(&worth, penalty, block, stream);
+            reduced.fit = refit;
+            Some(Inclusion {
+                rate,
+                worth: worth.iter().sum::<f64>() - penalty,
+                without: reduced,
+            })
         })
         .collect()
 }

@@ -241,6 +241,12 @@ fn diagnose_inner(
     if starves_a_jolt(&held, &jolt_offsets) {
         (held, holdout) = holdout_blocks(&obs, w, options, &jolt_offsets);
         shot.mask = held.iter().map(|h| !h).collect();
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            eprintln!(
+                " held-out blocks chosen again for jolts {jolt_offsets:?}: {:?}",
+                holdout.held_out
+            );
+        }
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
     // Transfer segments: a few typical periods each (twice the test window), within half the
@@ -532,6 +538,7 @@ fn diagnose_inner(
                     .iter()
                     .map(|p| p.effect.label(&family0.structure))
                     .collect(),
+                reason: None,
             });
             for p in &best.proposals {
                 accepted.push((p.clone(), best.evidence.clone(), round));
@@ -681,10 +688,15 @@ fn diagnose_inner(
         undecided_list.push(entry);
         outcome = assemble(&current.family, &final_fit, &accepted);
     }
-    // 7. How the evidence for each finding is spread over the frames (see `inclusion`).
-    let variance = final_variance(&current.family, &final_fit, obs.noise);
-    if variance.is_finite() {
-        let rates = inclusion::inclusion_rates(
+    // 7. How the evidence for each finding is spread over the frames (see `inclusion`); a
+    // finding that, refitted on every frame, no longer pays for its parameters leaves the
+    // model, the least worth first.
+    loop {
+        let variance = final_variance(&current.family, &final_fit, obs.noise);
+        if !variance.is_finite() || outcome.findings.len() != current.family.effects.len() {
+            break;
+        }
+        let mut support = inclusion::inclusion_rates(
             &ctx,
             &all_shot,
             &current.family,
@@ -693,9 +705,77 @@ fn diagnose_inner(
             w,
             options.seed,
         );
-        for (f, r) in outcome.findings.iter_mut().zip(rates) {
-            f.inclusion_rate = r;
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            for (k, i) in support.iter().enumerate() {
+                if let Some(i) = i {
+                    eprintln!(" support {k}: worth {:.2}, inclusion {:.3}", i.worth, i.rate);
+                }
+            }
         }
+        let worst = support
+            .iter()
+            .enumerate()
+            .filter_map(|(k, i)| i.as_ref().map(|i| (k, i.worth)))
+            .filter(|(_, worth)| *worth < 0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((k, worth)) = worst {
+            let Some(out) = support[k].take() else { break };
+            let (old, _, added) = accepted.remove(k);
+            replaced.push(report::Replaced {
+                effect: old.effect.name().into(),
+                label: old.effect.label(&family0.structure),
+                added_round: added,
+                round: round + 1,
+                by: Vec::new(),
+                reason: Some(format!(
+                    "refitted on every frame, it removes {:.1} residual variances less cost than its penalty",
+                    -worth
+                )),
+            });
+            current = out.without;
+            final_fit = current.fit.clone();
+            outcome = assemble(&current.family, &final_fit, &accepted);
+            continue;
+        }
+        for (f, i) in outcome.findings.iter_mut().zip(&support) {
+            f.inclusion_rate = i.as_ref().map(|i| i.rate);
+        }
+        // A finding that some resamples of the frames would leave out rests on a few frames:
+        // "not enough data", out of the model, the least kept first.
+        let weakest = support
+            .iter()
+            .enumerate()
+            .filter_map(|(k, i)| i.as_ref().map(|i| (k, i.rate)))
+            .filter(|(_, rate)| *rate < inclusion::INCLUSION_LEVEL)
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((k, rate)) = weakest else { break };
+        let Some(out) = support[k].take() else { break };
+        let finding = outcome.findings[k].clone();
+        let cost_without = out.without.fit.sum_squares;
+        let text = format!(
+            "not enough data: {} is kept by {:.0} % of {} resamples of the frames (blocks of {w} \
+             frames), under the {:.0} % a finding needs: it rests on a few frames; the model without \
+             it leaves {cost_without:.4} px² where it leaves {:.4} px²; candidates: {} or nothing",
+            finding.label,
+            100.0 * rate,
+            inclusion::RESAMPLES,
+            100.0 * inclusion::INCLUSION_LEVEL,
+            final_fit.sum_squares,
+            finding.label
+        );
+        undecided_list.push(report::Undecided {
+            finding,
+            cost_with: final_fit.sum_squares,
+            cost_without,
+            cost_bias: cost_without,
+            bias_parameters: 0,
+            variance,
+            text,
+        });
+        accepted.remove(k);
+        current = out.without;
+        final_fit = current.fit.clone();
+        outcome = assemble(&current.family, &final_fit, &accepted);
     }
     let tq = Instant::now();
     if std::env::var_os("PHYSFIT_DEBUG").is_some() {
@@ -822,6 +902,7 @@ fn prune(
             added_round: added,
             round,
             by: Vec::new(),
+            reason: None,
         });
         *current = fit;
     }
@@ -908,9 +989,9 @@ fn test_window(scales: &DataScales, obs: &Observations) -> usize {
 
 /// The held-out mask (by frame offset) and its description: blocks of at least `w + 2`
 /// frames, about four held-out blocks, every `round(1 / fraction)`-th block held out, the
-/// phase drawn from the seed. A phase that holds out every frame between two of the jolts
-/// at offsets `jolts` (or between one and an end) is passed over for the next one that
-/// does not (see [`starves_a_jolt`]), where there is one.
+/// phase drawn from the seed. When that phase holds out every frame between two of the
+/// jolts at offsets `jolts` (or between one and an end; see [`starves_a_jolt`]), the phase
+/// that does not and holds out the most frames is taken instead, where there is one.
 fn holdout_blocks(
     obs: &Observations,
     w: usize,
@@ -943,10 +1024,25 @@ fn holdout_blocks(
         }
         (held, ranges)
     };
-    let (held, ranges) = (0..phases)
-        .map(|i| mask((seeded + i) % phases))
-        .find(|(held, _)| !starves_a_jolt(held, jolts))
-        .unwrap_or_else(|| mask(seeded));
+    // The seed's phase, or else of those that starve no jolt, the one holding out the most
+    // frames (a truncated last block alone is a poor test), the first after the seed's on ties.
+    let held_count = |held: &[bool]| held.iter().filter(|h| **h).count();
+    let own = mask(seeded);
+    let (held, ranges) = if starves_a_jolt(&own.0, jolts) {
+        (1..phases)
+            .map(|i| mask((seeded + i) % phases))
+            .filter(|(held, _)| !starves_a_jolt(held, jolts))
+            .reduce(|best, next| {
+                if held_count(&next.0) > held_count(&best.0) {
+                    next
+                } else {
+                    best
+                }
+            })
+            .unwrap_or(own)
+    } else {
+        own
+    };
     (
         held,
         Holdout {

@@ -247,9 +247,11 @@ pub struct Undecided {
     pub cost_with: f64,
     /// The same without the finding, px².
     pub cost_without: f64,
-    /// Without the finding, plus a polynomial track bias in time, px².
+    /// Without the finding, plus a polynomial track bias in time, px² (for a finding
+    /// resampled frames do not keep: `cost_without`, the bias of no parameters).
     pub cost_bias: f64,
-    /// Degrees of freedom the bias adds (at least the finding's parameter count).
+    /// Degrees of freedom the bias adds (at least the finding's parameter count; 0 for a
+    /// finding resampled frames do not keep).
     pub bias_parameters: usize,
     /// Residual variance the costs are judged in, px².
     pub variance: f64,
@@ -271,6 +273,9 @@ pub struct Replaced {
     pub round: usize,
     /// Labels of the effects that replaced it (empty: removed as redundant).
     pub by: Vec<String>,
+    /// Why, when it was not replaced during the search (the final refit on every frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
 }
 
 /// How many seeds of the search found one finding.
