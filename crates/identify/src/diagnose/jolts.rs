@@ -14,6 +14,13 @@
 //! [`JOLT_DIRECTION_ERRORS`] of the impulse's, whose angle is only known to the impulse's
 //! relative noise) is a jolt.
 //!
+//! Within [`JOLT_FIT_POINTS`] frames of an end, the means take as many values as the short
+//! side has (at least [`MIN_EDGE_POINTS`]), with the noise part of the scale grown to match
+//! (`2 sigma / (m' dt)`): a bounce three frames into a 23-frame recording is seen. There a
+//! contact that starts or ends with the recording (a ball leaving a shelf) also changes the
+//! means, so a jolt near an end must also approach the wall at half its impulse or more
+//! (within one scale): a wall's impulse is `1 + e` times the approach speed, `0 <= e <= 1`.
+//!
 //! A missing smooth force that turns a particle round (a stiff tether's radial oscillation)
 //! also makes a large, locally largest, reversing jump of the means, but spread over the
 //! gaps, not concentrated in one. The *local jump* `2 e[k+1] - 2 e[k-1] + e[k-2] - e[k+2]`
@@ -38,6 +45,10 @@ use crate::Observations;
 
 /// Frames averaged on each side of a gap.
 pub const JOLT_FIT_POINTS: usize = 4;
+
+/// Fewest frame differences averaged on each side of a gap within [`JOLT_FIT_POINTS`] frames
+/// of an end of the recording.
+pub const MIN_EDGE_POINTS: usize = 2;
 
 /// A jump must exceed this many times its noise scale to be a jolt.
 pub const JOLT_THRESHOLD: f64 = 5.0;
@@ -102,7 +113,10 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     };
     // Per particle: corrected differences e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2 (None
     // where a frame is missing), and the cumulative model term.
-    let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2)>>> = vec![vec![None; frames]; obs.particle_count()];
+    // Per particle and gap: impulse, velocities before and after (px/s) and the frame
+    // differences averaged on each side (`m`, fewer within `m` frames of an end).
+    let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2, usize)>>> =
+        vec![vec![None; frames]; obs.particle_count()];
     // Per particle and gap: the local jump (see the module doc), px/s.
     let mut local: Vec<Vec<Option<Vec<Vec2>>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
@@ -120,16 +134,24 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 e[j] = Some(b - a - total);
             }
         }
-        for k in m..frames.saturating_sub(m + 1) {
-            let before: Option<Vec<Vec2>> = (k - m..k).map(|j| e[j]).collect();
-            let after: Option<Vec<Vec2>> = (k + 1..=k + m).map(|j| e[j]).collect();
+        // Within `m` frames of an end, as many differences as there are on the short side
+        // (at least MIN_EDGE_POINTS): a bounce near an end of a short recording.
+        for k in MIN_EDGE_POINTS..frames.saturating_sub(MIN_EDGE_POINTS + 1) {
+            let mk = m.min(k).min(frames - 2 - k);
+            if mk < MIN_EDGE_POINTS {
+                continue;
+            }
+            let before: Option<Vec<Vec2>> = (k - mk..k).map(|j| e[j]).collect();
+            let after: Option<Vec<Vec2>> = (k + 1..=k + mk).map(|j| e[j]).collect();
             if let (Some(b), Some(a)) = (before, after) {
-                let mb = b.iter().sum::<Vec2>() / m as f64;
-                let ma = a.iter().sum::<Vec2>() / m as f64;
+                let mb = b.iter().sum::<Vec2>() / mk as f64;
+                let ma = a.iter().sum::<Vec2>() / mk as f64;
                 let impulse = (ma - mb) * fps;
-                magnitudes.push(impulse.x.abs());
-                magnitudes.push(impulse.y.abs());
-                out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps));
+                if mk == m {
+                    magnitudes.push(impulse.x.abs());
+                    magnitudes.push(impulse.y.abs());
+                }
+                out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps, mk));
                 // The bounce may lie in a neighbouring gap (the means' peak is shifted near the
                 // ends of the series): the local jumps of gaps k - 1, k and k + 1.
                 let at = |j: usize| e.get(j).copied().flatten();
@@ -152,23 +174,41 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     magnitudes.sort_by(|a, b| a.total_cmp(b));
     let robust = 1.4826 * magnitudes[magnitudes.len() / 2];
     let scale = noise_scale.max(robust).max(f64::MIN_POSITIVE);
+    // A gap's scale: fewer differences averaged near an end leave more noise (the misfit's
+    // part, which grows with the frames averaged, is kept at the interior's).
+    let scale_of = |mk: usize| {
+        (noise_scale * m as f64 / mk as f64)
+            .max(robust)
+            .max(f64::MIN_POSITIVE)
+    };
+    let significance = |i: &(Vec2, Vec2, Vec2, usize)| i.0.norm() / scale_of(i.3);
     let mut out = Vec::new();
     for (p, series) in series.iter().enumerate() {
         for k in 0..frames {
-            let Some((imp, vb, va)) = series[k] else { continue };
+            let Some(gap) = series[k] else { continue };
+            let (imp, vb, va, mk) = gap;
             let size = imp.norm();
+            let scale = scale_of(mk);
             if size < JOLT_THRESHOLD * scale {
                 continue;
             }
             let lo = k.saturating_sub(m);
             let hi = (k + m).min(frames - 1);
-            let is_peak = (lo..=hi).all(|q| q == k || series[q].map_or(true, |i| i.0.norm() < size));
+            let own = significance(&gap);
+            let is_peak = (lo..=hi).all(|q| q == k || series[q].map_or(true, |i| significance(&i) < own));
             if !is_peak {
                 continue;
             }
             // A bounce reverses the velocity along its impulse: approaching, then leaving.
             let n = imp / size;
             if !reverses(vb, va, n, scale / size) {
+                continue;
+            }
+            // Near an end, where the means see fewer frames and a contact that starts or ends
+            // there (a ball leaving a shelf) also changes them: a wall's impulse is `1 + e`
+            // times the approach speed along it (`0 <= e <= 1`), so the particle must approach
+            // at least half the impulse, within one scale.
+            if mk < m && -vb.dot(&n) < 0.5 * size - scale {
                 continue;
             }
             // Spread over the gaps rather than concentrated in one: smooth motion.
@@ -187,7 +227,7 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 before: [vb.x, vb.y],
                 after: [va.x, va.y],
                 impulse: [imp.x, imp.y],
-                significance: size / scale,
+                significance: own,
             });
         }
     }
