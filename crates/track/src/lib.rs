@@ -23,7 +23,7 @@ mod png_reader;
 mod point_grid;
 mod scale;
 mod score;
-mod shared;
+mod shared_blobs;
 mod source;
 mod stack;
 mod track_table;

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use crate::background::STRUCTURED_LIMIT;
 use crate::checks::{check_tracks, skirts, Skirt};
 use crate::scale::{self, ScaleBlob};
-use crate::shared::{relocate_shared, Relocated, SharedBlobs, Starts};
+use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     band_noise, estimate_background, find_blobs_forming, find_blobs_with_scratch, link_detections,
     refine_centroids_with_scratch, Ambiguity, AmbiguityKind, Background, BackgroundChoice, BackgroundModel,
