@@ -18,7 +18,8 @@
 //!   rim at a radius well below the ring's has the rim running through it, as much on either
 //!   side: even all round in direction, but along one line. The same test holds for a ring
 //!   that is below the background by as much (a particle left in a per-pixel background
-//!   shows as a dark ring round its track).
+//!   shows as a dark ring round its track), and for one whose parts above and below the
+//!   background cancel in the mean (its mean magnitude beyond the noise's counts).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
 
 use std::collections::BTreeMap;
@@ -63,6 +64,10 @@ pub(crate) struct Skirt {
     /// How much of the ring's signal lies along one line through the point (see
     /// [`MAX_ELONGATED`]), in [0, 1].
     pub(crate) elongated: f64,
+    /// The ring's mean absolute signal beyond what its noise alone gives (`sigma sqrt(2 /
+    /// pi)`), over the disc's mean signal: as large as `level` where the ring's signal has
+    /// one sign, larger where parts above and below the background cancel in `level`.
+    pub(crate) magnitude: f64,
 }
 
 /// Why a track does not follow one particle.
@@ -77,6 +82,9 @@ pub(crate) enum Concern {
         /// How much of the ring's signal lies along one line through it (median over
         /// `frames`).
         elongated: f64,
+        /// The ring's mean magnitude beyond the noise over the disc's level (median over
+        /// `frames`).
+        magnitude: f64,
         /// The radius in use, px.
         radius: f64,
         /// Sample frames it was measured in.
@@ -108,18 +116,20 @@ impl std::fmt::Display for TrackConcern {
                 skirt,
                 lopsided,
                 elongated,
+                magnitude,
                 radius,
                 frames,
             } => write!(
                 f,
                 "{p}: its signal reaches well beyond the radius {radius:.2} px in use (the ring from {:.1} to {:.1} px \
-                 around it holds {:.0} % of its centre's level, {:.0} % of it to one side and {:.0} % along one line, \
+                 around it holds {:.0} % of its centre's level, {:.0} % in magnitude beyond the noise, {:.0} % of it to one side and {:.0} % along one line, \
                  median over frames {}; under {:.0} %, or under {:.0} % when lopsided or elongated, where the track \
                  follows one particle of this size): the particle is larger than that and was found as parts, or the \
                  track follows other objects",
                 radius + 1.0,
                 2.0 * radius + 1.0,
                 100.0 * skirt,
+                100.0 * magnitude,
                 100.0 * lopsided,
                 100.0 * elongated,
                 list(frames),
@@ -177,15 +187,19 @@ pub(crate) fn check_tracks(
         let lopsided = physfit_tracks::stats::median_upper(&mut sides);
         let mut lines: Vec<f64> = measured.iter().map(|m| m.1.elongated).collect();
         let elongated = physfit_tracks::stats::median_upper(&mut lines);
-        // A ring below the background is as telling as one above it (see the module doc).
+        let mut magnitudes: Vec<f64> = measured.iter().map(|m| m.1.magnitude).collect();
+        let magnitude = physfit_tracks::stats::median_upper(&mut magnitudes);
+        // A ring below the background is as telling as one above it, and parts above and
+        // below it that cancel in the mean as telling as either (see the module doc).
         let uneven = lopsided > MAX_LOPSIDED || elongated > MAX_ELONGATED;
-        if skirt.abs() > MAX_SKIRT || (skirt.abs() > LOPSIDED_SKIRT && uneven) {
+        if skirt.abs() > MAX_SKIRT || (skirt.abs().max(magnitude) > LOPSIDED_SKIRT && uneven) {
             out.push(TrackConcern {
                 particle: particle.to_string(),
                 concern: Concern::Larger {
                     skirt,
                     lopsided,
                     elongated,
+                    magnitude,
                     radius,
                     frames: measured.iter().map(|m| m.0).collect(),
                 },
@@ -198,7 +212,8 @@ pub(crate) fn check_tracks(
 /// The skirt of each of `points` (px) in one frame's `signal` (`width * height`, grey levels):
 /// the mean signal over the pixels between `radius + 1` and `2 radius + 1` px from the point
 /// that are nearer to it than to any other point, over the mean signal within `radius` of it,
-/// and how lopsided the ring's signal is; `None` where either region is empty or the disc
+/// how lopsided and how elongated the ring's signal is, and its mean magnitude beyond the
+/// pixel noise `noise_sigma` (grey levels); `None` where either region is empty or the disc
 /// holds no signal.
 pub(crate) fn skirts(
     signal: &[f32],
@@ -206,6 +221,7 @@ pub(crate) fn skirts(
     height: usize,
     points: &[[f64; 2]],
     radius: f64,
+    noise_sigma: f64,
 ) -> Vec<Option<Skirt>> {
     let outer = 2.0 * radius + 1.0;
     let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
@@ -282,6 +298,9 @@ pub(crate) fn skirts(
                 } else {
                     0.0
                 },
+                magnitude: (magnitude / nr as f64 - noise_sigma * std::f64::consts::FRAC_2_PI.sqrt())
+                    .max(0.0)
+                    / (core / nc as f64),
             })
         })
         .collect()
@@ -309,12 +328,12 @@ mod tests {
         let centres = [[30.0, 30.0], [50.0, 30.0]];
         let img = discs(80, 60, &centres, 9.0);
         // At the discs' own radius, touching neighbours at 20 px do not count.
-        for s in skirts(&img, 80, 60, &centres, 9.0) {
+        for s in skirts(&img, 80, 60, &centres, 9.0, 0.0) {
             assert!(s.unwrap().level < 0.01, "{s:?}");
         }
         // Parts of the discs at 3.7 px: the rest of each disc lies in the ring.
         let parts = [[26.0, 30.0], [50.0, 33.0]];
-        for s in skirts(&img, 80, 60, &parts, 3.7) {
+        for s in skirts(&img, 80, 60, &parts, 3.7, 0.0) {
             assert!(s.unwrap().level > 0.3, "{s:?}");
         }
     }
@@ -331,7 +350,7 @@ mod tests {
                 (100.0 * 0.5f64.powf((r / 20.0).powi(2))) as f32
             })
             .collect();
-        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4)[0].unwrap();
+        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
         assert!(s.lopsided < 0.05, "{s:?}");
         let ring: Vec<f32> = (0..w * h)
@@ -344,7 +363,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0)[0].unwrap();
+        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let t = TrackTable {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
@@ -356,7 +375,8 @@ mod tests {
     /// A ring of radii 14-20 px followed on its rim at 3.1 px: the rim runs through the point,
     /// about as much on either side (not lopsided enough to be caught), but along one line:
     /// caught by its elongation. A ring below the background round a point (a particle left
-    /// in the background) is caught as one above it is; a centred disc is not.
+    /// in the background) is caught as one above it is, and one half above and half below it
+    /// by its magnitude; a centred disc is not.
     #[test]
     fn a_track_on_a_large_rings_rim_and_one_in_a_dark_ring_are_reported() {
         let (w, h) = (120usize, 120usize);
@@ -370,7 +390,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&ring, w, h, &[[77.0, 60.0]], 3.1)[0].unwrap();
+        let s = skirts(&ring, w, h, &[[77.0, 60.0]], 3.1, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
         assert!(s.lopsided < MAX_LOPSIDED && s.elongated > MAX_ELONGATED, "{s:?}");
         let t = TrackTable {
@@ -392,12 +412,37 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0)[0].unwrap();
+        let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level < -LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
         assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
+        // The same ring 60 grey levels above the background on one side and below it on the
+        // other: its mean cancels, its magnitude does not.
+        let split: Vec<f32> = dark
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| match v {
+                v if v < 0.0 => -60.0,
+                v if v > 50.0 => v,
+                _ => {
+                    let (dx, dy) = ((i % w) as f64 - 60.0, (i / w) as f64 - 60.0);
+                    if (9.0..=14.0).contains(&dx.hypot(dy)) {
+                        60.0
+                    } else {
+                        0.0
+                    }
+                }
+            })
+            .collect();
+        let s = skirts(&split, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
+        assert!(
+            s.level.abs() < 0.05 && s.magnitude > 0.4 && s.lopsided > MAX_LOPSIDED,
+            "{s:?}"
+        );
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
         let disc: Vec<f32> = dark.iter().map(|v| v.max(0.0)).collect();
-        let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0)[0].unwrap();
+        let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level.abs() < 0.01 && s.elongated < 0.01, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
         assert!(check_tracks(&t, 6.0, &measured).is_empty());
@@ -412,6 +457,7 @@ mod tests {
             level,
             lopsided: 0.0,
             elongated: 0.0,
+            magnitude: level,
         };
         let mut skirts = BTreeMap::new();
         skirts.insert(

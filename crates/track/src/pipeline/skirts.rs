@@ -46,7 +46,14 @@ pub(super) fn sample_skirts(
                 let (width, height) = frame.size();
                 w.finder.levelled_signal(background, frame);
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
-                let s = skirts(&w.finder.signal, width, height, &at, radius);
+                let s = skirts(
+                    &w.finder.signal,
+                    width,
+                    height,
+                    &at,
+                    radius,
+                    background.noise_sigma,
+                );
                 Ok(points
                     .iter()
                     .zip(s)
