@@ -116,7 +116,7 @@ impl Stage<'_> {
             } = linked;
             // With the particle count known, the points of particles that shared a blob are placed
             // again from the image, jointly, and the motion judges once more which is which (see
-            // `crate::shared`).
+            // `crate::shared_blobs`).
             if let Some(named) = named.as_deref() {
                 // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
                 // paged its buffers in again).
