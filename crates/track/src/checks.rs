@@ -46,12 +46,15 @@ pub(crate) const MAX_LOPSIDED: f64 = 0.12;
 /// Largest elongation of a followed particle's skirt: the magnitude of the ring's signal
 /// summed as unit vectors at twice each pixel's direction from the point, over the sum of
 /// its magnitudes (0 for a ring holding the same signal all round, 1 for all of it on one
-/// line through the point). A band as wide as the particle through the point, the rim of a
-/// ring much larger than the radius in use, covers about `asin(R / 1.5 R) = 0.64` rad either
-/// side of its line at the ring's mid-radius: an elongation of `sin 1.29 / 1.29 = 0.74`
-/// (measured 0.33-0.68 on rims of rings of radius 4-20 px tracked at 3.1-5.8 px); a
-/// centred particle's is zero but for the noise, as for [`MAX_LOPSIDED`] (followed rings of
-/// 6 px: 0.01-0.14 a frame). The limit lies a third of the way from the one to the other.
+/// line through the point). A band `2 R` wide through the point (`R` the radius in use), the
+/// rim of a ring much larger than `R`, covers `a = asin(R / (1.5 R + 1))` rad either side of
+/// its line at the skirt's mid-radius `1.5 R + 1` (0.63 at `R` = 5 px): an elongation of
+/// `sin 2a / 2a = 0.75` (measured, median over frames: 0.34-0.66 on the rims of rings of
+/// 9-20 px tracked at 3.1-8.0 px); a centred particle's is zero but for the noise, as for
+/// [`MAX_LOPSIDED`] (followed rings of 4-20 px: 0.01-0.11). The limit lies a third of the way
+/// from the one to the other. Like the lopsidedness it counts only with a skirt above
+/// [`LOPSIDED_SKIRT`]: small, noisy particles of the sweep that are followed read up to 0.29
+/// with a skirt under 0.04.
 pub(crate) const MAX_ELONGATED: f64 = 0.25;
 
 /// A particle's skirt in one frame.
