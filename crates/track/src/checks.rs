@@ -13,8 +13,13 @@
 //!   radius of gyration puts a large one) but even all round it; a flat disc tracked below
 //!   half its radius has a skirt of 1, and a track on the edge of a disc or the rim of a
 //!   ring has the rest of the particle to one side. So a skirt above [`MAX_SKIRT`], or
-//!   above [`LOPSIDED_SKIRT`] and lopsided by more than [`MAX_LOPSIDED`], says the particle
-//!   is larger than the radius.
+//!   above [`LOPSIDED_SKIRT`] and lopsided by more than [`MAX_LOPSIDED`] or elongated by more
+//!   than [`MAX_ELONGATED`], says the particle is larger than the radius. A track on a ring's
+//!   rim at a radius well below the ring's has the rim running through it, as much on either
+//!   side: even all round in direction, but along one line. The same test holds for a ring
+//!   that is below the background by as much (a particle left in a per-pixel background
+//!   shows as a dark ring round its track), and for one whose parts above and below the
+//!   background cancel in the mean (its mean magnitude beyond the noise's counts).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
 
 use std::collections::BTreeMap;
@@ -38,6 +43,20 @@ pub(crate) const LOPSIDED_SKIRT: f64 = 0.2;
 /// of radius 10 px and contrast 100 under noise 20).
 pub(crate) const MAX_LOPSIDED: f64 = 0.12;
 
+/// Largest elongation of a followed particle's skirt: the magnitude of the ring's signal
+/// summed as unit vectors at twice each pixel's direction from the point, over the sum of
+/// its magnitudes (0 for a ring holding the same signal all round, 1 for all of it on one
+/// line through the point). A band `2 R` wide through the point (`R` the radius in use), the
+/// rim of a ring much larger than `R`, covers `a = asin(R / (1.5 R + 1))` rad either side of
+/// its line at the skirt's mid-radius `1.5 R + 1` (0.63 at `R` = 5 px): an elongation of
+/// `sin 2a / 2a = 0.75` (measured, median over frames: 0.34-0.66 on the rims of rings of
+/// 9-20 px tracked at 3.1-8.0 px); a centred particle's is zero but for the noise, as for
+/// [`MAX_LOPSIDED`] (followed rings of 4-20 px: 0.01-0.11). The limit lies a third of the way
+/// from the one to the other. Like the lopsidedness it counts only with a skirt above
+/// [`LOPSIDED_SKIRT`]: small, noisy particles of the sweep that are followed read up to 0.29
+/// with a skirt under 0.04.
+pub(crate) const MAX_ELONGATED: f64 = 0.25;
+
 /// A particle's skirt in one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Skirt {
@@ -45,6 +64,13 @@ pub(crate) struct Skirt {
     pub(crate) level: f64,
     /// How much of the ring's signal lies to one side (see [`MAX_LOPSIDED`]), in [0, 1].
     pub(crate) lopsided: f64,
+    /// How much of the ring's signal lies along one line through the point (see
+    /// [`MAX_ELONGATED`]), in [0, 1].
+    pub(crate) elongated: f64,
+    /// The ring's mean absolute signal beyond what its noise alone gives (`sigma sqrt(2 /
+    /// pi)`), over the disc's mean signal: as large as `level` where the ring's signal has
+    /// one sign, larger where parts above and below the background cancel in `level`.
+    pub(crate) magnitude: f64,
 }
 
 /// Why a track does not follow one particle.
@@ -56,6 +82,12 @@ pub(crate) enum Concern {
         skirt: f64,
         /// How much of the ring's signal lies to one side (median over `frames`).
         lopsided: f64,
+        /// How much of the ring's signal lies along one line through it (median over
+        /// `frames`).
+        elongated: f64,
+        /// The ring's mean magnitude beyond the noise over the disc's level (median over
+        /// `frames`).
+        magnitude: f64,
         /// The radius in use, px.
         radius: f64,
         /// Sample frames it was measured in.
@@ -86,18 +118,23 @@ impl std::fmt::Display for TrackConcern {
             Concern::Larger {
                 skirt,
                 lopsided,
+                elongated,
+                magnitude,
                 radius,
                 frames,
             } => write!(
                 f,
                 "{p}: its signal reaches well beyond the radius {radius:.2} px in use (the ring from {:.1} to {:.1} px \
-                 around it holds {:.0} % of its centre's level, {:.0} % of it to one side, median over frames {}; under \
-                 {:.0} %, or under {:.0} % when lopsided, where the track follows one particle of this size): the \
-                 particle is larger than that and was found as parts, or the track follows other objects",
+                 around it holds {:.0} % of its centre's level, {:.0} % in magnitude beyond the noise, {:.0} % of it to one side and {:.0} % along one line, \
+                 median over frames {}; under {:.0} %, or under {:.0} % when lopsided or elongated, where the track \
+                 follows one particle of this size): the particle is larger than that and was found as parts, or the \
+                 track follows other objects",
                 radius + 1.0,
                 2.0 * radius + 1.0,
                 100.0 * skirt,
+                100.0 * magnitude,
                 100.0 * lopsided,
+                100.0 * elongated,
                 list(frames),
                 100.0 * MAX_SKIRT,
                 100.0 * LOPSIDED_SKIRT
@@ -151,12 +188,21 @@ pub(crate) fn check_tracks(
         let skirt = physfit_tracks::stats::median_upper(&mut values);
         let mut sides: Vec<f64> = measured.iter().map(|m| m.1.lopsided).collect();
         let lopsided = physfit_tracks::stats::median_upper(&mut sides);
-        if skirt > MAX_SKIRT || (skirt > LOPSIDED_SKIRT && lopsided > MAX_LOPSIDED) {
+        let mut lines: Vec<f64> = measured.iter().map(|m| m.1.elongated).collect();
+        let elongated = physfit_tracks::stats::median_upper(&mut lines);
+        let mut magnitudes: Vec<f64> = measured.iter().map(|m| m.1.magnitude).collect();
+        let magnitude = physfit_tracks::stats::median_upper(&mut magnitudes);
+        // A ring below the background is as telling as one above it, and parts above and
+        // below it that cancel in the mean as telling as either (see the module doc).
+        let uneven = lopsided > MAX_LOPSIDED || elongated > MAX_ELONGATED;
+        if skirt.abs() > MAX_SKIRT || (skirt.abs().max(magnitude) > LOPSIDED_SKIRT && uneven) {
             out.push(TrackConcern {
                 particle: particle.to_string(),
                 concern: Concern::Larger {
                     skirt,
                     lopsided,
+                    elongated,
+                    magnitude,
                     radius,
                     frames: measured.iter().map(|m| m.0).collect(),
                 },
@@ -169,7 +215,8 @@ pub(crate) fn check_tracks(
 /// The skirt of each of `points` (px) in one frame's `signal` (`width * height`, grey levels):
 /// the mean signal over the pixels between `radius + 1` and `2 radius + 1` px from the point
 /// that are nearer to it than to any other point, over the mean signal within `radius` of it,
-/// and how lopsided the ring's signal is; `None` where either region is empty or the disc
+/// how lopsided and how elongated the ring's signal is, and its mean magnitude beyond the
+/// pixel noise `noise_sigma` (grey levels); `None` where either region is empty or the disc
 /// holds no signal.
 pub(crate) fn skirts(
     signal: &[f32],
@@ -177,6 +224,7 @@ pub(crate) fn skirts(
     height: usize,
     points: &[[f64; 2]],
     radius: f64,
+    noise_sigma: f64,
 ) -> Vec<Option<Skirt>> {
     let outer = 2.0 * radius + 1.0;
     let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
@@ -210,7 +258,7 @@ pub(crate) fn skirts(
                 return None;
             }
             let (mut core, mut nc, mut ring, mut nr) = (0.0, 0usize, 0.0, 0usize);
-            let (mut side, mut magnitude) = ([0.0f64; 2], 0.0f64);
+            let (mut side, mut axis, mut magnitude) = ([0.0f64; 2], [0.0f64; 2], 0.0f64);
             for y in y0 as usize..=y1 as usize {
                 let dy = y as f64 - p[1];
                 for x in x0 as usize..=x1 as usize {
@@ -231,6 +279,9 @@ pub(crate) fn skirts(
                         let d = d2.sqrt();
                         side[0] += v * dx / d;
                         side[1] += v * dy / d;
+                        // cos 2θ and sin 2θ of the pixel's direction from the point.
+                        axis[0] += v * (dx * dx - dy * dy) / d2;
+                        axis[1] += v * 2.0 * dx * dy / d2;
                         magnitude += v.abs();
                     }
                 }
@@ -245,6 +296,14 @@ pub(crate) fn skirts(
                 } else {
                     0.0
                 },
+                elongated: if magnitude > 0.0 {
+                    axis[0].hypot(axis[1]) / magnitude
+                } else {
+                    0.0
+                },
+                magnitude: (magnitude / nr as f64 - noise_sigma * std::f64::consts::FRAC_2_PI.sqrt())
+                    .max(0.0)
+                    / (core / nc as f64),
             })
         })
         .collect()
@@ -272,12 +331,12 @@ mod tests {
         let centres = [[30.0, 30.0], [50.0, 30.0]];
         let img = discs(80, 60, &centres, 9.0);
         // At the discs' own radius, touching neighbours at 20 px do not count.
-        for s in skirts(&img, 80, 60, &centres, 9.0) {
+        for s in skirts(&img, 80, 60, &centres, 9.0, 0.0) {
             assert!(s.unwrap().level < 0.01, "{s:?}");
         }
         // Parts of the discs at 3.7 px: the rest of each disc lies in the ring.
         let parts = [[26.0, 30.0], [50.0, 33.0]];
-        for s in skirts(&img, 80, 60, &parts, 3.7) {
+        for s in skirts(&img, 80, 60, &parts, 3.7, 0.0) {
             assert!(s.unwrap().level > 0.3, "{s:?}");
         }
     }
@@ -294,7 +353,7 @@ mod tests {
                 (100.0 * 0.5f64.powf((r / 20.0).powi(2))) as f32
             })
             .collect();
-        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4)[0].unwrap();
+        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
         assert!(s.lopsided < 0.05, "{s:?}");
         let ring: Vec<f32> = (0..w * h)
@@ -307,7 +366,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0)[0].unwrap();
+        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let t = TrackTable {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
@@ -316,12 +375,93 @@ mod tests {
         assert_eq!(check_tracks(&t, 5.0, &measured).len(), 1);
     }
 
+    /// A ring of radii 14-20 px followed on its rim at 3.1 px: the rim runs through the point,
+    /// about as much on either side (not lopsided enough to be caught), but along one line:
+    /// caught by its elongation. A ring below the background round a point (a particle left
+    /// in the background) is caught as one above it is, and one half above and half below it
+    /// by its magnitude; a centred disc is not.
+    #[test]
+    fn a_track_on_a_large_rings_rim_and_one_in_a_dark_ring_are_reported() {
+        let (w, h) = (120usize, 120usize);
+        let ring: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let r = ((i % w) as f64 - 60.0).hypot((i / w) as f64 - 60.0);
+                if (14.0..=20.0).contains(&r) {
+                    100.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let s = skirts(&ring, w, h, &[[77.0, 60.0]], 3.1, 0.0)[0].unwrap();
+        assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
+        assert!(s.lopsided < MAX_LOPSIDED && s.elongated > MAX_ELONGATED, "{s:?}");
+        let t = TrackTable {
+            points: (0..4).map(|k| TrackPoint::new(k, "r", 77.0, 60.0)).collect(),
+        };
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert_eq!(check_tracks(&t, 3.1, &measured).len(), 1);
+        // A disc of 6 px, with the ring from 9 to 14 px 80 grey levels below the background on one side.
+        let dark: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (dx, dy) = ((i % w) as f64 - 60.0, (i / w) as f64 - 60.0);
+                let r = dx.hypot(dy);
+                if r <= 6.0 {
+                    100.0
+                } else if (9.0..=14.0).contains(&r) && dx > 0.0 {
+                    -80.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
+        assert!(s.level < -LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
+        // The same ring 60 grey levels above the background on one side and below it on the
+        // other: its mean cancels, its magnitude does not.
+        let split: Vec<f32> = dark
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| match v {
+                v if v < 0.0 => -60.0,
+                v if v > 50.0 => v,
+                _ => {
+                    let (dx, dy) = ((i % w) as f64 - 60.0, (i / w) as f64 - 60.0);
+                    if (9.0..=14.0).contains(&dx.hypot(dy)) {
+                        60.0
+                    } else {
+                        0.0
+                    }
+                }
+            })
+            .collect();
+        let s = skirts(&split, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
+        assert!(
+            s.level.abs() < 0.05 && s.magnitude > 0.4 && s.lopsided > MAX_LOPSIDED,
+            "{s:?}"
+        );
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
+        let disc: Vec<f32> = dark.iter().map(|v| v.max(0.0)).collect();
+        let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
+        assert!(s.level.abs() < 0.01 && s.elongated < 0.01, "{s:?}");
+        let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
+        assert!(check_tracks(&t, 6.0, &measured).is_empty());
+    }
+
     #[test]
     fn a_larger_particle_and_one_detected_in_under_half_its_frames_are_reported() {
         let mut t = TrackTable {
             points: (0..20).map(|k| TrackPoint::new(k, "a", k as f64, 0.0)).collect(),
         };
-        let even = |level: f64| Skirt { level, lopsided: 0.0 };
+        let even = |level: f64| Skirt {
+            level,
+            lopsided: 0.0,
+            elongated: 0.0,
+            magnitude: level,
+        };
         let mut skirts = BTreeMap::new();
         skirts.insert(
             "a".to_string(),

@@ -23,29 +23,43 @@ mod png_reader;
 mod point_grid;
 mod scale;
 mod score;
-mod shared;
+mod shared_blobs;
 mod source;
 mod stack;
 mod track_table;
 mod video;
 
-pub use appearance::*;
-pub use assignment::*;
-pub use background::*;
+pub use appearance::{
+    Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance, HISTORY, OWN_SPREAD_MIN_CHANGES,
+};
+pub use assignment::{match_to_starts, solve_dense, solve_sparse, SparseProblem};
+pub use background::{
+    estimate_background, Background, BackgroundChoice, BackgroundModel, SampleExposure, CLEAR_SAMPLES,
+};
 pub use blind::BlindPixels;
-pub use detect::*;
+pub use detect::{
+    band_noise, box_half_width, find_blobs, find_blobs_forming, find_blobs_with_scratch, Blob, BlobSet,
+    BlobSize, DetectParameters, Scratch, FLOOD_CAP_AREAS, MASK_SIGMAS, MAX_AREA_RATIO, MERGED_AREA_RATIO,
+    MIN_AREA_RATIO, PEAK_SIGMAS,
+};
 pub use error::TrackError;
-pub use frames::*;
+pub use frames::{
+    compare_natural, frame_from_image, frame_number, list_frames, load_frame, DecodedFrame, Frame,
+    FrameDecoder, FrameView,
+};
 pub use limits::{
     frame_limits, set_frame_limits, FrameLimits, DEFAULT_MAX_DECOMPRESSION_RATIO, DEFAULT_MAX_MEGAPIXELS,
 };
-pub use link::*;
-pub use locate::*;
+pub use link::{
+    link_detections, Ambiguity, AmbiguityKind, FrameDetections, LinkOptions, LinkOutcome,
+    APPEARANCE_GATE_SIGMAS,
+};
+pub use locate::{refine_centroids, refine_centroids_with_scratch, Detection, LocateScratch};
 pub use naming::name_tracks_by_position;
 pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};
 #[doc(hidden)]
 pub use png_reader::fuzz_read_png;
-pub use score::*;
+pub use score::{score_tracks, TrackScore};
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
 // The track table and other trackers' tables live in physfit-tracks; re-exported so the

@@ -1,7 +1,9 @@
 //! Crossings settled after linking: the judgement of [`crate::crossing`] applied to the
 //! linked tracks, their points and the ambiguity events that describe them.
 
-use super::{AmbiguityKind, Point, SingleParticle, Track};
+use super::outcome::AmbiguityKind;
+use super::single_particle::SingleParticle;
+use super::track::{Point, Track};
 use crate::crossing::{self, Seen};
 use crate::track_table::PointFlag;
 

@@ -288,6 +288,30 @@ fn styles_followed_today_stay_followed() {
     assert!(failed.is_empty(), "\n{HEADER}\n{}", failed.join("\n"));
 }
 
+/// The synth styles the tracker refuses today with an error (rings 1002, 1011 and 1031; a
+/// saturating exposure 1009, 1033, 1038; noise a third of the contrast 1025): each must be
+/// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
+/// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
+/// 0.51 / 1.18) was written wrong until the skirt's magnitude counted.
+const REFUSED_SYNTH: &[u64] = &[1002, 1009, 1011, 1025, 1031, 1033, 1038];
+
+#[test]
+fn styles_refused_today_are_refused_or_followed() {
+    let bad: Vec<String> = REFUSED_SYNTH
+        .iter()
+        .map(|&seed| synth_row(seed))
+        .filter(|row| {
+            let refused = row
+                .failure
+                .as_deref()
+                .is_some_and(|f| f.starts_with("tracking failed"));
+            !(row.passed() || refused)
+        })
+        .map(|row| row.line())
+        .collect();
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
+
 #[test]
 #[ignore = "tracker issue 20: 15 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
@@ -389,5 +413,60 @@ fn rings_beside_neighbours_are_not_split_between_them() {
             }
         }
     }
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
+
+/// Rings of 14 and 20 px (a third to a half of the sweep's largest particles) beside their
+/// neighbours, noise 5 and 15, each seed's light: every one is followed within the bound or
+/// refused with an error, never tracked wrong without a word. Rings 3 to 6 times the radius
+/// the estimate settles on were followed on their rim; the skirt check did not see it, the
+/// rim running through the point as much on one side as on the other (seed 3004 at 20 px
+/// and noise 15: 11.4 / 5.5 px RMS at radius 3.11 px, a skirt of 0.35 lopsided 0.11 but
+/// elongated 0.65), or the ring lying below a background that held part of the particles
+/// (seed 3005 at 14 px and noise 5: 1.0 / 1.0 px RMS, a skirt of -0.31). Both are refused
+/// now (the skirt's elongation, and its level taken either side of the background). Left
+/// out: seed 3000 at 14 px under noise 15 and at 20 px (0.4-0.9 px RMS under its gradient
+/// and vignetting) and seed 3005 at 14 px under noise 12 and at 20 px (2-9 px, at radii of
+/// 16-22 px), still written wrong (`ring_neighbours_table`). Seed 3005 at 20 px and noise
+/// 15 (8.9 px RMS, 47 % recall at radius 4.6 px) and seed 3003 at 6 px and noise 15 (0.50 /
+/// 0.30 px) had skirts whose parts above and below the background cancelled (-0.1 to 0.1,
+/// lopsided 0.30 and 0.14): their mean magnitude beyond the noise (0.35, 0.12-0.3) refuses
+/// them.
+#[test]
+fn large_rings_are_followed_or_refused() {
+    let cases: &[(u64, usize, f64)] = &[
+        (3000, 3, 5.0),
+        (3001, 3, 5.0),
+        (3001, 3, 15.0),
+        (3001, 4, 5.0),
+        (3001, 4, 15.0),
+        (3002, 3, 5.0),
+        (3002, 3, 15.0),
+        (3002, 4, 5.0),
+        (3002, 4, 15.0),
+        (3003, 3, 5.0),
+        (3003, 3, 15.0),
+        (3003, 4, 5.0),
+        (3003, 4, 15.0),
+        (3004, 3, 5.0),
+        (3004, 3, 15.0),
+        (3004, 4, 5.0),
+        (3004, 4, 15.0),
+        (3005, 3, 5.0),
+        (3005, 4, 15.0),
+        (3003, 1, 15.0),
+    ];
+    let bad: Vec<String> = cases
+        .iter()
+        .map(|&(seed, i, noise)| ring_row(seed, RING_RADII[i], ring_width(seed, i), noise))
+        .filter(|row| {
+            let refused = row
+                .failure
+                .as_deref()
+                .is_some_and(|f| f.starts_with("tracking failed"));
+            !(row.passed() || refused)
+        })
+        .map(|row| row.line())
+        .collect();
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }

@@ -1,0 +1,356 @@
+//! Unit tests of the background model.
+
+use super::estimate::estimate_background;
+use super::median::{median_of, median_of_bytes};
+use super::model::{BackgroundChoice, BackgroundModel, SampleExposure};
+use crate::frames::{Frame, FrameView};
+
+use crate::DecodedFrame;
+
+/// The frames' views, as the estimates take them.
+fn views(frames: &[Frame]) -> Vec<FrameView<'_>> {
+    frames.iter().map(FrameView::from).collect()
+}
+
+fn frame_with_spot(level: f32, spot: f32, at: (usize, usize)) -> Frame {
+    let mut f = Frame::filled(40, 30, &[level]);
+    for y in at.1 - 2..=at.1 + 2 {
+        for x in at.0 - 2..=at.0 + 2 {
+            f.data[y * 40 + x] = spot;
+        }
+    }
+    f
+}
+
+/// An 8-bit grey file's samples, handed over as they are, give the signal and the frame
+/// gain of the same frame converted to floating point, to the bit, against constant and
+/// per-pixel backgrounds (and the gain moves with the exposure); other layouts come as
+/// frames.
+#[test]
+fn grey_samples_give_the_frame_signal_and_gain_to_the_bit() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let dir = std::env::temp_dir().join(format!("physfit-view-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (48u32, 40u32);
+    let frames: Vec<Frame> = (0..5)
+        .map(|k| {
+            let img = image::GrayImage::from_fn(w, h, |x, _| {
+                image::Luma([(40 + x + k * 3 + rng.gen_range(0..9)) as u8])
+            });
+            let path = dir.join(format!("grey_{k}.png"));
+            img.save(&path).unwrap();
+            crate::load_frame(&path).unwrap()
+        })
+        .collect();
+    let mut decoder = crate::FrameDecoder::default();
+    let mut buf = Frame::default();
+    // The files kept as their bytes give the same estimates to the bit.
+    let kept: Vec<DecodedFrame> = (0..5)
+        .map(|k| decoder.load_decoded(&dir.join(format!("grey_{k}.png"))).unwrap())
+        .collect();
+    let bytes: Vec<FrameView> = kept.iter().map(DecodedFrame::view).collect();
+    assert!(bytes.iter().all(|v| matches!(v, FrameView::Grey8 { .. })));
+    let found: Vec<Vec<[f64; 2]>> = (0..5).map(|k| vec![[10.0 + 5.0 * k as f64, 20.0]]).collect();
+    for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+        let mut bg = estimate_background(&views(&frames), choice);
+        let mut from_bytes = estimate_background(&bytes, choice);
+        assert_eq!(from_bytes, bg, "{choice:?}");
+        assert_eq!(
+            from_bytes
+                .static_structure_fraction(&bytes, &found, 3.0)
+                .to_bits(),
+            bg.static_structure_fraction(&views(&frames), &found, 3.0)
+                .to_bits()
+        );
+        from_bytes.exclude_particles(&bytes, &found, &[], 3.0, SampleExposure::AsRecorded);
+        bg.exclude_particles(&views(&frames), &found, &[], 3.0, SampleExposure::AsRecorded);
+        assert_eq!(from_bytes, bg, "{choice:?}");
+        for (k, frame) in frames.iter().enumerate() {
+            let view = decoder
+                .load_view(&dir.join(format!("grey_{k}.png")), &mut buf)
+                .unwrap();
+            assert!(matches!(view, FrameView::Grey8 { .. }), "{view:?}");
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            bg.signal_into(view, &mut a);
+            bg.signal_into(frame, &mut b);
+            assert!(a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
+            // Row by row, as the detector forms it.
+            let mut rows = vec![f32::NAN; a.len()];
+            for (y, out) in rows.chunks_exact_mut(w as usize).enumerate() {
+                bg.signal_range(view, y * w as usize..(y + 1) * w as usize, out);
+            }
+            assert!(rows.iter().zip(&a).all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert_eq!(bg.frame_gain(view).to_bits(), bg.frame_gain(frame).to_bits());
+            assert!(
+                (bg.frame_gain(view) - bg.reference_gain).abs() < 0.2,
+                "{choice:?}"
+            );
+        }
+    }
+    let rgb = dir.join("rgb.png");
+    image::RgbImage::from_pixel(w, h, image::Rgb([10, 20, 30]))
+        .save(&rgb)
+        .unwrap();
+    let view = decoder.load_view(&rgb, &mut buf).unwrap();
+    assert!(matches!(view, FrameView::Frame(f) if f.channels == 3 && f.data[..3] == [10.0, 20.0, 30.0]));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The gain of 8-bit grey bytes against a constant level, found by counting, is the
+/// general median of the ratios to the bit: flat, noisy and saturated frames with
+/// spots, levels below and above the 16 the gain needs, frames of fewer samples than
+/// the 16 it needs, of every pixel and of a strided sample.
+#[test]
+fn grey_gain_on_a_level_is_counted_to_the_bit() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    for (w, h) in [(3usize, 2usize), (7, 5), (64, 48), (300, 200)] {
+        for level in [10.0f32, 16.0, 30.0, 149.6, 240.0] {
+            for sigma in [0.0f32, 0.4, 5.0, 40.0] {
+                let bytes: Vec<u8> = (0..w * h)
+                    .map(|i| {
+                        let noise: f32 =
+                            (0..4).map(|_| rng.gen_range(-0.5f32..0.5)).sum::<f32>() * 1.73 * sigma;
+                        let spot = if i % 97 < 6 { 120.0 } else { 0.0 };
+                        (level + noise + spot).round().clamp(0.0, 255.0) as u8
+                    })
+                    .collect();
+                let frame = Frame {
+                    width: w,
+                    height: h,
+                    channels: 1,
+                    data: bytes.iter().map(|&v| f32::from(v)).collect(),
+                };
+                let mut bg = estimate_background(&[FrameView::Frame(&frame)], BackgroundChoice::Constant);
+                bg.level = vec![level];
+                bg.image = vec![level; w * h];
+                let view = FrameView::Grey8 {
+                    samples: &bytes,
+                    width: w,
+                    height: h,
+                };
+                assert_eq!(
+                    bg.frame_gain(view).to_bits(),
+                    bg.frame_gain(&frame).to_bits(),
+                    "{w}x{h}, level {level}, noise {sigma}"
+                );
+            }
+        }
+    }
+}
+
+/// The signal formed by the loop compiled for AVX2 is the baseline's to the bit, from
+/// bytes and from `f32` frames, against constant and per-pixel backgrounds.
+#[test]
+fn avx2_signal_is_the_baseline_signal() {
+    let (w, h) = (37usize, 11usize);
+    let frames: Vec<Frame> = (0..5)
+        .map(|k| Frame {
+            width: w,
+            height: h,
+            channels: 1,
+            data: (0..w * h).map(|i| ((i * 31 + k * 17) % 200) as f32).collect(),
+        })
+        .collect();
+    let bytes: Vec<u8> = frames[2].data.iter().map(|&v| v as u8).collect();
+    let view = FrameView::Grey8 {
+        samples: &bytes,
+        width: w,
+        height: h,
+    };
+    for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+        let bg = estimate_background(&views(&frames), choice);
+        for frame in [view, FrameView::Frame(&frames[2])] {
+            let signal = || {
+                let mut out = Vec::new();
+                bg.signal_into(frame, &mut out);
+                out.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            };
+            assert_eq!(signal(), crate::cpu::baseline_only(signal), "{choice:?}");
+        }
+    }
+}
+
+/// The median of bytes is the median of the same levels as `f32`, to the bit, for odd
+/// and even counts.
+#[test]
+fn median_of_bytes_is_the_median_of_the_levels() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for n in 1..=30 {
+        for _ in 0..20 {
+            let spread = rng.gen_range(1u32..=256);
+            let mut bytes: Vec<u8> = (0..n).map(|_| rng.gen_range(0..spread) as u8).collect();
+            let mut levels: Vec<f32> = bytes.iter().map(|&b| f32::from(b)).collect();
+            assert_eq!(
+                median_of_bytes(&mut bytes).to_bits(),
+                median_of(&mut levels).to_bits(),
+                "{n} values"
+            );
+        }
+    }
+}
+
+/// A frame of another channel count than the background's is read as converted: a grey
+/// frame among colour ones as its grey repeated into red, green and blue, a colour frame
+/// among grey ones as the mean of its channels.
+#[test]
+fn a_frame_of_another_channel_count_is_converted_first() {
+    let colour: Vec<Frame> = (0..3)
+        .map(|k| Frame {
+            width: 6,
+            height: 4,
+            channels: 3,
+            data: (0..72).map(|i| (40 + (i * 7 + k * 5) % 50) as f32).collect(),
+        })
+        .collect();
+    let grey = Frame {
+        width: 6,
+        height: 4,
+        channels: 1,
+        data: (0..24).map(|i| (60 + i * 3) as f32).collect(),
+    };
+    for (samples, odd) in [
+        (colour.clone(), grey.clone()),
+        (vec![grey.clone(); 3], colour[1].clone()),
+    ] {
+        let bg = estimate_background(&views(&samples), BackgroundChoice::PerPixel);
+        let (mut got, mut want) = (Vec::new(), Vec::new());
+        bg.signal_into(&odd, &mut got);
+        bg.signal_into(&odd.clone().with_channels(bg.channels), &mut want);
+        assert_eq!(got.len(), 24);
+        assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()));
+        let mut converted = Frame::default();
+        let view = bg.matching(FrameView::Frame(&odd), &mut converted);
+        assert!(matches!(view, FrameView::Frame(f) if f.channels == bg.channels));
+    }
+}
+
+/// `signal_at` gives `signal_into`'s value to the bit, for grey and colour frames
+/// against constant and per-pixel backgrounds.
+#[test]
+fn signal_at_equals_the_whole_frame_signal() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for channels in [1usize, 3] {
+        let frames: Vec<Frame> = (0..5)
+            .map(|_| Frame {
+                width: 9,
+                height: 7,
+                channels,
+                data: (0..9 * 7 * channels).map(|_| rng.gen_range(0.0..255.0)).collect(),
+            })
+            .collect();
+        for choice in [BackgroundChoice::Constant, BackgroundChoice::PerPixel] {
+            let bg = estimate_background(&views(&frames), choice);
+            let whole = bg.signal(&frames[2]);
+            for (i, v) in whole.iter().enumerate() {
+                let pixel = &frames[2].data[i * channels..(i + 1) * channels];
+                assert_eq!(
+                    bg.signal_at(pixel, i).to_bits(),
+                    v.to_bits(),
+                    "{channels} channels, {choice:?}, pixel {i}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn dark_on_light_gets_negative_direction_and_positive_signal() {
+    let samples: Vec<Frame> = (0..5)
+        .map(|k| frame_with_spot(200.0, 50.0, (5 + 6 * k, 10)))
+        .collect();
+    let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
+    assert_eq!(bg.model, BackgroundModel::Constant);
+    assert!((bg.level[0] - 200.0).abs() < 1e-3);
+    assert!(bg.is_dark_on_light());
+    let s = bg.signal(&samples[0]);
+    assert!((s[10 * 40 + 5] - 150.0).abs() < 1e-3);
+    assert!(s[0].abs() < 1e-3);
+}
+
+#[test]
+fn a_gradient_background_is_modelled_per_pixel() {
+    let samples: Vec<Frame> = (0..7)
+        .map(|k| {
+            let mut f = frame_with_spot(0.0, 255.0, (5 + 4 * k, 15));
+            for (i, v) in f.data.iter_mut().enumerate() {
+                if *v < 1.0 {
+                    *v = (i % 40) as f32 * 4.0;
+                }
+            }
+            f
+        })
+        .collect();
+    let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
+    assert_eq!(bg.model, BackgroundModel::PerPixel);
+    let s = bg.signal(&samples[3]);
+    assert!(
+        s[3 * 40 + 30].abs() < 1e-3,
+        "background pixel signal {}",
+        s[3 * 40 + 30]
+    );
+    assert!(s[15 * 40 + 17] > 100.0);
+}
+
+#[test]
+fn a_hovering_spot_is_taken_out_of_the_per_pixel_median() {
+    // A gradient (so the per-pixel model is used) and a bright spot that sits at (20, 15)
+    // in five of seven frames: the plain median there is the spot's level.
+    let at = |k: usize| if k < 5 { (20, 15) } else { (8 + 20 * (k - 5), 6) };
+    let gradient = |i: usize| (i % 40) as f32 * 4.0;
+    let samples: Vec<Frame> = (0..7)
+        .map(|k| {
+            let mut f = frame_with_spot(0.0, 255.0, at(k));
+            for (i, v) in f.data.iter_mut().enumerate() {
+                if *v < 1.0 {
+                    *v = gradient(i);
+                }
+            }
+            f
+        })
+        .collect();
+    let mut bg = estimate_background(&views(&samples), BackgroundChoice::PerPixel);
+    let centre = 15 * 40 + 20;
+    assert!(
+        (bg.image[centre] - 255.0).abs() < 1e-3,
+        "the plain median keeps the spot"
+    );
+    let found: Vec<Vec<[f64; 2]>> = (0..7).map(|k| vec![[at(k).0 as f64, at(k).1 as f64]]).collect();
+    bg.exclude_particles(&views(&samples), &found, &[], 5.0, SampleExposure::AsRecorded);
+    assert!(
+        (bg.image[centre] - gradient(centre)).abs() < 1e-3,
+        "the median of the three frames whose spot is farthest: {}",
+        bg.image[centre]
+    );
+    // Far from every particle, nothing changes.
+    assert!((bg.image[28 * 40 + 2] - gradient(28 * 40 + 2)).abs() < 1e-3);
+}
+
+#[test]
+fn colour_direction_points_to_the_particle_colour() {
+    let samples: Vec<Frame> = (0..5)
+        .map(|k| {
+            let mut f = Frame::filled(30, 20, &[240.0, 240.0, 240.0]);
+            for y in 8..12 {
+                for x in 3 + 5 * k..7 + 5 * k {
+                    let i = (y * 30 + x) * 3;
+                    f.data[i..i + 3].copy_from_slice(&[40.0, 140.0, 160.0]);
+                }
+            }
+            f
+        })
+        .collect();
+    let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
+    let d = &bg.direction;
+    // The particle is (-200, -100, -80) from the background.
+    let expect = [-200.0f32, -100.0, -80.0];
+    let n = expect.iter().map(|v| v * v).sum::<f32>().sqrt();
+    for i in 0..3 {
+        assert!((d[i] - expect[i] / n).abs() < 1e-3, "{d:?}");
+    }
+    let s = bg.signal(&samples[0]);
+    assert!((s[9 * 30 + 4] - n).abs() < 0.5);
+}

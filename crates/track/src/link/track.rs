@@ -1,0 +1,314 @@
+//! A track being linked: its points, motion anchors, predictions and bridged runs.
+
+use super::options::{diagonal, FrameDetections, LinkOptions};
+use super::{CLEAN_ANCHOR_AGE, GATE_SIGMAS, RESIDUAL_RATE};
+use crate::appearance::{Appearance, AppearanceHistory};
+use crate::locate::Detection;
+use crate::point_grid::PointGrid;
+use crate::track_table::PointFlag;
+
+#[derive(Clone, Debug)]
+pub(super) struct Point {
+    pub(super) x: f64,
+    pub(super) y: f64,
+    pub(super) mass: f64,
+    pub(super) size: f64,
+    pub(super) ep: f64,
+    pub(super) flag: PointFlag,
+    /// Written to the table (false while outside the image or lost).
+    pub(super) emit: bool,
+    /// Located from a blob with no other detection near enough to share its light.
+    pub(super) clean: bool,
+}
+
+/// The indices into a track's points that its motion is extrapolated from (see
+/// [`Track::anchors`]): the first `len` of `at`, newest first.
+#[derive(Clone, Copy, Debug, Default)]
+struct Anchors {
+    pub(super) at: [usize; 3],
+    pub(super) len: usize,
+}
+
+/// A track's extrapolations to the next frame (see [`Track::extrapolations`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Extrapolations {
+    /// The newest anchor, an index into the track's points.
+    newest: Option<usize>,
+    /// Constant position, velocity and acceleration, px (`None` without enough anchors).
+    orders: [Option<[f64; 2]>; 3],
+}
+
+/// Where a track's particle is expected in the next frame.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Prediction {
+    /// The predicted position, px.
+    pub(super) at: [f64; 2],
+    /// The prediction's scale (one standard deviation of its error), px.
+    pub(super) scale: f64,
+    /// The extrapolations it was chosen from, which the observation then grades.
+    pub(super) ahead: Extrapolations,
+}
+
+#[derive(Clone, Debug)]
+pub(super) struct Track {
+    pub(super) name: String,
+    pub(super) first_frame: usize,
+    /// One point per frame from `first_frame`, contiguous.
+    pub(super) points: Vec<Point>,
+    pub(super) misses: usize,
+    /// Points located in frames (detected or split), not bridged.
+    pub(super) seen: usize,
+    /// Consecutive frames, up to the last, in which the track shared a blob.
+    pub(super) merged: usize,
+    /// Running mean squared one-frame-ahead residuals of the constant position, constant
+    /// velocity and constant acceleration predictions, px².
+    err_cp: Option<f64>,
+    err_cv: Option<f64>,
+    err_ca: Option<f64>,
+    /// Prediction scale before any velocity is known, px.
+    init_scale: f64,
+    pub(super) ended: bool,
+    /// Appearance of each located point, with its frame.
+    pub(super) apps: AppearanceHistory,
+}
+
+impl Track {
+    pub(super) fn new(name: String, frame: usize, p: Point, init_scale: f64) -> Track {
+        let seen = usize::from(p.flag != PointFlag::Interpolated);
+        Track {
+            name,
+            first_frame: frame,
+            points: vec![p],
+            misses: 0,
+            seen,
+            merged: 0,
+            err_cp: None,
+            err_cv: None,
+            err_ca: None,
+            init_scale,
+            ended: false,
+            apps: AppearanceHistory::default(),
+        }
+    }
+
+    fn pos(&self, back: usize) -> [f64; 2] {
+        let p = &self.points[self.points.len() - 1 - back];
+        [p.x, p.y]
+    }
+
+    /// The points motion is extrapolated from: the latest located from the particle's own
+    /// blob (split and bridged points are placed from predictions and carry no news),
+    /// preferring those no other detection was near enough to share light with, as long as
+    /// the newest of them is recent. Indices into `points`, newest first, at most three.
+    fn anchors(&self) -> Anchors {
+        let detected = |p: &Point| p.flag == PointFlag::Detected;
+        let newest = self.points.iter().rposition(detected);
+        let latest = |keep: &dyn Fn(&Point) -> bool| {
+            let mut found = Anchors::default();
+            for i in (0..self.points.len()).rev() {
+                if found.len == found.at.len() {
+                    break;
+                }
+                if keep(&self.points[i]) {
+                    found.at[found.len] = i;
+                    found.len += 1;
+                }
+            }
+            found
+        };
+        let clean = latest(&|p| detected(p) && p.clean);
+        match newest {
+            Some(n) if clean.len >= 2 && clean.at[0] + CLEAN_ANCHOR_AGE >= n => clean,
+            Some(_) => latest(&detected),
+            None => Anchors::default(),
+        }
+    }
+
+    pub(super) fn at(&self, i: usize) -> [f64; 2] {
+        let p = &self.points[i];
+        [p.x, p.y]
+    }
+
+    /// Polynomial extrapolations (Lagrange) through the first 1, 2 and 3 of the track's
+    /// [`Track::anchors`] to the next frame: constant position, constant velocity and
+    /// constant acceleration (`None` where there are too few anchors), px.
+    fn extrapolations(&self) -> Extrapolations {
+        let anchors = self.anchors();
+        let knots = anchors
+            .at
+            .map(|i| (i as f64, self.points.get(i).map_or([0.0; 2], |p| [p.x, p.y])));
+        let next = self.points.len() as f64;
+        Extrapolations {
+            newest: (anchors.len > 0).then_some(anchors.at[0]),
+            orders: [1, 2, 3].map(|k| (anchors.len >= k).then(|| lagrange(&knots[..k], next))),
+        }
+    }
+
+    /// Predicted position and prediction scale (px) for the next frame. With a bound on
+    /// one frame's displacement (`step`, px), the gate (`GATE_SIGMAS` scales) reaches no
+    /// farther than the particle can have gone since its newest anchor, twice over (its
+    /// velocity may have reversed), plus a particle diameter: a track whose residuals grew
+    /// from a wrong link, or over a long merge, cannot reach across the frame.
+    pub(super) fn predict(&self, floor: f64, step: Option<f64>, radius: f64) -> Prediction {
+        let grow = 1.0 + (self.misses + self.merged) as f64;
+        let ahead = self.extrapolations();
+        let n = self.points.len();
+        let newest = ahead.newest.unwrap_or(n - 1);
+        // The errors were learned one frame ahead. Extrapolated `h` frames, the noise of
+        // the quadratic term grows by about `h²` more than that of the line, so constant
+        // acceleration is used across a gap only if it was that much better. Constant
+        // position wins where the track's own residuals say the motion is a random walk
+        // (a velocity extrapolated from random steps overshoots by a step on average).
+        let h = (n - newest) as f64;
+        // Constant velocity until it has a residual of its own, then the best of the three.
+        let order = match (self.err_cp, self.err_cv, self.err_ca) {
+            (Some(c), Some(v), a) => {
+                let a = a.map_or(f64::INFINITY, |a| a * h * h);
+                if a < v && a < c {
+                    3
+                } else if c < v {
+                    1
+                } else {
+                    2
+                }
+            }
+            _ => 2,
+        };
+        let err = [self.err_cp, self.err_cv, self.err_ca][order - 1];
+        let (p, scale) = match (ahead.orders[order - 1], err) {
+            (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
+            (Some(p), None) => (p, self.init_scale.max(floor) * grow),
+            _ => (self.at(newest), self.init_scale.max(floor) * grow),
+        };
+        let scale = match step {
+            Some(step) => scale
+                .min((2.0 * h * step + 2.0 * radius) / GATE_SIGMAS)
+                .max(floor),
+            None => scale,
+        };
+        Prediction { at: p, scale, ahead }
+    }
+
+    /// Updates the running prediction errors with an observation for the next frame, given
+    /// the extrapolations to that frame (from its [`Track::predict`]).
+    pub(super) fn learn(&mut self, obs: [f64; 2], ahead: &Extrapolations) {
+        let upd = |e: &mut Option<f64>, p: Option<[f64; 2]>| {
+            if let Some(p) = p {
+                let r2 = (obs[0] - p[0]).powi(2) + (obs[1] - p[1]).powi(2);
+                *e = Some(match *e {
+                    Some(old) => (1.0 - RESIDUAL_RATE) * old + RESIDUAL_RATE * r2,
+                    None => r2,
+                });
+            }
+        };
+        let [cp, cv, ca] = ahead.orders;
+        upd(&mut self.err_cp, cp);
+        upd(&mut self.err_cv, cv);
+        upd(&mut self.err_ca, ca);
+    }
+}
+pub(super) fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
+    Point {
+        x: d.x,
+        y: d.y,
+        mass: d.mass,
+        size: d.size,
+        ep: d.ep,
+        flag,
+        emit: true,
+        clean: !crowded,
+    }
+}
+pub(super) fn speed(tr: &Track) -> f64 {
+    if tr.points.len() < 2 {
+        return 0.0;
+    }
+    let (a, b) = (tr.pos(0), tr.pos(1));
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+pub(super) fn start_tracks(
+    tracks: &mut Vec<Track>,
+    fd: &FrameDetections,
+    taken: &[bool],
+    floor: f64,
+    o: &LinkOptions,
+    crowd: f64,
+) {
+    // Most frames start no track (every detection is taken): the neighbour search is only
+    // built for the others.
+    if taken.iter().all(|&t| t) {
+        return;
+    }
+    let pts: Vec<[f64; 2]> = fd.detections.iter().map(|d| [d.x, d.y]).collect();
+    let grid = PointGrid::new(&pts);
+    for (j, d) in fd.detections.iter().enumerate() {
+        if taken[j] {
+            continue;
+        }
+        let nn = grid.nearest_other(&pts[j]);
+        let init = (0.5 * nn).min(diagonal(o)) / GATE_SIGMAS;
+        let name = tracks.len().to_string();
+        let mut track = Track::new(
+            name,
+            fd.frame,
+            point_from(d, PointFlag::Detected, nn < crowd),
+            init.max(floor),
+        );
+        if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
+            track.apps.push(fd.frame, a);
+        }
+        tracks.push(track);
+    }
+}
+
+/// Replaces each run of bridged points that has seen points on both sides by the cubic
+/// through the two seen points before and the two after (or the line, when only one is
+/// available on a side).
+pub(super) fn smooth_bridges(tr: &mut Track) {
+    let n = tr.points.len();
+    let seen = |p: &Point| p.flag != PointFlag::Interpolated;
+    let mut i = 0;
+    while i < n {
+        if seen(&tr.points[i]) {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < n && !seen(&tr.points[i]) {
+            i += 1;
+        }
+        if start == 0 || i == n {
+            continue;
+        }
+        let mut knots: Vec<(f64, [f64; 2])> = Vec::new();
+        for k in [start.checked_sub(2), Some(start - 1), Some(i), Some(i + 1)]
+            .into_iter()
+            .flatten()
+        {
+            if k < n && seen(&tr.points[k]) {
+                knots.push((k as f64, [tr.points[k].x, tr.points[k].y]));
+            }
+        }
+        for k in start..i {
+            let v = lagrange(&knots, k as f64);
+            let p = &mut tr.points[k];
+            p.x = v[0];
+            p.y = v[1];
+        }
+    }
+}
+
+fn lagrange(knots: &[(f64, [f64; 2])], t: f64) -> [f64; 2] {
+    let mut out = [0.0, 0.0];
+    for (a, (ta, pa)) in knots.iter().enumerate() {
+        let mut w = 1.0;
+        for (b, (tb, _)) in knots.iter().enumerate() {
+            if a != b {
+                w *= (t - tb) / (ta - tb);
+            }
+        }
+        out[0] += w * pa[0];
+        out[1] += w * pa[1];
+    }
+    out
+}

@@ -1,0 +1,250 @@
+//! The particle radius and expected blob size, estimated from the data.
+
+use super::finder::{Finder, Workers};
+use super::skirts::{locate_unfiltered, unfiltered};
+use crate::scale::{self, ScaleBlob};
+use crate::{band_noise, Background, Blob, BlobSize, Detection, FrameView};
+use physfit_tracks::stats::median;
+use rayon::prelude::*;
+
+/// Frames sampled to estimate the particle radius.
+pub(super) const RADIUS_SAMPLES: usize = 5;
+/// Blobs the size estimates want: of the [`RADIUS_SAMPLES`] frames, only as many are searched
+/// as should hold this many (the medians are then known to a twentieth of the blobs' own
+/// spread), so a crowded recording measures one frame, not five.
+const SIZE_BLOBS: usize = 400;
+/// Radius, px, the estimation starts from when the scale-space scan finds no particle.
+const START_RADIUS: f64 = 3.0;
+/// Most rounds of the radius estimate (each re-detects and re-measures with the last
+/// estimate; a small start converges upwards in about ten rounds).
+const RADIUS_ROUNDS: usize = 16;
+
+/// The frames the particle sizes are estimated on.
+pub(super) struct Estimation<'a> {
+    pub(super) background: &'a Background,
+    pub(super) workers: &'a Workers,
+    pub(super) frames: &'a [FrameView<'a>],
+}
+
+impl Estimation<'_> {
+    /// `measure` (one frame and a worker's finder: its measures) over the first frame and
+    /// as many more as should bring the measures to [`SIZE_BLOBS`] at the first frame's
+    /// count (the others in parallel), concatenated in frame order; empty without frames.
+    fn over_frames<T: Send>(&self, measure: impl Fn(FrameView<'_>, &mut Finder) -> Vec<T> + Sync) -> Vec<T> {
+        if self.frames.is_empty() {
+            return Vec::new();
+        }
+        let mut all = self.workers.with(|w| measure(self.frames[0], &mut w.finder));
+        let wanted = SIZE_BLOBS.div_ceil(all.len().max(1)).min(self.frames.len());
+        let more: Vec<Vec<T>> = (1..wanted)
+            .into_par_iter()
+            .map(|j| self.workers.with(|w| measure(self.frames[j], &mut w.finder)))
+            .collect();
+        all.extend(more.into_iter().flatten());
+        all
+    }
+}
+
+/// Estimates the particle radius, px, from the blobs of a few frames: a uniform disc of
+/// radius `R` has radius of gyration `R / sqrt(2)`, so `R = sqrt(2)` times the median
+/// measured gyration radius (measured in the gain-corrected signal: an exposure change
+/// would otherwise make every size grow with its window). Rounds (detect and locate with
+/// the current estimate, re-measure) until it changes by less than 0.01 px make the answer
+/// independent of the starting value.
+///
+/// With `starts` (the named particles' positions in the first estimation frame), only the
+/// blob nearest each start in that frame is measured; otherwise every blob of the frames
+/// [`Estimation::over_frames`] searches.
+/// On real video the blobs are mostly texture specks and clutter, and their median is not
+/// the particles' size; the structure's start positions say which blobs are particles.
+pub(super) fn estimate_radius(
+    estimation: &Estimation,
+    starts: Option<&[[f64; 2]]>,
+    scale: Option<f64>,
+) -> f64 {
+    let background = estimation.background;
+    let mut radius = scale
+        .or_else(|| scale_start(estimation, starts))
+        .unwrap_or(START_RADIUS);
+    for _ in 0..RADIUS_ROUNDS {
+        let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
+            found
+                .iter()
+                .filter(|d| !d.clipped && d.size.is_finite())
+                .map(|d| d.size)
+                .collect()
+        };
+        let mut sizes: Vec<f64> = match starts {
+            Some(starts) if !estimation.frames.is_empty() => {
+                let found = estimation
+                    .workers
+                    .with(|w| locate_unfiltered(background, estimation.frames[0], radius, &mut w.finder));
+                sizes_of(
+                    nearest_each(&found, starts, |d| [d.x, d.y])
+                        .into_iter()
+                        .copied()
+                        .collect(),
+                )
+            }
+            _ => estimation
+                .over_frames(|frame, finder| sizes_of(locate_unfiltered(background, frame, radius, finder))),
+        };
+        if sizes.is_empty() {
+            break;
+        }
+        let next = (median(&mut sizes) * std::f64::consts::SQRT_2).clamp(1.0, 200.0);
+        if (next - radius).abs() < 0.01 {
+            radius = next;
+            break;
+        }
+        radius = next;
+    }
+    radius
+}
+
+/// Where the radius estimate starts, px: the scale of the particles of the first estimation
+/// frame, found in scale space (see [`crate::scale`]): with `starts`, the median over the
+/// particle nearest each start; otherwise the typical scale of every particle found
+/// ([`scale::typical_radius`]). `None` when no particle is found at any scale.
+fn scale_start(estimation: &Estimation, starts: Option<&[[f64; 2]]>) -> Option<f64> {
+    match starts {
+        Some(starts) => {
+            let all = scale_blobs(estimation, false)?;
+            let mut radii: Vec<f64> = scale_of_each(&all, starts).into_iter().flatten().collect();
+            (!radii.is_empty()).then(|| median(&mut radii))
+        }
+        None => scale::typical_radius(&scale::strongest(scale_blobs(estimation, true)?)),
+    }
+}
+
+/// Every scale-space answer in the first of the estimation frames of `samples` against
+/// `background` ([`scale_blobs`], the whole ladder); empty without frames.
+pub(super) fn first_frame_scan(
+    background: &Background,
+    samples: &[FrameView<'_>],
+    workers: &Workers,
+) -> Vec<ScaleBlob> {
+    let estimation = Estimation {
+        background,
+        workers,
+        frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
+    };
+    scale_blobs(&estimation, false).unwrap_or_default()
+}
+
+/// The scale of each named particle, px, from the answers `all` of one frame: of the
+/// strongest answer holding its start ([`scale::holding`]), or else of the particle's
+/// strongest answer ([`scale::strongest`]) nearest the start (`None` where nothing answered
+/// at any scale).
+pub(super) fn scale_of_each(all: &[ScaleBlob], starts: &[[f64; 2]]) -> Vec<Option<f64>> {
+    let held = scale::holding(all, starts);
+    let kept = scale::strongest(all.to_vec());
+    starts
+        .iter()
+        .zip(held)
+        .map(|(&s, held)| {
+            held.or_else(|| {
+                nearest_each(&kept, std::slice::from_ref(&s), |b| [b.x, b.y])
+                    .first()
+                    .map(|b| **b)
+            })
+            .map(|b| b.radius)
+        })
+        .collect()
+}
+
+/// Every answer over the ladder of scales in the first estimation frame (each radius's
+/// blobs); the climb stops beyond every particle's scale when `stop_early`. `None` without
+/// frames.
+fn scale_blobs(estimation: &Estimation, stop_early: bool) -> Option<Vec<ScaleBlob>> {
+    let background = estimation.background;
+    let frame = *estimation.frames.first()?;
+    let (width, height) = frame.size();
+    let at = |radius: f64| -> Vec<ScaleBlob> {
+        let blobs = estimation.workers.with(|w| {
+            w.finder
+                .blobs(background, frame, &unfiltered(background, radius))
+                .blobs
+        });
+        blobs
+            .iter()
+            .map(|b| ScaleBlob {
+                x: b.x as f64,
+                y: b.y as f64,
+                peak: f64::from(b.peak),
+                radius,
+                snr: f64::from(b.peak) / band_noise(radius, background.noise_sigma.max(1e-6)),
+            })
+            .collect()
+    };
+    // Two radii at a time (one a thread); without named particles the climb stops where
+    // nothing answers as strongly as the strongest blobs do below.
+    let mut found: Vec<ScaleBlob> = Vec::new();
+    for pair in scale::ladder(width, height).chunks(2) {
+        let level: Vec<Vec<ScaleBlob>> = pair.par_iter().map(|&r| at(r)).collect();
+        let level: Vec<ScaleBlob> = level.into_iter().flatten().collect();
+        let stop = stop_early && scale::beyond_every_scale(&found, &level);
+        found.extend(level);
+        if stop {
+            break;
+        }
+    }
+    Some(found)
+}
+/// For each start position, the item nearest to it (none when `items` is empty); an item
+/// nearest to two starts is counted once per start.
+pub(super) fn nearest_each<'a, T>(
+    items: &'a [T],
+    starts: &[[f64; 2]],
+    at: impl Fn(&T) -> [f64; 2],
+) -> Vec<&'a T> {
+    starts
+        .iter()
+        .filter_map(|s| {
+            items.iter().min_by(|a, b| {
+                let da = at(a);
+                let db = at(b);
+                let da = (da[0] - s[0]).hypot(da[1] - s[1]);
+                let db = (db[0] - s[0]).hypot(db[1] - s[1]);
+                da.total_cmp(&db)
+            })
+        })
+        .collect()
+}
+
+/// One particle's blob measures at `radius` (medians of [`Blob::area`] and
+/// [`Blob::extent`], as blobs are found, in the plain signal); `None` when no blob is found
+/// (size rejection is then off). With `starts`, of the blobs nearest the named particles'
+/// start positions in the first frame; otherwise of every blob of the frames
+/// [`Estimation::over_frames`] searches (see
+/// [`estimate_radius`] for why).
+pub(super) fn expected_size(
+    estimation: &Estimation,
+    radius: f64,
+    starts: Option<&[[f64; 2]]>,
+) -> Option<BlobSize> {
+    let background = estimation.background;
+    let params = unfiltered(background, radius);
+    let blobs: Vec<Blob> = match starts {
+        Some(starts) if !estimation.frames.is_empty() => {
+            let blobs = estimation
+                .workers
+                .with(|w| w.finder.blobs(background, estimation.frames[0], &params).blobs);
+            nearest_each(&blobs, starts, |b| [b.x as f64, b.y as f64])
+                .into_iter()
+                .copied()
+                .collect()
+        }
+        _ => estimation.over_frames(|frame, finder| finder.blobs(background, frame, &params).blobs),
+    };
+    let inside: Vec<&Blob> = blobs.iter().filter(|b| !b.at_border).collect();
+    if inside.is_empty() {
+        return None;
+    }
+    let mut areas: Vec<f64> = inside.iter().map(|b| b.area).collect();
+    let mut extents: Vec<f64> = inside.iter().map(|b| b.extent).collect();
+    Some(BlobSize {
+        area: median(&mut areas),
+        extent: median(&mut extents),
+    })
+}

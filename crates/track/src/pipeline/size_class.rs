@@ -1,0 +1,142 @@
+//! Particle sizes found in the samples, grouped into classes of one size each.
+
+use super::finder::{locate_window, Workers};
+use super::radius::{
+    estimate_radius, expected_size, first_frame_scan, scale_of_each, Estimation, RADIUS_SAMPLES,
+};
+use crate::scale::{self, ScaleBlob};
+use crate::{Background, DetectParameters, FrameView};
+use physfit_tracks::stats::median;
+
+/// The particle size the detector works with, measured on the sample frames.
+pub(super) struct Sizes {
+    /// Particle radius, px.
+    pub(super) radius: f64,
+    /// Whether `radius` was measured (not given).
+    pub(super) radius_estimated: bool,
+    /// Detection parameters at that radius, with the expected blob sizes.
+    pub(super) params: DetectParameters,
+}
+
+impl Sizes {
+    /// Radius (unless `given`) and expected blob sizes, from the first [`RADIUS_SAMPLES`]
+    /// sample frames against `background`; measured on the blobs nearest `starts` when
+    /// named particles are given.
+    pub(super) fn measure(
+        background: &Background,
+        samples: &[FrameView<'_>],
+        given: Option<f64>,
+        starts: Option<&[[f64; 2]]>,
+        scale: Option<f64>,
+        workers: &Workers,
+    ) -> Sizes {
+        let estimation = Estimation {
+            background,
+            workers,
+            frames: &samples[..samples.len().min(RADIUS_SAMPLES)],
+        };
+        let (radius, radius_estimated) = match given {
+            Some(r) => (r, false),
+            None => (estimate_radius(&estimation, starts, scale), true),
+        };
+        let expected = expected_size(&estimation, radius, starts);
+        Sizes {
+            radius,
+            radius_estimated,
+            params: DetectParameters {
+                radius,
+                noise_sigma: background.noise_sigma,
+                expected,
+            },
+        }
+    }
+}
+
+/// Ratio of two size classes' measured radii below which they are one size after all (the
+/// scale space split them; the measured radii are within a blurred edge of each other).
+const SAME_SIZE: f64 = 1.3;
+
+/// Particles of one size and the detector's sizes for them. Named particles whose scales
+/// lie far apart (a ball 2.5 times its neighbour's size) are each found, located and linked
+/// at their own size: at one radius the larger is found as parts, or the smaller drowns in
+/// the noise of a window fit for the larger.
+pub(super) struct SizeClass {
+    /// The named particles of this size (indices into the named starts, in order); `None`:
+    /// every particle (one size, named or not).
+    pub(super) members: Option<Vec<usize>>,
+    pub(super) sizes: Sizes,
+}
+
+impl SizeClass {
+    /// The size classes of a recording: one, unless named particles' scales in the first
+    /// estimation frame fall into groups far apart ([`scale::size_groups`]), each then measured
+    /// on its own particles; classes whose measured radii come out within [`SAME_SIZE`] of
+    /// each other are measured again as one. A `given` radius makes one class.
+    ///
+    /// `scan` is [`first_frame_scan`] against `background`, when already made.
+    pub(super) fn measure_all(
+        background: &Background,
+        samples: &[FrameView<'_>],
+        given: Option<f64>,
+        starts: Option<&[[f64; 2]]>,
+        scan: Option<&[ScaleBlob]>,
+        workers: &Workers,
+    ) -> Vec<SizeClass> {
+        let one = |scale: Option<f64>| {
+            vec![SizeClass {
+                members: None,
+                sizes: Sizes::measure(background, samples, given, starts, scale, workers),
+            }]
+        };
+        let Some(starts) = starts.filter(|_| given.is_none()) else {
+            return one(None);
+        };
+        let scales = match scan {
+            Some(all) => scale_of_each(all, starts),
+            None => scale_of_each(&first_frame_scan(background, samples, workers), starts),
+        };
+        let groups = scale::size_groups(&scales);
+        let group_scale = |g: &[usize]| -> Option<f64> {
+            let mut r: Vec<f64> = g.iter().filter_map(|&i| scales[i]).collect();
+            (!r.is_empty()).then(|| median(&mut r))
+        };
+        if groups.len() < 2 {
+            return one(group_scale(&groups[0]));
+        }
+        let mut classes: Vec<SizeClass> = groups
+            .iter()
+            .map(|g| {
+                let own: Vec<[f64; 2]> = g.iter().map(|&i| starts[i]).collect();
+                SizeClass {
+                    members: Some(g.clone()),
+                    sizes: Sizes::measure(background, samples, None, Some(&own), group_scale(g), workers),
+                }
+            })
+            .collect();
+        classes.sort_by(|a, b| a.sizes.radius.total_cmp(&b.sizes.radius));
+        let apart = classes
+            .windows(2)
+            .all(|w| w[1].sizes.radius > SAME_SIZE * w[0].sizes.radius);
+        if apart {
+            classes
+        } else {
+            one(None)
+        }
+    }
+
+    /// This class's entries of `all` (one per named particle, in order).
+    pub(super) fn starts<T: Clone>(&self, all: &[T]) -> Vec<T> {
+        match &self.members {
+            None => all.to_vec(),
+            Some(m) => m.iter().map(|&i| all[i].clone()).collect(),
+        }
+    }
+
+    /// Centroid window radius for this class, px ([`locate_window`]).
+    pub(super) fn window(&self) -> f64 {
+        locate_window(self.sizes.radius)
+    }
+}
+pub(super) fn largest_radius(classes: &[SizeClass]) -> f64 {
+    classes.iter().map(|c| c.sizes.radius).fold(0.0, f64::max)
+}

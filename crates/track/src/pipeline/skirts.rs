@@ -1,0 +1,143 @@
+//! The skirt self-check's samples: signal around each tracked particle, located unfiltered.
+
+use super::finder::{locate_window, Finder, Parts, Workers};
+use super::radius::nearest_each;
+use super::size_class::Sizes;
+use super::window_frames::WindowFrames;
+use crate::checks::{skirts, Skirt};
+use crate::{
+    Background, DetectParameters, Detection, FrameView, PointFlag, TrackError, TrackPoint, TrackTable,
+};
+use physfit_tracks::stats::median;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// Sample frames the skirts are measured in, at most.
+const SKIRT_FRAMES: usize = 8;
+
+/// The skirts ([`skirts`]) of the detected points of `table` in up to
+/// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
+pub(super) fn sample_skirts(
+    table: &TrackTable,
+    frames: &WindowFrames<'_>,
+    background: &Background,
+    radius: f64,
+    workers: &Workers,
+) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
+    let first = frames.numbers.first().copied().unwrap_or(0);
+    // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
+    // and each costs a pass over its points' rings.
+    let samples: Vec<usize> = (0..frames.numbers.len())
+        .filter(|&i| frames.sample_of[i].is_some())
+        .collect();
+    let every = samples.len().div_ceil(SKIRT_FRAMES).max(1);
+    let chosen: Vec<usize> = samples.iter().step_by(every).map(|&i| i + first).collect();
+    let mut by_frame: BTreeMap<usize, Vec<&TrackPoint>> = BTreeMap::new();
+    for p in &table.points {
+        if p.flag == PointFlag::Detected && chosen.binary_search(&p.frame).is_ok() {
+            by_frame.entry(p.frame).or_default().push(p);
+        }
+    }
+    let measured: Vec<Vec<(String, usize, Skirt)>> = by_frame
+        .into_par_iter()
+        .map(|(k, points)| {
+            workers.with(|w| {
+                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                let (width, height) = frame.size();
+                w.finder.levelled_signal(background, frame);
+                let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
+                let s = skirts(
+                    &w.finder.signal,
+                    width,
+                    height,
+                    &at,
+                    radius,
+                    background.noise_sigma,
+                );
+                Ok(points
+                    .iter()
+                    .zip(s)
+                    .filter_map(|(p, s)| s.map(|s| (p.particle.clone(), k, s)))
+                    .collect())
+            })
+        })
+        .collect::<Result<_, TrackError>>()?;
+    let mut out: BTreeMap<String, Vec<(usize, Skirt)>> = BTreeMap::new();
+    for (particle, k, s) in measured.into_iter().flatten() {
+        out.entry(particle).or_default().push((k, s));
+    }
+    Ok(out)
+}
+
+/// The particles' signal, grey levels: the median over the particles of `frame` (those
+/// nearest `starts` when given) of the largest signal within a radius of each; `None` when no
+/// particle is found.
+pub(super) fn particle_contrast(
+    background: &Background,
+    frame: FrameView<'_>,
+    sizes: &Sizes,
+    starts: Option<&[[f64; 2]]>,
+    workers: &Workers,
+) -> Option<f32> {
+    let (width, height) = frame.size();
+    let mut peaks: Vec<f64> = workers.with(|w| {
+        let found = w.finder.locate(
+            background,
+            frame,
+            &sizes.params,
+            locate_window(sizes.radius),
+            Parts::Join,
+        );
+        let particles: Vec<&Detection> = match starts {
+            Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
+            None => found.iter().collect(),
+        };
+        let r = sizes.radius;
+        particles
+            .iter()
+            .map(|d| {
+                let (x0, x1) = (
+                    (d.x - r).floor().max(0.0) as usize,
+                    ((d.x + r).ceil() as usize).min(width - 1),
+                );
+                let (y0, y1) = (
+                    (d.y - r).floor().max(0.0) as usize,
+                    ((d.y + r).ceil() as usize).min(height - 1),
+                );
+                (y0..=y1)
+                    .flat_map(|y| (x0..=x1).map(move |x| (x, y)))
+                    .filter(|&(x, y)| (x as f64 - d.x).hypot(y as f64 - d.y) <= r)
+                    .map(|(x, y)| f64::from(w.finder.signal[y * width + x]))
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
+            .filter(|v| v.is_finite())
+            .collect()
+    });
+    (!peaks.is_empty()).then(|| median(&mut peaks) as f32)
+}
+
+/// Every blob of one estimation frame at `radius`, with no size rejection, located in the
+/// gain-corrected signal.
+pub(super) fn locate_unfiltered(
+    background: &Background,
+    frame: FrameView<'_>,
+    radius: f64,
+    finder: &mut Finder,
+) -> Vec<Detection> {
+    finder.locate(
+        background,
+        frame,
+        &unfiltered(background, radius),
+        locate_window(radius),
+        Parts::Keep,
+    )
+}
+
+/// Detection at `radius` with no size rejection.
+pub(super) fn unfiltered(background: &Background, radius: f64) -> DetectParameters {
+    DetectParameters {
+        radius,
+        noise_sigma: background.noise_sigma,
+        expected: None,
+    }
+}

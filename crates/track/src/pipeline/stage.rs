@@ -1,0 +1,194 @@
+//! One size class's pass over the frames: located and linked at its own radius.
+
+use super::finder::{Parts, Workers};
+use super::options::TrackOptions;
+use super::size_class::SizeClass;
+use super::skirts::sample_skirts;
+use super::track_frames::one_frame_tracks;
+use super::window_frames::WindowFrames;
+use crate::checks::check_tracks;
+use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
+use crate::{
+    link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
+    TrackPoint, TrackTable,
+};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+
+/// What one pass of locating and linking found.
+pub(super) struct Pass {
+    /// Every frame's detections, by size class then frame.
+    pub(super) located: Vec<Vec<FrameDetections>>,
+    pub(super) table: TrackTable,
+    pub(super) ambiguities: Vec<Ambiguity>,
+    pub(super) warnings: Vec<String>,
+    pub(super) relocated: Relocated,
+    /// Each track's concern, with the radius of its class, px.
+    pub(super) concerns: Vec<(String, f64)>,
+}
+
+/// The inputs every pass of locating and linking shares.
+pub(super) struct Stage<'a> {
+    pub(super) frames: &'a WindowFrames<'a>,
+    pub(super) workers: &'a Workers,
+    pub(super) options: &'a TrackOptions,
+    /// Frame width and height, px.
+    pub(super) size: (usize, usize),
+    /// First and last frame of the window.
+    pub(super) first: usize,
+    pub(super) last: usize,
+}
+
+impl Stage<'_> {
+    /// Locates every frame against `background` (in parallel, once for each size class) and
+    /// links each class's detections, then places again the points of named particles that
+    /// shared a blob and checks the tracks.
+    pub(super) fn locate_and_link(
+        &self,
+        background: &Background,
+        classes: &[SizeClass],
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<Pass, TrackError> {
+        let Stage {
+            frames,
+            workers,
+            options,
+            size,
+            first,
+            last,
+        } = *self;
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let total = frames.numbers.len();
+        let located: Result<Vec<Vec<FrameDetections>>, TrackError> = frames
+            .numbers
+            .par_iter()
+            .enumerate()
+            .map(|(i, k)| {
+                workers.with(|w| {
+                    let frame = frames.get(i, &mut w.decoder, &mut w.frame)?;
+                    let each = classes
+                        .iter()
+                        .map(|c| FrameDetections {
+                            frame: *k,
+                            detections: w.finder.locate(
+                                background,
+                                frame,
+                                &c.sizes.params,
+                                c.window(),
+                                Parts::Join,
+                            ),
+                        })
+                        .collect();
+                    let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                    progress(n, total);
+                    Ok(each)
+                })
+            })
+            .collect();
+        // By size class, then frame.
+        let mut by_class: Vec<Vec<FrameDetections>> = vec![Vec::with_capacity(total); classes.len()];
+        for each in located? {
+            for (class, f) in by_class.iter_mut().zip(each) {
+                class.push(f);
+            }
+        }
+        let mut warnings = Vec::new();
+        let mut table = TrackTable::default();
+        let mut ambiguities = Vec::new();
+        let mut relocated = Relocated::default();
+        let mut concerns = Vec::new();
+        for (class, located) in classes.iter().zip(&by_class) {
+            let named = options.named_start.as_deref().map(|n| class.starts(n));
+            let linked = link_detections(
+                located,
+                &LinkOptions {
+                    named_start: named.clone(),
+                    radius: class.sizes.radius,
+                    width: size.0,
+                    height: size.1,
+                    memory: options.memory,
+                },
+            );
+            let LinkOutcome {
+                table: mut class_table,
+                ambiguities: mut class_ambiguities,
+                warnings: link_warnings,
+            } = linked;
+            // With the particle count known, the points of particles that shared a blob are placed
+            // again from the image, jointly, and the motion judges once more which is which (see
+            // `crate::shared_blobs`).
+            if let Some(named) = named.as_deref() {
+                // Decoded with a worker's buffers, as in the locate pass (a fresh decoder per frame
+                // paged its buffers in again).
+                let signal_of = |k: usize| -> Result<Vec<f32>, TrackError> {
+                    workers.with(|w| {
+                        let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
+                        let mut signal = Vec::new();
+                        background.signal_into(frame, &mut signal);
+                        background.remove_gain(frame, &mut signal);
+                        Ok(signal)
+                    })
+                };
+                let r = relocate_shared(
+                    &mut class_table.points,
+                    &mut class_ambiguities,
+                    &Starts {
+                        positions: named,
+                        frame: first,
+                    },
+                    &SharedBlobs {
+                        signal_of: &signal_of,
+                        width: size.0,
+                        height: size.1,
+                        radius: class.sizes.radius,
+                        window: class.window(),
+                    },
+                )?;
+                relocated.moved += r.moved;
+                relocated.renamed += r.renamed;
+            }
+            warnings.extend(link_warnings);
+            // Without a structure, a track of one point inside the recording (not at its first or
+            // last frame) is a noise peak that passed the detector, not a particle: a particle is
+            // seen in the frames around it (trackpy's users drop such stubs by hand).
+            if options.named_start.is_none() {
+                let stubs = one_frame_tracks(&class_table, (first, last));
+                if !stubs.is_empty() {
+                    class_table.points.retain(|p| !stubs.contains(&p.particle));
+                    warnings.push(format!(
+                        "{} track(s) of a single point inside the recording dropped as noise peaks",
+                        stubs.len()
+                    ));
+                }
+            }
+            // Tracks that contradict themselves: named particles not followed are an error (their
+            // tracks would be wrong); unnamed ones are warned of.
+            let skirts = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            concerns.extend(
+                check_tracks(&class_table, class.sizes.radius, &skirts)
+                    .iter()
+                    .map(|c| (c.to_string(), class.sizes.radius)),
+            );
+            table.points.extend(class_table.points);
+            ambiguities.extend(class_ambiguities);
+        }
+        if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
+            // Frame, then the structure's order, as one class's tracks are.
+            let order: BTreeMap<&str, usize> =
+                named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
+            let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
+            table
+                .points
+                .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
+            ambiguities.sort_by_key(|a| (a.first_frame, a.last_frame));
+        }
+        Ok(Pass {
+            located: by_class,
+            table,
+            ambiguities,
+            warnings,
+            relocated,
+            concerns,
+        })
+    }
+}

@@ -1,0 +1,40 @@
+//! The frames of the tracked window, decoded on demand.
+
+use super::samples::check_size;
+use crate::{DecodedFrame, Frame, FrameDecoder, FrameSource, FrameView, TrackError};
+use std::path::Path;
+
+/// The frames of the tracked window: the samples already decoded, the others read from the
+/// source on demand.
+pub(super) struct WindowFrames<'a> {
+    pub(super) source: &'a FrameSource,
+    /// Each frame's number in the source.
+    pub(super) numbers: &'a [usize],
+    /// Each frame's place among `samples`, if it is one.
+    pub(super) sample_of: &'a [Option<usize>],
+    pub(super) samples: &'a [DecodedFrame],
+    /// The file whose size every frame must have, and that size (width, height, px).
+    pub(super) reference: &'a Path,
+    pub(super) size: (usize, usize),
+}
+
+impl WindowFrames<'_> {
+    /// Frame `i` of the window: the sample already decoded, or the frame decoded into `buf`
+    /// (with `decoder`'s buffers) and checked against the reference size.
+    pub(super) fn get<'b>(
+        &'b self,
+        i: usize,
+        decoder: &'b mut FrameDecoder,
+        buf: &'b mut Frame,
+    ) -> Result<FrameView<'b>, TrackError> {
+        if let Some(j) = self.sample_of[i] {
+            return Ok(self.samples[j].view());
+        }
+        let k = self.numbers[i];
+        let view = self.source.load_view(k, decoder, buf)?;
+        if view.size() != self.size {
+            check_size(&self.source.frame_name(k), view, self.reference, self.size)?;
+        }
+        Ok(view)
+    }
+}
