@@ -84,6 +84,19 @@ pub struct Jolt {
     pub significance: f64,
 }
 
+/// The means' impulse across one gap of one particle's series.
+#[derive(Clone, Copy, Debug)]
+struct Gap {
+    /// Impulse per unit mass beyond the model's smooth forces, px/s.
+    impulse: Vec2,
+    /// Velocity before the gap, px/s.
+    before: Vec2,
+    /// Velocity after it, px/s.
+    after: Vec2,
+    /// Frame differences averaged on each side ([`JOLT_FIT_POINTS`], fewer near an end).
+    points: usize,
+}
+
 /// A wall suggested by a group of jolts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WallGuess {
@@ -113,10 +126,8 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     };
     // Per particle: corrected differences e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2 (None
     // where a frame is missing), and the cumulative model term.
-    // Per particle and gap: impulse, velocities before and after (px/s) and the frame
-    // differences averaged on each side (`m`, fewer within `m` frames of an end).
-    let mut series: Vec<Vec<Option<(Vec2, Vec2, Vec2, usize)>>> =
-        vec![vec![None; frames]; obs.particle_count()];
+    // Per particle and gap: the means' impulse.
+    let mut series: Vec<Vec<Option<Gap>>> = vec![vec![None; frames]; obs.particle_count()];
     // Per particle and gap: the local jump (see the module doc), px/s.
     let mut local: Vec<Vec<Option<Vec<Vec2>>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
@@ -151,7 +162,12 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                     magnitudes.push(impulse.x.abs());
                     magnitudes.push(impulse.y.abs());
                 }
-                out[k] = Some((impulse, (mb + cum[k - 1]) * fps, (ma + cum[k + 1]) * fps, mk));
+                out[k] = Some(Gap {
+                    impulse,
+                    before: (mb + cum[k - 1]) * fps,
+                    after: (ma + cum[k + 1]) * fps,
+                    points: mk,
+                });
                 // The bounce may lie in a neighbouring gap (the means' peak is shifted near the
                 // ends of the series): the local jumps of gaps k - 1, k and k + 1.
                 let at = |j: usize| e.get(j).copied().flatten();
@@ -181,12 +197,17 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
             .max(robust)
             .max(f64::MIN_POSITIVE)
     };
-    let significance = |i: &(Vec2, Vec2, Vec2, usize)| i.0.norm() / scale_of(i.3);
+    let significance = |g: &Gap| g.impulse.norm() / scale_of(g.points);
     let mut out = Vec::new();
     for (p, series) in series.iter().enumerate() {
         for k in 0..frames {
             let Some(gap) = series[k] else { continue };
-            let (imp, vb, va, mk) = gap;
+            let Gap {
+                impulse: imp,
+                before: vb,
+                after: va,
+                points: mk,
+            } = gap;
             let size = imp.norm();
             let scale = scale_of(mk);
             if size < JOLT_THRESHOLD * scale {
