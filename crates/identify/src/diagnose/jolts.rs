@@ -189,14 +189,18 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     }
     magnitudes.sort_by(|a, b| a.total_cmp(b));
     let robust = 1.4826 * magnitudes[magnitudes.len() / 2];
-    let scale = noise_scale.max(robust).max(f64::MIN_POSITIVE);
     // A gap's scale: fewer differences averaged near an end leave more noise (the misfit's
     // part, which grows with the frames averaged, is kept at the interior's).
-    let scale_of = |mk: usize| {
-        (noise_scale * m as f64 / mk as f64)
-            .max(robust)
-            .max(f64::MIN_POSITIVE)
-    };
+    // Exact tracks leave every impulse but the bounces' at zero: the scale's floor is relative
+    // to the largest impulse, so that significances stay finite and comparable.
+    let largest = series
+        .iter()
+        .flatten()
+        .flatten()
+        .map(|g| g.impulse.norm())
+        .fold(0.0, f64::max);
+    let floor = (1e-12 * largest).max(f64::MIN_POSITIVE);
+    let scale_of = |mk: usize| (noise_scale * m as f64 / mk as f64).max(robust).max(floor);
     let significance = |g: &Gap| g.impulse.norm() / scale_of(g.points);
     let mut out = Vec::new();
     for (p, series) in series.iter().enumerate() {
@@ -252,7 +256,7 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
             });
         }
     }
-    (out, scale)
+    (out, scale_of(m))
 }
 
 /// Returns true if and only if the velocity turns from approaching to leaving along some
