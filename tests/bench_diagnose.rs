@@ -35,8 +35,9 @@ fn bench_seed(seed: u64) {
     judge_seed(seed, true);
 }
 
-/// [`bench_seed`] for recording `seed` of the full-size benchmark (`small` false).
-fn judge_seed(seed: u64, small: bool) {
+/// Runs recording `seed` of `physfit bench diagnose [--small] EXTRA...` and returns its
+/// result from `--json`.
+fn bench_result(seed: u64, small: bool, extra: &[&str]) -> Value {
     let dir = tempdir();
     let json = dir.path().join("results.json");
     let mut command = physfit();
@@ -45,6 +46,7 @@ fn judge_seed(seed: u64, small: bool) {
         command.arg("--small");
     }
     command
+        .args(extra)
         .arg("--seed")
         .arg(seed.to_string())
         .arg("--json")
@@ -52,8 +54,14 @@ fn judge_seed(seed: u64, small: bool) {
         .assert()
         .success();
     let text = std::fs::read_to_string(&json).expect("results.json");
-    let results: Value = serde_json::from_str(&text).expect("results.json is JSON");
-    let r = &results[0];
+    let mut results: Value = serde_json::from_str(&text).expect("results.json is JSON");
+    results[0].take()
+}
+
+/// [`bench_seed`] for recording `seed` of the full-size benchmark (`small` false).
+fn judge_seed(seed: u64, small: bool) {
+    let result = bench_result(seed, small, &[]);
+    let r = &result;
     let j = &r["judgement"];
     assert!(
         j.is_object(),
@@ -234,28 +242,8 @@ fn the_time_table_counts_every_recording_once() {
 #[test]
 fn ten_search_seeds_give_the_same_findings() {
     for seed in [1u64, 2, 8, 9, 11] {
-        let dir = tempdir();
-        let json = dir.path().join("results.json");
-        physfit()
-            .args([
-                "-q",
-                "bench",
-                "diagnose",
-                "--small",
-                "--count",
-                "1",
-                "--search-seeds",
-                "10",
-            ])
-            .arg("--seed")
-            .arg(seed.to_string())
-            .arg("--json")
-            .arg(&json)
-            .assert()
-            .success();
-        let text = std::fs::read_to_string(&json).expect("results.json");
-        let results: Value = serde_json::from_str(&text).expect("results.json is JSON");
-        let st = &results[0]["stability"];
+        let result = bench_result(seed, true, &["--search-seeds", "10"]);
+        let st = &result["stability"];
         assert_eq!(
             st["seeds"].as_array().map(Vec::len),
             Some(10),
