@@ -688,9 +688,9 @@ fn diagnose_inner(
         undecided_list.push(entry);
         outcome = assemble(&current.family, &final_fit, &accepted);
     }
-    // 7. How the evidence for each finding is spread over the frames (see `inclusion`); a
-    // finding that, refitted on every frame, no longer pays for its parameters leaves the
-    // model, the least worth first.
+    // 7. How the evidence for each finding is spread over the frames (see `inclusion`); one
+    // that, refitted on every frame, no longer pays for its parameters, or that resampled
+    // frames do not keep, leaves the model, one at a time, and the rest are measured again.
     loop {
         let variance = final_variance(&current.family, &final_fit, obs.noise);
         if !variance.is_finite() || outcome.findings.len() != current.family.effects.len() {
@@ -712,19 +712,30 @@ fn diagnose_inner(
                 }
             }
         }
-        let worst = support
-            .iter()
-            .enumerate()
-            .filter_map(|(k, i)| i.as_ref().map(|i| (k, i.worth)))
-            .filter(|(_, worth)| *worth < 0.0)
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((k, worth)) = worst {
-            let Some(out) = support[k].take() else { break };
-            let (old, _, added) = accepted.remove(k);
+        for (f, i) in outcome.findings.iter_mut().zip(&support) {
+            f.inclusion_rate = i.as_ref().map(|i| i.rate);
+        }
+        let least = |key: &dyn Fn(&inclusion::Inclusion) -> f64, below: f64| {
+            support
+                .iter()
+                .enumerate()
+                .filter_map(|(k, i)| i.as_ref().map(|i| (k, key(i))))
+                .filter(|(_, v)| *v < below)
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+        };
+        // First a finding that no longer pays for its parameters at all (`replaced`, with the
+        // reason), then one that some resamples of the frames would leave out: it rests on a
+        // few frames, "not enough data" (`undecided`); the least of each first.
+        let worst = least(&|i| i.worth, 0.0);
+        let weakest = least(&|i| i.rate, inclusion::INCLUSION_LEVEL);
+        let Some((k, _)) = worst.or(weakest) else { break };
+        let Some(out) = support[k].take() else { break };
+        if let Some((_, worth)) = worst {
+            let (old, _, added) = &accepted[k];
             replaced.push(report::Replaced {
                 effect: old.effect.name().into(),
                 label: old.effect.label(&family0.structure),
-                added_round: added,
+                added_round: *added,
                 round: round + 1,
                 by: Vec::new(),
                 reason: Some(format!(
@@ -732,46 +743,31 @@ fn diagnose_inner(
                     -worth
                 )),
             });
-            current = out.without;
-            final_fit = current.fit.clone();
-            outcome = assemble(&current.family, &final_fit, &accepted);
-            continue;
+        } else if let Some((_, rate)) = weakest {
+            let finding = outcome.findings[k].clone();
+            let cost_without = out.without.fit.sum_squares;
+            let text = format!(
+                "not enough data: {} is kept by {:.0} % of {} resamples of the frames (blocks of {w} \
+                 frames), under the {:.0} % a finding needs: it rests on a few frames; the model \
+                 without it leaves {cost_without:.4} px² where it leaves {:.4} px²; candidates: {} \
+                 or nothing",
+                finding.label,
+                100.0 * rate,
+                inclusion::RESAMPLES,
+                100.0 * inclusion::INCLUSION_LEVEL,
+                final_fit.sum_squares,
+                finding.label
+            );
+            undecided_list.push(report::Undecided {
+                finding,
+                cost_with: final_fit.sum_squares,
+                cost_without,
+                cost_bias: cost_without,
+                bias_parameters: 0,
+                variance,
+                text,
+            });
         }
-        for (f, i) in outcome.findings.iter_mut().zip(&support) {
-            f.inclusion_rate = i.as_ref().map(|i| i.rate);
-        }
-        // A finding that some resamples of the frames would leave out rests on a few frames:
-        // "not enough data", out of the model, the least kept first.
-        let weakest = support
-            .iter()
-            .enumerate()
-            .filter_map(|(k, i)| i.as_ref().map(|i| (k, i.rate)))
-            .filter(|(_, rate)| *rate < inclusion::INCLUSION_LEVEL)
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        let Some((k, rate)) = weakest else { break };
-        let Some(out) = support[k].take() else { break };
-        let finding = outcome.findings[k].clone();
-        let cost_without = out.without.fit.sum_squares;
-        let text = format!(
-            "not enough data: {} is kept by {:.0} % of {} resamples of the frames (blocks of {w} \
-             frames), under the {:.0} % a finding needs: it rests on a few frames; the model without \
-             it leaves {cost_without:.4} px² where it leaves {:.4} px²; candidates: {} or nothing",
-            finding.label,
-            100.0 * rate,
-            inclusion::RESAMPLES,
-            100.0 * inclusion::INCLUSION_LEVEL,
-            final_fit.sum_squares,
-            finding.label
-        );
-        undecided_list.push(report::Undecided {
-            finding,
-            cost_with: final_fit.sum_squares,
-            cost_without,
-            cost_bias: cost_without,
-            bias_parameters: 0,
-            variance,
-            text,
-        });
         accepted.remove(k);
         current = out.without;
         final_fit = current.fit.clone();
