@@ -266,9 +266,8 @@ fn diagnose_inner(
     };
 
     // 3. Base fit on the fitted frames.
-    let base_params = ctx.joint_estimate(&family0, &[]);
     let base = ctx
-        .fit(&family0, &base_params, &start, false)
+        .base_fit(&family0)
         .ok_or_else(|| IdentifyError::NoFiniteCost {
             method: "diagnosis base fit".into(),
             detail: "the structure's model from the weak-form estimate cannot be simulated".into(),
@@ -441,6 +440,27 @@ fn diagnose_inner(
                 );
             }
             to_verify.push(pair);
+        }
+        // A tether alone from the most circular bent path (see `circle_tether`).
+        let circle_tether = current
+            .family
+            .free
+            .iter()
+            .filter_map(|&p| ctx.circle_tether(&current, p))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((tether, misfit)) = circle_tether {
+            if debug {
+                eprintln!(
+                    "   circle tether (misfit {misfit:.2e} of the radius): {:?}",
+                    tether.init
+                );
+            }
+            if !to_verify
+                .iter()
+                .any(|v| v.len() == 1 && v[0].effect == tether.effect)
+            {
+                to_verify.push(vec![tether]);
+            }
         }
         if debug {
             for pair in pairs.iter().take(3) {

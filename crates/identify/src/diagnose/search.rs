@@ -32,6 +32,11 @@ pub const VERIFIED_PER_ROUND: usize = 3;
 /// Least screen score, per parameter, for a smooth candidate to be verified.
 pub const SCREEN_PER_PARAMETER: f64 = 2.0;
 
+/// Factors on a bond stiffness's parameter scale the base fit also starts from where the
+/// weak form cannot tell the stiffness (see [`Context::base_fit`]): a decade and two below,
+/// one above.
+pub const BASE_STIFFNESS_FACTORS: [f64; 3] = [0.1, 0.01, 10.0];
+
 /// Factors on a tether's anchor distance tried by [`Context::along_tether`].
 /// Negative: the anchor on the other side of the particle, at the same distance, the tether
 /// compressed where it was stretched (a stiff tether pulls nearly alike from either side).
@@ -221,13 +226,33 @@ impl Context<'_> {
     /// The weak-form joint estimate of `family`'s parameters (bond values and every smooth
     /// effect; walls keep `params`' values), solved on the fitted rows.
     pub fn joint_estimate(&self, family: &Family, params: &[f64]) -> Vec<f64> {
+        self.joint_estimate_holding(family, params, family.effects.len())
+    }
+
+    /// [`Context::joint_estimate`] with the effects from index `held_from` on held at
+    /// `params`' values: their forces are taken off the weak form's right-hand side and the
+    /// bond values and the other effects solved beside them. An effect whose force the weak
+    /// form hardly sees (a stiff tether's tension shows only through stretches of the order
+    /// of the noise) otherwise leaves its work to the bonds, which then start a multi-step fit
+    /// far from the valley where that effect explains the tracks.
+    pub fn joint_estimate_holding(&self, family: &Family, params: &[f64], held_from: usize) -> Vec<f64> {
         let weak = self.weak;
         let cols = self.effect_columns(family, params);
         let mut all: Vec<&[f64]> = weak.bond_columns().iter().map(|c| c.as_slice()).collect();
-        for c in &cols {
+        for c in &cols[..held_from.min(cols.len())] {
             all.extend(c.iter().map(|v| v.as_slice()));
         }
-        let theta = solve(&all, &weak.rhs, &self.train_rows());
+        let mut rhs = weak.rhs.clone();
+        for (k, &e) in family.effects.iter().enumerate().skip(held_from) {
+            let o = family.effect_offset(k);
+            let coefficients = weak_coefficients(e, &params[o..o + e.parameter_count()]);
+            for (column, c) in cols[k].iter().zip(coefficients) {
+                for (r, v) in rhs.iter_mut().zip(column) {
+                    *r -= c * v;
+                }
+            }
+        }
+        let theta = solve(&all, &rhs, &self.train_rows());
         let nb = weak.bond_column_count();
         let fallback_bonds = family
             .problem
@@ -238,6 +263,10 @@ impl Context<'_> {
         for (k, &e) in family.effects.iter().enumerate() {
             let o = family.effect_offset(k);
             let current = &params[o..o + e.parameter_count()];
+            if k >= held_from {
+                out.extend_from_slice(current);
+                continue;
+            }
             let anchor = matches!(e, Effect::Tether { .. }).then(|| Vec2::new(current[0], current[1]));
             let width = cols[k].len();
             out.extend(self.effect_params(e, &theta[t..t + width], anchor, current));
@@ -495,52 +524,17 @@ impl Context<'_> {
 
     /// The circle that best fits `particle`'s tracked positions (algebraic fit): its centre,
     /// radius (px) and RMS misfit over the radius; `None` when the path is no swinging arc
-    /// (fewer than six points, the centre within the path's spread, a misfit above a tenth of
-    /// it, or no swing: the angle about the centre must turn back at an interior frame, by
-    /// more than five track noises on both sides, as a pendulum's does every half period and a
-    /// tumbling body's curved path need not).
+    /// (see [`Context::arc_of`]; and no swing: the angle about the centre must turn back at an
+    /// interior frame, by more than five track noises on both sides, as a pendulum's does
+    /// every half period and a tumbling body's curved path need not).
     pub fn circle_of(&self, particle: usize) -> Option<(Vec2, f64, f64)> {
+        let arc = self.arc_of(particle)?;
         let obs = self.obs;
-        let xs: Vec<(usize, Vec2)> = (0..obs.frame_count())
-            .filter_map(|k| Some((k, obs.positions[k].get(particle).copied()??)))
+        let angles: Vec<f64> = (0..obs.frame_count())
+            .filter_map(|k| obs.positions[k].get(particle).copied()?)
+            .map(|x| (x.x - arc.centre.x).atan2(arc.centre.y - x.y))
             .collect();
-        if xs.len() < 6 {
-            return None;
-        }
-        let mean = xs.iter().map(|(_, x)| x).sum::<Vec2>() / xs.len() as f64;
-        // Kasa fit: x² + y² = 2 a x + 2 b y + c, centred on the mean for conditioning.
-        let mut m = nalgebra::Matrix3::<f64>::zeros();
-        let mut r = nalgebra::Vector3::<f64>::zeros();
-        for (_, x) in &xs {
-            let d = x - mean;
-            let row = nalgebra::Vector3::new(2.0 * d.x, 2.0 * d.y, 1.0);
-            m += row * row.transpose();
-            r += row * d.norm_squared();
-        }
-        let sol = m.try_inverse()? * r;
-        let centre = mean + Vec2::new(sol[0], sol[1]);
-        let radius2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
-        if !(radius2 > 0.0 && radius2.is_finite()) {
-            return None;
-        }
-        let radius = radius2.sqrt();
-        let misfit = (xs
-            .iter()
-            .map(|(_, x)| ((x - centre).norm() - radius).powi(2))
-            .sum::<f64>()
-            / xs.len() as f64)
-            .sqrt();
-        let extent = xs.iter().map(|(_, x)| (x - mean).norm()).fold(0.0, f64::max);
-        // An arc: the particle stays off its centre, and the circle fits far better than the
-        // particle's own spread.
-        if !(radius > extent && misfit < 0.1 * extent) {
-            return None;
-        }
-        let angles: Vec<f64> = xs
-            .iter()
-            .map(|(_, x)| (x.x - centre.x).atan2(centre.y - x.y))
-            .collect();
-        let turn = 5.0 * noise_floor(obs.noise, self.scales.length) / radius;
+        let turn = 5.0 * noise_floor(obs.noise, self.scales.length) / arc.radius;
         let last = angles.len() - 1;
         let swings = |extreme: usize| {
             extreme > 0
@@ -557,7 +551,118 @@ impl Context<'_> {
         if !(swings(imax) || swings(imin)) {
             return None;
         }
-        Some((centre, radius, misfit / radius))
+        Some((arc.centre, arc.radius, arc.misfit / arc.radius))
+    }
+
+    /// The circle that best fits `particle`'s tracked positions (Kasa's algebraic fit) and
+    /// the straight line that does (principal axis); `None` for fewer than six points, a
+    /// centre within the path's spread or a circle misfit above a tenth of that spread.
+    pub fn arc_of(&self, particle: usize) -> Option<Arc> {
+        let obs = self.obs;
+        let xs: Vec<Vec2> = (0..obs.frame_count())
+            .filter_map(|k| obs.positions[k].get(particle).copied()?)
+            .collect();
+        if xs.len() < 6 {
+            return None;
+        }
+        let mean = xs.iter().sum::<Vec2>() / xs.len() as f64;
+        // Kasa fit: x² + y² = 2 a x + 2 b y + c, centred on the mean for conditioning.
+        let mut m = nalgebra::Matrix3::<f64>::zeros();
+        let mut r = nalgebra::Vector3::<f64>::zeros();
+        let mut scatter = nalgebra::Matrix2::<f64>::zeros();
+        for x in &xs {
+            let d = x - mean;
+            let row = nalgebra::Vector3::new(2.0 * d.x, 2.0 * d.y, 1.0);
+            m += row * row.transpose();
+            r += row * d.norm_squared();
+            scatter += d * d.transpose();
+        }
+        let sol = m.try_inverse()? * r;
+        let centre = mean + Vec2::new(sol[0], sol[1]);
+        let radius2 = sol[2] + sol[0] * sol[0] + sol[1] * sol[1];
+        if !(radius2 > 0.0 && radius2.is_finite()) {
+            return None;
+        }
+        let radius = radius2.sqrt();
+        let n = xs.len() as f64;
+        let misfit = (xs
+            .iter()
+            .map(|x| ((x - centre).norm() - radius).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        let line_misfit = (scatter.symmetric_eigen().eigenvalues.min().max(0.0) / n).sqrt();
+        let extent = xs.iter().map(|x| (x - mean).norm()).fold(0.0, f64::max);
+        // An arc: the particle stays off its centre, and the circle fits far better than the
+        // particle's own spread.
+        (radius > extent && misfit < 0.1 * extent).then_some(Arc {
+            centre,
+            radius,
+            misfit,
+            line_misfit,
+        })
+    }
+
+    /// A tether alone on `particle`, started from the circle its path follows (see
+    /// [`Context::arc_of`]): the anchor at the centre; the length and stiffness from the weak
+    /// form at that anchor where it gives a stiffer tether than the next estimate, else the
+    /// length the radius and the stiffness the one that stretches the tether by one track
+    /// noise under the mean centripetal pull (kept where the integration is stable). A tether turning a free particle round bends
+    /// its path by far more than the noise while its tension, balancing the centripetal
+    /// acceleration, shows in the weak form only through stretches of the order of the noise
+    /// (the weak form then proposes a near, soft anchor). Returns the proposal and the
+    /// circle's RMS misfit over its radius; `None` when the path is no arc or no more curved
+    /// than the noise (the line's RMS misfit below five track noises) or the circle does not
+    /// explain the bend (its misfit above a third of the line's).
+    pub fn circle_tether(&self, current: &Current, particle: usize) -> Option<(Proposal, f64)> {
+        let family = &current.family;
+        if family.effects.contains(&Effect::Tether { particle }) {
+            return None;
+        }
+        let arc = self.arc_of(particle)?;
+        let sigma = noise_floor(self.obs.noise, self.scales.length);
+        if !(arc.line_misfit > 5.0 * sigma && arc.misfit < arc.line_misfit / 3.0) {
+            return None;
+        }
+        let speeds: Vec<f64> = (0..self.obs.frame_count())
+            .filter_map(|k| self.obs.velocities.get(k)?.get(particle).copied()?)
+            .map(|v| v.norm_squared())
+            .collect();
+        let mean_square_speed = speeds.iter().sum::<f64>() / speeds.len().max(1) as f64;
+        let mass = family.structure.particles.get(particle).map_or(1.0, |p| p.mass);
+        let substep = family.structure.integration_parameters().dt();
+        let stable = 0.25 * mass / (substep * substep);
+        let centripetal = (mass * mean_square_speed / arc.radius / (2.0 * sigma))
+            .min(stable)
+            .max(self.scales.stiffness * 1e-3);
+        // The weak form at the circle's centre: the tension's two columns solved linearly
+        // beside the current model's.
+        let effect = Effect::Tether { particle };
+        let cols = self.effect_columns(family, &current.fit.params);
+        let mut all = self.base_columns(&cols);
+        let base_len = all.len();
+        let extra = self.weak.effect_columns(family, effect, Some(arc.centre));
+        all.extend(extra.iter().map(|v| v.as_slice()));
+        let theta = solve(&all, &self.weak.rhs, &self.train_rows());
+        let weak = self.effect_params(effect, &theta[base_len..], Some(arc.centre), &[]);
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            eprintln!("   circle tether weak form {weak:?}, centripetal {centripetal}");
+        }
+        let (length, stiffness) = if weak[3] > centripetal && weak[3] <= stable && weak[2] > 0.0 {
+            (weak[2], weak[3])
+        } else {
+            (arc.radius, centripetal)
+        };
+        Some((
+            Proposal {
+                effect,
+                init: vec![arc.centre.x, arc.centre.y, length, stiffness],
+                screen: None,
+                score_test: None,
+                jolts: Vec::new(),
+            },
+            arc.misfit / arc.radius,
+        ))
     }
 
     /// A tether the tracks cannot tell from an inextensible one, taken as rigid: with a field
@@ -767,6 +872,55 @@ impl Context<'_> {
         best.1
     }
 
+    /// The structure alone fitted on the fitted frames, from the weak-form joint estimate.
+    /// Bond stiffnesses the weak form cannot tell (it gives them no positive value, and they
+    /// start at their parameter's scale) are also started at [`BASE_STIFFNESS_FACTORS`] times
+    /// that scale unless the first fit is at the noise level: a multi-step fit of a coupled
+    /// oscillation has narrow basins in its stiffnesses. The best fit on the fitted frames
+    /// is kept.
+    pub fn base_fit(&self, family: &Family) -> Option<Current> {
+        let params = self.joint_estimate(family, &[]);
+        let mut best = self.fit(family, &params, self.start, false);
+        let Some(problem) = &family.problem else {
+            return best;
+        };
+        let guess = problem.initial_guess();
+        let untold: Vec<usize> = problem
+            .layout
+            .parameters
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| {
+                matches!(
+                    p.kind,
+                    crate::ParameterKind::SpringStiffness | crate::ParameterKind::TorsionStiffness
+                ) && params.get(*i) == guess.get(*i)
+            })
+            .map(|(i, _)| i)
+            .collect();
+        if untold.is_empty() {
+            return best;
+        }
+        for factor in BASE_STIFFNESS_FACTORS {
+            if best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
+                break;
+            }
+            let mut start = params.clone();
+            for &i in &untold {
+                start[i] *= factor;
+            }
+            if let Some(b) = self.fit(family, &start, self.start, false) {
+                if best
+                    .as_ref()
+                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
+                {
+                    best = Some(b);
+                }
+            }
+        }
+        best
+    }
+
     /// Fits `family` from `params` and `state` on the fitted frames (`warm`: see
     /// [`fit_shot`]).
     pub fn fit(&self, family: &Family, params: &[f64], state: &State, warm: bool) -> Option<Current> {
@@ -951,8 +1105,19 @@ impl Context<'_> {
         // Both starts unless the first already fits to the noise: the current fit may be a
         // poor optimum when a strong term is missing.
         let mut best = self.fit(&family, &warm, &current.fit.state, true);
-        if !best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
-            let joint = self.joint_estimate(&family, &warm);
+        let mut starts = vec![self.joint_estimate(&family, &warm)];
+        // Proposals started from the path's geometry (no screen score) are held while the
+        // bonds are estimated beside them (see `joint_estimate_holding`).
+        if proposals
+            .iter()
+            .all(|p| p.screen.is_none() && p.effect.is_smooth())
+        {
+            starts.push(self.joint_estimate_holding(&family, &warm, current.family.effects.len()));
+        }
+        for joint in starts {
+            if best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
+                break;
+            }
             if let Some(b) = self.fit(&family, &joint, self.start, false) {
                 if best
                     .as_ref()
@@ -1005,6 +1170,21 @@ impl Context<'_> {
         };
         evidence.score = variance.and_then(|v| evidence.score_on(v));
         evidence
+    }
+}
+
+/// The coefficients of an effect's weak-form columns at its parameters (the inverse of
+/// [`Context::effect_params`]): a field's components; drag and dashpot values; a spring's or
+/// tether's `S` and `S L`; none for a wall.
+fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
+    match effect {
+        Effect::Gravity => params.to_vec(),
+        Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
+            params.to_vec()
+        }
+        Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
+        Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
+        Effect::Wall => Vec::new(),
     }
 }
 
@@ -1083,4 +1263,17 @@ pub fn wall_proposals(guesses: &[WallGuess]) -> Vec<Proposal> {
             jolts: g.jolts.clone(),
         })
         .collect()
+}
+
+/// A circle fitted to one particle's tracked path, beside the straight line fitted to it.
+#[derive(Clone, Copy, Debug)]
+pub struct Arc {
+    /// The circle's centre (px).
+    pub centre: Vec2,
+    /// The circle's radius (px).
+    pub radius: f64,
+    /// RMS distance of the tracked positions from the circle (px).
+    pub misfit: f64,
+    /// RMS distance of the tracked positions from their principal axis (px).
+    pub line_misfit: f64,
 }
