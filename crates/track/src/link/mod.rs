@@ -35,6 +35,7 @@
 
 mod claimants;
 mod link_detections;
+mod linker;
 mod options;
 mod outcome;
 mod reacquire;
