@@ -46,6 +46,18 @@ pub struct RefineOptions {
     /// Carry the Jacobian between iterations by secant updates ([`LmOptions::secant_updates`]);
     /// the final Jacobian is still taken by finite differences.
     pub secant_updates: bool,
+    /// Unknowns (parameters plus four per free particle) above which `lsq` refines in
+    /// patches ([`crate::refine_by_size`]). Default 400.
+    pub patch_limit: usize,
+    /// Free particles per patch core. Default 8.
+    pub core_size: usize,
+    /// Passes over the patches (at least 1): the first drives each ring along its tracks,
+    /// every later one along the paths the neighbouring patches simulated in the pass before
+    /// (smooth, where the tracks carry their noise into the forces). On a 4 x 4 lattice at
+    /// 0.05 px noise the RMS error in units of the whole-object fit's standard errors was 7.3
+    /// after one pass, 3.9 after two, under 2.7 after three (the whole-object fit: 0.9).
+    /// Default 3.
+    pub passes: usize,
 }
 
 impl Default for RefineOptions {
@@ -55,6 +67,9 @@ impl Default for RefineOptions {
             first_span_periods: 3.0,
             span_growth: 2.0,
             secant_updates: true,
+            patch_limit: 400,
+            core_size: 8,
+            passes: 3,
         }
     }
 }
