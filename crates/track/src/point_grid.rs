@@ -304,12 +304,17 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let (gate, reach) = (8.0_f64, 10.0_f64);
         for (side, frame_count) in [(4usize, 20_000usize), (10, 2_000), (32, 200)] {
-            let frames: Vec<(Vec<[f64; 2]>, Vec<[f64; 2]>)> = (0..frame_count)
+            // Each frame's detections and predictions.
+            type Frame = (Vec<[f64; 2]>, Vec<[f64; 2]>);
+            let frames: Vec<Frame> = (0..frame_count)
                 .map(|_| {
                     let dets: Vec<[f64; 2]> = (0..side * side)
                         .map(|i| {
                             let (x, y) = ((i % side) as f64, (i / side) as f64);
-                            [20.0 + 12.0 * x + 3.0 * rng.gen::<f64>(), 20.0 + 12.0 * y + 3.0 * rng.gen::<f64>()]
+                            [
+                                20.0 + 12.0 * x + 3.0 * rng.gen::<f64>(),
+                                20.0 + 12.0 * y + 3.0 * rng.gen::<f64>(),
+                            ]
                         })
                         .collect();
                     let preds = dets
