@@ -161,8 +161,7 @@ pub(crate) fn resolve(
     // Each run's partner tracks: (run, other track).
     let mut partners: Vec<(usize, usize)> = Vec::new();
     // The tracks' points in each frame some run covers, and the track of each.
-    let mut frame_points: std::collections::HashMap<usize, (Vec<[f64; 2]>, Vec<usize>)> =
-        Default::default();
+    let mut frame_points: std::collections::HashMap<usize, (Vec<[f64; 2]>, Vec<usize>)> = Default::default();
     for &(i, s, e) in &runs {
         for t in (s..=e).filter(|&t| at(i, t).is_some()) {
             frame_points.entry(t).or_insert_with(|| {
