@@ -488,6 +488,7 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
     // Generations stay in the tens on every lattice (the paper's claim); a cap of 60 keeps
     // the 1024-particle run to about a minute.
     let cap = if quick { 30 } else { 60 };
+    let refine_options = physfit_identify::RefineOptions::default();
     let mut out = format!(
         "\n### Scaling on lattices (exact trajectories, 100 frames, 20 substeps)\n\n\
          The linear stage is dense up to 200 unknowns, sparse Cholesky after a nested-dissection ordering beyond. The \
@@ -501,9 +502,9 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
          `anneal`, `ga` and `ga-local` are judged.\n\n\
          | particles | bonds | unknowns | linear stage | linear stage per bond | linear largest error* | refinement | refined largest error* | start-state fit | ga-local generations to 1/100 cost |\n\
          |---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
-        patch_limit = physfit_identify::PATCH_LIMIT,
-        core = physfit_identify::CORE_SIZE,
-        passes = physfit_identify::PASSES,
+        patch_limit = refine_options.patch_limit,
+        core = refine_options.core_size,
+        passes = refine_options.passes,
     );
     for &side in sides {
         let truth = lattice(side, 100)?;
@@ -530,7 +531,7 @@ pub fn scaling(quick: bool) -> anyhow::Result<String> {
         let t0 = Instant::now();
         let est = linear_estimate(&problem, &obs, None)?;
         let linear_time = t0.elapsed().as_secs_f64();
-        // As `lsq` refines: the whole object up to PATCH_LIMIT unknowns, in patches beyond.
+        // As `lsq` refines: the whole object up to `patch_limit` unknowns, in patches beyond.
         let t1 = Instant::now();
         let r = physfit_identify::refine_by_size(&problem, &obs, &est.params, &Default::default(), &())?;
         let refine_seconds = t1.elapsed().as_secs_f64();

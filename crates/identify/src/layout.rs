@@ -191,7 +191,7 @@ fn std_dev(v: &[f64]) -> f64 {
 }
 
 /// How far the stiffness bounds reach above the data's stiffness scale.
-pub const STIFFNESS_BOUND_FACTOR: f64 = 1.0e4;
+pub(crate) const STIFFNESS_BOUND_FACTOR: f64 = 1.0e4;
 
 /// The parameter vector of `structure`'s unknown bond values, with bounds and scales from the
 /// observations: rest lengths in `(0, 4 * max observed distance]` (scale: mean observed

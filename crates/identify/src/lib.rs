@@ -82,20 +82,17 @@ pub use error::IdentifyError;
 pub use fit::{fit, fit_observations, FitOptions, FitResult, Method};
 pub use layout::{
     layout_for, stiffness_scales, BondGenes, BondRef, Layout, Parameter, ParameterKind, StiffnessScales,
-    STIFFNESS_BOUND_FACTOR,
 };
 pub use lm::{jacobian, levenberg_marquardt, LmOptions, LmOutcome, Residuals};
-pub use lsq::{
-    default_test_window, linear_estimate, LinearEstimate, DENSE_LIMIT, MIN_TEST_WINDOW, TEST_EXPONENT,
-};
+pub use lsq::{default_test_window, linear_estimate, LinearEstimate};
+// Tuning constants the diagnosis shares (crate-private: not options a user sets).
+pub(crate) use lsq::TEST_EXPONENT;
 pub use multi_step::{MultiStepCost, MultiStepFit};
-pub use observations::{Observations, VELOCITY_FIT_POINTS};
+pub use observations::Observations;
+pub(crate) use observations::VELOCITY_FIT_POINTS;
 pub use one_step::{neighbour_pairs, LocalSplit, OneStepCost};
-pub use patches::{
-    fit_start_state_by_size, refine_by_size, refine_in_patches, PatchRefinement, CORE_SIZE, PASSES,
-    PATCH_LIMIT,
-};
+pub use patches::{fit_start_state_by_size, refine_by_size, refine_in_patches, PatchRefinement};
 pub use problem::Problem;
 pub use refine::{fit_start_state, refine, RefineOptions, Refinement};
 pub use report::{BondKeys, FitCosts, FitReport, ParameterReport, TruthComparison};
-pub use uncertainty::{rest_angle_degrees, uncertainty, Uncertainty, NULL_EIGENVALUE, POORLY_DETERMINED};
+pub use uncertainty::{rest_angle_degrees, uncertainty, Uncertainty};

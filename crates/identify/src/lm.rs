@@ -8,6 +8,18 @@
 //! simulation, the Jacobian can instead be carried between iterations by Broyden's secant
 //! update ([`LmOptions::secant_updates`]): one evaluation per iteration instead of one per
 //! variable, with finite differences again only when a step fails and to confirm convergence.
+//!
+//! Why not a crate: the `levenberg-marquardt` crate (0.14, a MINPACK port on nalgebra) and
+//! argmin's Gauss-Newton take a Jacobian from the caller and keep no bounds; neither carries
+//! the Jacobian by secant updates. Measured once (2026-11-26, a scratch program outside the
+//! repository, release, three runs on a shared two-core machine): fitting the five
+//! parameters of a simulated three-mass spring chain (200 frames, 20 substeps) from the same
+//! start, with the same forward differences, both reach the same cost; this solver takes 29
+//! simulations and 3.2-4.2 ms, the crate 60 simulations and 8.7 ms (2.0-2.7 times as long;
+//! the simulation count does not depend on the two cores this solver's Jacobian columns
+//! use). The secant updates are what made the patch refinement of a 6 x 6 lattice go from
+//! 4.5 s to 1.9 s, and the whole-object refinement of paper8 from 2218 to 248 simulations
+//! (2026-11-24, docs/benchmarks.md).
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;

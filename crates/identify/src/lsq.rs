@@ -46,13 +46,13 @@ use crate::sparse_cholesky::{nested_dissection, CholeskyFactor};
 use crate::{stiffness_scales, BondRef, IdentifyError, Observations, ParameterKind, Problem};
 
 /// Exponent `q` of the weak-form test function `(1 - s^2)^q`.
-pub const TEST_EXPONENT: i32 = 6;
+pub(crate) const TEST_EXPONENT: i32 = 6;
 
 /// Largest number of linear unknowns solved densely.
-pub const DENSE_LIMIT: usize = 200;
+pub(crate) const DENSE_LIMIT: usize = 200;
 
 /// Smallest test-function window, frames.
-pub const MIN_TEST_WINDOW: usize = 8;
+pub(crate) const MIN_TEST_WINDOW: usize = 8;
 
 /// The result of the linear (weak-form) stage.
 #[derive(Clone, Debug, PartialEq, Serialize)]

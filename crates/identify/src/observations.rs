@@ -22,7 +22,7 @@ use physfit_tracks::TrackTable;
 use crate::IdentifyError;
 
 /// Tracked frames used by each local velocity fit.
-pub const VELOCITY_FIT_POINTS: usize = 7;
+pub(crate) const VELOCITY_FIT_POINTS: usize = 7;
 
 /// Positions (px) and estimated velocities (px/s) of every structure particle over the analysed
 /// frames `first_frame ..= last_frame()`, with gaps as `None`.

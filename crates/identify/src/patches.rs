@@ -3,10 +3,10 @@
 //! The whole-object refinement ([`crate::refine`]) differentiates a simulation of the whole
 //! object with respect to every unknown: its cost grows as unknowns x bonds x frames, and its
 //! uncertainty needs the eigen-decomposition of a dense matrix of all unknowns, so it grows as
-//! the square of the object's size or faster. Beyond [`PATCH_LIMIT`] unknowns the object is
+//! the square of the object's size or faster. Beyond [`RefineOptions::patch_limit`] unknowns the object is
 //! instead cut into patches:
 //!
-//! * the free particles are split into *cores* of about [`CORE_SIZE`] neighbours (grown
+//! * the free particles are split into *cores* of about [`RefineOptions::core_size`] neighbours (grown
 //!   breadth-first over the bonds);
 //! * a core's patch is the core, its *halo* (the free neighbours of the core, simulated and
 //!   compared too, so that loops of bonds closing just outside the core are still seen from
@@ -14,7 +14,7 @@
 //!   bonds reach beyond;
 //! * the ring is pinned in the patch's model and *driven* along cubic splines through its
 //!   tracked positions ([`physfit_model::step_prescribed`]), first along the tracks, then
-//!   (for [`PASSES`] - 1 more passes) along the paths the neighbouring patches simulated; the
+//!   (for [`RefineOptions::passes`] - 1 more passes) along the paths the neighbouring patches simulated; the
 //!   start state of core and halo and the patch's bond values are refined by
 //!   [`crate::refine`]'s machinery on their positions;
 //! * each bond takes its values from the patch whose core holds its first free particle (a
@@ -38,19 +38,6 @@ use crate::refine::{fit_start_state_with, refine_with, WarmStart};
 use crate::{
     BondRef, IdentifyError, MultiStepCost, Observations, Observer, Problem, RefineOptions, Refinement,
 };
-
-/// Unknowns (parameters plus four per free particle) above which `lsq` refines in patches.
-pub const PATCH_LIMIT: usize = 400;
-
-/// Free particles per patch core.
-pub const CORE_SIZE: usize = 8;
-
-/// Passes over the patches: the first drives each ring along its tracks, every later one
-/// along the paths the neighbouring patches simulated in the pass before (smooth, where the
-/// tracks carry their noise into the forces). On a 4 x 4 lattice at 0.05 px noise the RMS
-/// error in units of the whole-object fit's standard errors was 7.3 after one pass, 3.9
-/// after two, under 2.7 after three (the whole-object fit: 0.9).
-pub const PASSES: usize = 3;
 
 /// One patch's refinement: its problem (the patch's particles, core first, then the ring), its
 /// refinement, and which of its parameters it decides for the whole (`(patch index, whole
@@ -92,7 +79,7 @@ fn bond_particles(structure: &Scene) -> Vec<Vec<usize>> {
 }
 
 /// Cuts the structure into patches (see the module doc).
-fn partition(structure: &Scene, free: &[bool]) -> Vec<Patch> {
+fn partition(structure: &Scene, free: &[bool], core_size: usize) -> Vec<Patch> {
     let n = structure.particles.len();
     let bonds = bond_particles(structure);
     let mut neighbours = vec![Vec::new(); n];
@@ -113,11 +100,11 @@ fn partition(structure: &Scene, free: &[bool]) -> Vec<Patch> {
         let mut core = vec![seed];
         core_of[seed] = c;
         let mut head = 0;
-        while head < core.len() && core.len() < CORE_SIZE {
+        while head < core.len() && core.len() < core_size {
             let p = core[head];
             head += 1;
             for &q in &neighbours[p] {
-                if core.len() < CORE_SIZE && free[q] && core_of[q] == usize::MAX {
+                if core.len() < core_size && free[q] && core_of[q] == usize::MAX {
                     core_of[q] = c;
                     core.push(q);
                 }
@@ -243,13 +230,13 @@ fn patch_problem(
 }
 
 /// Returns true if and only if the unknowns (parameters plus four per free particle) exceed
-/// [`PATCH_LIMIT`].
-fn needs_patches(problem: &Problem, observations: &Observations) -> bool {
+/// `options.patch_limit`.
+fn needs_patches(problem: &Problem, observations: &Observations, options: &RefineOptions) -> bool {
     let free = observations.fixed.iter().filter(|f| !**f).count();
-    problem.dimension() + 4 * free > PATCH_LIMIT
+    problem.dimension() + 4 * free > options.patch_limit
 }
 
-/// Refines `start` as `lsq` does: the whole object ([`crate::refine`]) up to [`PATCH_LIMIT`]
+/// Refines `start` as `lsq` does: the whole object ([`crate::refine`]) up to [`RefineOptions::patch_limit`]
 /// unknowns (parameters plus four per free particle), patch by patch
 /// ([`refine_in_patches`]) beyond.
 pub fn refine_by_size(
@@ -259,7 +246,7 @@ pub fn refine_by_size(
     options: &RefineOptions,
     observer: &dyn Observer,
 ) -> Result<Refinement, IdentifyError> {
-    if needs_patches(problem, observations) {
+    if needs_patches(problem, observations, options) {
         refine_in_patches(problem, observations, start, options, observer)
     } else {
         crate::refine(problem, observations, start, options, observer)
@@ -280,7 +267,7 @@ pub fn refine_in_patches(
 }
 
 /// As [`crate::fit_start_state`] (the start state fitted for fixed parameters `params`, the
-/// Jacobian over both for the uncertainty): on the whole object up to [`PATCH_LIMIT`]
+/// Jacobian over both for the uncertainty): on the whole object up to [`RefineOptions::patch_limit`]
 /// unknowns, patch by patch beyond (as [`refine_in_patches`], with each patch's parameters
 /// held), so that judging a model found by another solver grows with the number of bonds too.
 pub fn fit_start_state_by_size(
@@ -289,7 +276,7 @@ pub fn fit_start_state_by_size(
     params: &[f64],
     options: &RefineOptions,
 ) -> Result<Refinement, IdentifyError> {
-    if needs_patches(problem, observations) {
+    if needs_patches(problem, observations, options) {
         in_patches(problem, observations, params, options, &(), true)
     } else {
         crate::fit_start_state(problem, observations, params, options)
@@ -309,7 +296,7 @@ fn in_patches(
     let t0 = Instant::now();
     let structure = &problem.structure;
     let free: Vec<bool> = observations.fixed.iter().map(|f| !f).collect();
-    let patches = partition(structure, &free);
+    let patches = partition(structure, &free, options.core_size);
     let whole = MultiStepCost::new(problem.clone(), observations)?;
     let mut state = whole.observed_anchor_state();
     let anchor_frame = whole.anchor_frame();
@@ -426,9 +413,10 @@ fn in_patches(
     // Each patch's refinement in the last pass, which the next one starts from (its state
     // and Jacobian).
     let mut parts: Vec<Option<PatchRefinement>> = (0..patches.len()).map(|_| None).collect();
-    for round in 0..PASSES {
+    let passes = options.passes.max(1);
+    for round in 0..passes {
         let warm = (round > 0).then_some((&state, &parts[..]));
-        let solved = pass(&params, ring_paths.as_deref(), warm, round + 1 == PASSES);
+        let solved = pass(&params, ring_paths.as_deref(), warm, round + 1 == passes);
         let mut paths: Vec<Vec<Vec2>> = observations
             .positions
             .iter()
@@ -531,14 +519,15 @@ mod tests {
     fn patches_cover_every_free_particle_once_and_every_bond() {
         let truth = lattice(7, Timing::default());
         let free = vec![true; truth.particles.len()];
-        let patches = partition(&truth, &free);
+        let core_size = RefineOptions::default().core_size;
+        let patches = partition(&truth, &free, core_size);
         let mut cores: Vec<usize> = patches
             .iter()
             .flat_map(|p| p.particles[..p.core_count].to_vec())
             .collect();
         cores.sort_unstable();
         assert_eq!(cores, (0..49).collect::<Vec<_>>());
-        assert!(patches.iter().all(|p| p.core_count <= CORE_SIZE));
+        assert!(patches.iter().all(|p| p.core_count <= core_size));
         let mut springs: Vec<usize> = patches.iter().flat_map(|p| p.springs.clone()).collect();
         springs.sort_unstable();
         springs.dedup();

@@ -46,6 +46,41 @@ pub struct RefineOptions {
     /// Carry the Jacobian between iterations by secant updates ([`LmOptions::secant_updates`]);
     /// the final Jacobian is still taken by finite differences.
     pub secant_updates: bool,
+    /// Unknowns (parameters plus four per free particle) above which `lsq` refines in
+    /// patches ([`crate::refine_by_size`]). Default 400. The patch settings appear in a
+    /// report's options only when they differ from their defaults.
+    #[serde(skip_serializing_if = "is_default_patch_limit")]
+    pub patch_limit: usize,
+    /// Free particles per patch core. Default 8.
+    #[serde(skip_serializing_if = "is_default_core_size")]
+    pub core_size: usize,
+    /// Passes over the patches (at least 1): the first drives each ring along its tracks,
+    /// every later one along the paths the neighbouring patches simulated in the pass before
+    /// (smooth, where the tracks carry their noise into the forces). On a 4 x 4 lattice at
+    /// 0.05 px noise the RMS error in units of the whole-object fit's standard errors was 7.3
+    /// after one pass, 3.9 after two, under 2.7 after three (the whole-object fit: 0.9).
+    /// Default 3.
+    #[serde(skip_serializing_if = "is_default_passes")]
+    pub passes: usize,
+}
+
+/// Default of [`RefineOptions::patch_limit`].
+const PATCH_LIMIT: usize = 400;
+/// Default of [`RefineOptions::core_size`].
+const CORE_SIZE: usize = 8;
+/// Default of [`RefineOptions::passes`].
+const PASSES: usize = 3;
+
+fn is_default_patch_limit(v: &usize) -> bool {
+    *v == PATCH_LIMIT
+}
+
+fn is_default_core_size(v: &usize) -> bool {
+    *v == CORE_SIZE
+}
+
+fn is_default_passes(v: &usize) -> bool {
+    *v == PASSES
 }
 
 impl Default for RefineOptions {
@@ -55,6 +90,9 @@ impl Default for RefineOptions {
             first_span_periods: 3.0,
             span_growth: 2.0,
             secant_updates: true,
+            patch_limit: PATCH_LIMIT,
+            core_size: CORE_SIZE,
+            passes: PASSES,
         }
     }
 }

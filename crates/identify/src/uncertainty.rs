@@ -25,10 +25,10 @@ use crate::{ParameterKind, Problem, Refinement};
 
 /// Eigenvalue ratio (of the column-scaled `J^T J`) below which a direction is unidentifiable:
 /// a singular value ratio of `1e-7`, where a forward-difference Jacobian stops being reliable.
-pub const NULL_EIGENVALUE: f64 = 1e-14;
+pub(crate) const NULL_EIGENVALUE: f64 = 1e-14;
 
 /// Relative standard error above which a parameter is reported as poorly determined.
-pub const POORLY_DETERMINED: f64 = 0.25;
+pub(crate) const POORLY_DETERMINED: f64 = 0.25;
 
 /// Uncertainty of every parameter of a refined fit.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -45,7 +45,7 @@ pub struct Uncertainty {
     pub singular_values: Vec<f64>,
     /// Indices of the parameters that the data cannot determine.
     pub unidentifiable: Vec<usize>,
-    /// Indices of the parameters determined only to worse than [`POORLY_DETERMINED`].
+    /// Indices of the parameters determined only to worse than a relative standard error of 0.25 (`POORLY_DETERMINED`).
     pub poorly_determined: Vec<usize>,
     /// One sentence per problem found, naming the bond as in the scene file.
     pub warnings: Vec<String>,
@@ -161,7 +161,7 @@ fn patched_uncertainty(problem: &Problem, refinement: &Refinement, track_noise: 
 }
 
 /// The parameters the data cannot determine (`flat[c]`: no weight outside the null directions
-/// of `J^T J`) and those determined only to worse than [`POORLY_DETERMINED`] relative standard
+/// of `J^T J`) and those determined only to worse than `POORLY_DETERMINED` (0.25) relative standard
 /// error, with one sentence each naming the bond as in the scene file.
 fn judge(
     problem: &Problem,

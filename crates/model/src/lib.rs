@@ -38,7 +38,6 @@
 //! ```
 
 mod integrator;
-mod io;
 mod model;
 mod particle;
 mod physics;
@@ -58,9 +57,10 @@ pub use integrator::{
     step, step_frame, step_frame_prescribed, step_prescribed, IntegrationParameters, IntegratorKind,
     StepScratch,
 };
-pub use io::write_atomic;
 pub use model::{dashpot_force_on_i, Model};
 pub use particle::{Particle, ParticleId, ParticleSet};
+/// Atomic file output (the one implementation lives in physfit-tracks, the lowest crate).
+pub use physfit_tracks::write_atomic;
 pub use physics::{Physics, Wall};
 pub use potential::Potential;
 pub use scene::{Colour, RenderSettings, Scene, SceneError, SceneProblem};

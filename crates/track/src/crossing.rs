@@ -17,9 +17,8 @@
 //! after, which the caller uses to hand out the blobs located inside the crossing and to
 //! place the points it had predicted.
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
-
 use crate::disjoint_sets::DisjointSets;
+use crate::point_grid::PointGrid;
 
 /// One point of a track as the crossing pass sees it.
 #[derive(Clone, Copy, Debug)]
@@ -161,25 +160,34 @@ pub(crate) fn resolve(
     let mut sets = DisjointSets::new(runs.len());
     // Each run's partner tracks: (run, other track).
     let mut partners: Vec<(usize, usize)> = Vec::new();
-    let mut trees: std::collections::HashMap<usize, (ImmutableKdTree<f64, 2>, Vec<usize>)> =
-        Default::default();
-    for (r, &(i, s, e)) in runs.iter().enumerate() {
-        for t in s..=e {
-            let Some(p) = at(i, t) else { continue };
-            let (tree, owners) = trees.entry(t).or_insert_with(|| {
+    // The tracks' points in each frame some run covers, and the track of each.
+    let mut frame_points: std::collections::HashMap<usize, (Vec<[f64; 2]>, Vec<usize>)> = Default::default();
+    for &(i, s, e) in &runs {
+        for t in (s..=e).filter(|&t| at(i, t).is_some()) {
+            frame_points.entry(t).or_insert_with(|| {
                 let owners: Vec<usize> = (0..n).filter(|&j| at(j, t).is_some()).collect();
                 let pts: Vec<[f64; 2]> = owners
                     .iter()
                     .filter_map(|&j| at(j, t).map(|q| [q.x, q.y]))
                     .collect();
-                (ImmutableKdTree::new_from_slice(&pts), owners)
+                (pts, owners)
             });
-            for nb in tree.within_unsorted::<SquaredEuclidean>(&[p.x, p.y], near * near) {
-                let j = owners[nb.item as usize];
-                if j != i {
-                    partners.push((r, j));
+        }
+    }
+    let grids: std::collections::HashMap<usize, PointGrid> = frame_points
+        .iter()
+        .map(|(&t, (pts, _))| (t, PointGrid::new(pts)))
+        .collect();
+    for (r, &(i, s, e)) in runs.iter().enumerate() {
+        for t in s..=e {
+            let Some(p) = at(i, t) else { continue };
+            let owners = &frame_points[&t].1;
+            grids[&t].within(&[p.x, p.y], near, |k, d2| {
+                // Strictly nearer than `near`, as the kd-tree this replaced counted them.
+                if d2 < near * near && owners[k] != i {
+                    partners.push((r, owners[k]));
                 }
-            }
+            });
         }
     }
     partners.sort_unstable();

@@ -22,5 +22,10 @@ pub fn write_detections_csv(frames: &[crate::FrameDetections], path: &Path) -> R
             );
         }
     }
-    Ok(physfit_tracks::write_atomic(path, text.as_bytes())?)
+    physfit_tracks::write_atomic(path, text.as_bytes()).map_err(|source| {
+        TrackError::from(physfit_tracks::TableError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    })
 }

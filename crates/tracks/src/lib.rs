@@ -3,7 +3,8 @@
 //! This crate owns [`TrackTable`] (rows of [`TrackPoint`], each with a [`PointFlag`]) and its
 //! CSV contract (`tracks.csv`: `frame,particle,x,y,mass,size,ep,flag`), the readers of other
 //! trackers' tables (trackpy, TrackMate, Tracker; [`read_track_table`]) and the robust
-//! statistics ([`stats`]) the stages share. It sees neither pixels nor the model: the tracker
+//! statistics ([`stats`]) the stages share, and the atomic file writer every stage uses
+//! ([`write_atomic`]). It sees neither pixels nor the model: the tracker
 //! (`physfit-track`) writes these tables, the identifier (`physfit-identify`) reads them, and
 //! neither needs the other to do so.
 //!
@@ -26,12 +27,14 @@
 //! ```
 
 mod error;
+mod io;
 pub mod stats;
 mod tables;
 mod track_table;
 
 pub use error::TableError;
+pub use io::write_atomic;
 pub use tables::{
     detect_format, read_track_table, read_track_table_str, ForeignTable, TableFormat, TableOptions,
 };
-pub use track_table::{write_atomic, PointFlag, TrackPoint, TrackTable};
+pub use track_table::{PointFlag, TrackPoint, TrackTable};

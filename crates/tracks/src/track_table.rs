@@ -165,7 +165,7 @@ impl TrackTable {
         let bytes = w
             .into_inner()
             .map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
-        write_atomic(path, &bytes)
+        crate::write_atomic(path, &bytes).map_err(io_err)
     }
 
     /// Track names in order of first appearance.
@@ -198,31 +198,6 @@ impl TrackTable {
             .max()
             .unwrap_or(0)
     }
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same folder, renamed into place:
-/// a failed write never leaves a half-written file under the final name. (physfit-model has
-/// its own `write_atomic`; this crate sits below it and cannot use it.)
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TableError> {
-    let io_err = |source| TableError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default(),
-        std::process::id()
-    ));
-    std::fs::write(&tmp, bytes)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            io_err(e)
-        })
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use physfit_identify::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
-use physfit_identify::{FitOptions, FitReport};
+use physfit_identify::{FitOptions, FitReport, FitResult};
 use physfit_model::scene::{compare_scenes, SceneComparison};
 use physfit_model::Scene;
 use physfit_track::{TrackOptions, TrackScore};
@@ -153,245 +153,356 @@ enum Input {
     Recording { frames: PathBuf, structure: PathBuf },
 }
 
-/// Runs the pipeline.
+impl Input {
+    /// The input the arguments name (the built-in default scene when none), with `--fps`
+    /// checked.
+    fn from_args(args: &RunArgs) -> anyhow::Result<Input> {
+        let input = match (&args.scene, &args.frames, &args.structure) {
+            (_, Some(frames), Some(structure)) => Input::Recording {
+                frames: frames.clone(),
+                structure: structure.clone(),
+            },
+            (Some(path), None, _) => Input::Scene {
+                scene: Box::new(super::load_scene(path)?),
+                source: path.clone(),
+            },
+            (None, None, _) => Input::Scene {
+                scene: Box::new(
+                    Scene::from_toml_str(DEFAULT_SCENE, DEFAULT_SCENE_NAME)
+                        .context("the built-in default scene")?,
+                ),
+                source: PathBuf::from(DEFAULT_SCENE_NAME),
+            },
+            (_, Some(_), None) => {
+                bail!("--frames needs --structure (the recorded object's particles and bonds)")
+            }
+        };
+        if let Some(fps) = args.fps {
+            if !(fps.is_finite() && fps > 0.0) {
+                bail!("--fps {fps}: the frame rate must be a positive number of frames per second");
+            }
+        }
+        Ok(input)
+    }
+
+    /// The files a run of this input writes into the output folder.
+    fn output_names(&self) -> Vec<&'static str> {
+        let mut names = REPORT_FILES.to_vec();
+        if matches!(self, Input::Scene { .. }) {
+            names.extend(super::render::OUTPUTS);
+        }
+        names
+    }
+}
+
+/// The files every run writes, in the order `report.json` lists them.
+const REPORT_FILES: [&str; 5] = [
+    "tracks.csv",
+    "fitted.toml",
+    "report.json",
+    "report.md",
+    "report.html",
+];
+
+/// Output of the render stage: the frames and the structure to fit them with.
+struct Rendered {
+    /// The frames folder (rendered here) or the recording given.
+    frames_dir: PathBuf,
+    /// The structure, with the recording's frame rate and `--scale` applied.
+    structure: Scene,
+    /// The scene rendered (scenes only).
+    truth: Option<Scene>,
+    /// The scene file or the structure file.
+    source: PathBuf,
+    /// The recording opened, with its window.
+    recording: super::OpenRecording,
+}
+
+/// Output of the track stage.
+struct Tracked {
+    /// The tracker's outcome (its table is `tracks.csv`).
+    outcome: physfit_track::TrackOutcome,
+    /// The figures the report shows.
+    summary: Tracking,
+}
+
+/// Output of the diagnose stage.
+struct Diagnosed {
+    /// The diagnosis (its `final_scene` is `fitted.toml`).
+    diagnosis: Diagnosis,
+    /// The diagnosed model against the true scene (scenes only).
+    truth: Option<SceneComparison>,
+}
+
+/// What the stages share: the arguments, the verbosity and the staging folder.
+struct Stages<'a> {
+    args: &'a RunArgs,
+    verbosity: Verbosity,
+    /// The staging folder everything is written into.
+    dir: PathBuf,
+}
+
+/// Runs `stage`, adding its wall time to `seconds`.
+fn timed<T>(seconds: &mut f64, stage: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
+    let t = Instant::now();
+    let out = stage();
+    *seconds += t.elapsed().as_secs_f64();
+    out
+}
+
+/// Runs the pipeline: render -> track -> fit -> diagnose -> report, each stage a method of
+/// [`Stages`] returning its typed output.
 pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let started = Instant::now();
-    let mut times = StageTimes::default();
-    let out = &args.out;
-    let say = |msg: &str| {
-        if verbosity != Verbosity::Quiet {
-            println!("{msg}");
-        }
-    };
-    let explain = |msg: &str| {
-        if verbosity == Verbosity::Verbose {
-            println!("  {msg}");
-        }
-    };
-    let input = match (&args.scene, &args.frames, &args.structure) {
-        (_, Some(frames), Some(structure)) => Input::Recording {
-            frames: frames.clone(),
-            structure: structure.clone(),
-        },
-        (Some(path), None, _) => Input::Scene {
-            scene: Box::new(super::load_scene(path)?),
-            source: path.clone(),
-        },
-        (None, None, _) => Input::Scene {
-            scene: Box::new(
-                Scene::from_toml_str(DEFAULT_SCENE, DEFAULT_SCENE_NAME)
-                    .context("the built-in default scene")?,
-            ),
-            source: PathBuf::from(DEFAULT_SCENE_NAME),
-        },
-        (_, Some(_), None) => bail!("--frames needs --structure (the recorded object's particles and bonds)"),
-    };
-    if let Some(fps) = args.fps {
-        if !(fps.is_finite() && fps > 0.0) {
-            bail!("--fps {fps}: the frame rate must be a positive number of frames per second");
-        }
-    }
+    let input = Input::from_args(args)?;
     // Everything is written into a staging folder and swapped in at the end: a failed or
     // killed run leaves the folder as it was, an earlier report included.
-    let mut names = vec![
-        "tracks.csv",
-        "fitted.toml",
-        "report.json",
-        "report.md",
-        "report.html",
-    ];
-    if matches!(input, Input::Scene { .. }) {
-        names.extend(super::render::OUTPUTS);
-    }
-    let staged = crate::output::Staged::begin(out, "run", &names)?;
-    let dir = staged.dir().to_path_buf();
-
-    // Stage render (scenes) or read the structure (recordings).
-    let (frames_dir, mut structure, truth, source) = match input {
-        Input::Scene { scene, source } => {
-            explain("render: simulate the scene with its hidden physics and draw every frame");
-            let t = Instant::now();
-            let rendered =
-                super::render::render_scene(&scene, &source, &dir, verbosity).context("stage render")?;
-            times.render = t.elapsed().as_secs_f64();
-            say(&format!(
-                "render: {} frames of {} -> {}",
-                rendered.frame_count,
-                scene.name,
-                out.join("frames").display()
-            ));
-            (rendered.frames_dir, scene.structure(), Some(*scene), source)
-        }
-        Input::Recording { frames, structure } => {
-            let s = super::load_scene(&structure).context("stage track: the structure")?;
-            (frames, s, None, structure)
-        }
+    let staged = crate::output::Staged::begin(&args.out, "run", &input.output_names())?;
+    let stages = Stages {
+        args,
+        verbosity,
+        dir: staged.dir().to_path_buf(),
     };
-    // The frame rate: --fps, else a video's own, else the structure's (or the scene's).
-    let recording = super::open_recording(&frames_dir, args.window, args.fps, Some(structure.recording.fps))
+    let mut times = StageTimes::default();
+    let rendered = stages.render(input, &mut times.render)?;
+    let tracked = timed(&mut times.track, || stages.track(&rendered))?;
+    let base = timed(&mut times.fit, || stages.fit(&rendered, &tracked))?;
+    let diagnosed = timed(&mut times.diagnose, || stages.diagnose(&rendered, &tracked))?;
+    stages.report(
+        &rendered,
+        &tracked,
+        base.as_ref(),
+        &diagnosed,
+        &mut times,
+        started,
+    )?;
+    staged.commit().context("stage report")?;
+    stages.say(&format!(
+        "report -> {} (also report.html, report.json) in {:.1} s",
+        args.out.join("report.md").display(),
+        started.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+impl Stages<'_> {
+    /// Prints a stage's one-line result (not with `-q`).
+    fn say(&self, msg: &str) {
+        if self.verbosity != Verbosity::Quiet {
+            println!("{msg}");
+        }
+    }
+
+    /// Prints what a stage is about to do (with `-v` only).
+    fn explain(&self, msg: &str) {
+        if self.verbosity == Verbosity::Verbose {
+            println!("  {msg}");
+        }
+    }
+
+    /// Stage render (scenes; its time is added to `seconds`) or read the structure
+    /// (recordings), then open the frames with the frame rate (`--fps`, else a video's own,
+    /// else the structure's or the scene's) and apply `--scale`.
+    fn render(&self, input: Input, seconds: &mut f64) -> anyhow::Result<Rendered> {
+        let (frames_dir, mut structure, truth, source) = match input {
+            Input::Scene { scene, source } => {
+                self.explain("render: simulate the scene with its hidden physics and draw every frame");
+                let rendered = timed(seconds, || {
+                    super::render::render_scene(&scene, &source, &self.dir, self.verbosity)
+                        .context("stage render")
+                })?;
+                self.say(&format!(
+                    "render: {} frames of {} -> {}",
+                    rendered.frame_count,
+                    scene.name,
+                    self.args.out.join("frames").display()
+                ));
+                (rendered.frames_dir, scene.structure(), Some(*scene), source)
+            }
+            Input::Recording { frames, structure } => {
+                let s = super::load_scene(&structure).context("stage track: the structure")?;
+                (frames, s, None, structure)
+            }
+        };
+        let recording = super::open_recording(
+            &frames_dir,
+            self.args.window,
+            self.args.fps,
+            Some(structure.recording.fps),
+        )
         .context("stage track")?;
-    if let Some(fps) = recording.fps {
-        structure.recording.fps = fps;
-    }
-    let window = recording.window;
-    super::apply_scale(&mut structure, args.scale)?;
-
-    // Stage track.
-    explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
-    let t = Instant::now();
-    let options = TrackOptions {
-        window,
-        named_start: Some(super::named_start_in_view(&structure, &recording.source).context("stage track")?),
-        ..TrackOptions::default()
-    };
-    let bar = progress::bar(verbosity, "track", 0);
-    let tracked = physfit_track::track_source(&recording.source, &options, &|done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })
-    .with_context(|| format!("stage track: frames in {}", frames_dir.display()))?;
-    bar.finish_and_clear();
-    let tracks_path = out.join("tracks.csv");
-    tracked
-        .table
-        .write_csv(&dir.join("tracks.csv"))
-        .with_context(|| format!("stage track: writing {}", tracks_path.display()))?;
-    let score = match &truth {
-        Some(_) => {
-            let truth_tracks =
-                TrackTable::read_csv(&dir.join("truth.csv")).context("stage track: reading truth.csv")?;
-            Some(physfit_track::score_tracks(
-                &tracked.table,
-                &truth_tracks,
-                tracked.stats.match_radius(),
-            ))
+        if let Some(fps) = recording.fps {
+            structure.recording.fps = fps;
         }
-        None => None,
-    };
-    let tracking = tracking_summary(&tracked, &structure, score);
-    times.track = t.elapsed().as_secs_f64();
-    say(&note::tracking_line(&tracking, &tracks_path));
-    for w in &tracking.warnings {
-        if verbosity != Verbosity::Quiet {
-            eprintln!("physfit: warning: {w}");
-        }
+        super::apply_scale(&mut structure, self.args.scale)?;
+        Ok(Rendered {
+            frames_dir,
+            structure,
+            truth,
+            source,
+            recording,
+        })
     }
 
-    // Stage fit: the structure alone (when it has bond values to fit).
-    let t = Instant::now();
-    let base = if structure.unknown_count() == 0 {
-        say("fit: the structure has no unknown bond values; the diagnosis fits the motion alone");
-        None
-    } else {
-        explain("fit: the structure's bond values by linear least squares on the equations of motion, refined on the multi-step prediction");
+    /// Stage track: the structure's particles tracked through the frames into `tracks.csv`,
+    /// scored against `truth.csv` for scenes.
+    fn track(&self, r: &Rendered) -> anyhow::Result<Tracked> {
+        self.explain("track: find the blobs in every frame, locate them to sub-pixel accuracy, link them into tracks named after the structure's particles");
+        let source = &r.recording.source;
+        let options = TrackOptions {
+            window: r.recording.window,
+            named_start: Some(super::named_start_in_view(&r.structure, source).context("stage track")?),
+            ..TrackOptions::default()
+        };
+        let bar = progress::bar(self.verbosity, "track", 0);
+        let outcome = physfit_track::track_source(source, &options, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+        .with_context(|| format!("stage track: frames in {}", r.frames_dir.display()))?;
+        bar.finish_and_clear();
+        let tracks_path = self.args.out.join("tracks.csv");
+        outcome
+            .table
+            .write_csv(&self.dir.join("tracks.csv"))
+            .with_context(|| format!("stage track: writing {}", tracks_path.display()))?;
+        let score = match &r.truth {
+            Some(_) => {
+                let truth_tracks = TrackTable::read_csv(&self.dir.join("truth.csv"))
+                    .context("stage track: reading truth.csv")?;
+                Some(physfit_track::score_tracks(
+                    &outcome.table,
+                    &truth_tracks,
+                    outcome.stats.match_radius(),
+                ))
+            }
+            None => None,
+        };
+        let summary = tracking_summary(&outcome, &r.structure, score);
+        self.say(&note::tracking_line(&summary, &tracks_path));
+        for w in &summary.warnings {
+            if self.verbosity != Verbosity::Quiet {
+                eprintln!("physfit: warning: {w}");
+            }
+        }
+        Ok(Tracked { outcome, summary })
+    }
+
+    /// Stage fit: the structure alone by `lsq`, compared with the truth for scenes; `None`
+    /// when the structure has no unknown bond values.
+    fn fit(&self, r: &Rendered, tracked: &Tracked) -> anyhow::Result<Option<FitResult>> {
+        if r.structure.unknown_count() == 0 {
+            self.say("fit: the structure has no unknown bond values; the diagnosis fits the motion alone");
+            return Ok(None);
+        }
+        self.explain("fit: the structure's bond values by linear least squares on the equations of motion, refined on the multi-step prediction");
         let fit_options = FitOptions {
             method: physfit_identify::Method::Lsq,
-            seed: args.seed,
-            window,
+            seed: self.args.seed,
+            window: r.recording.window,
             ..FitOptions::default()
         };
-        let spinner = progress::spinner(verbosity, "fit");
-        let fitted = physfit_identify::fit(&structure, &tracked.table, &fit_options, &spinner);
+        let spinner = progress::spinner(self.verbosity, "fit");
+        let fitted = physfit_identify::fit(&r.structure, &tracked.outcome.table, &fit_options, &spinner);
         spinner.finish();
         let mut base = fitted.context("stage fit: tracks.csv against the structure")?;
-        if let Some(truth) = &truth {
+        if let Some(truth) = &r.truth {
             base.report.compare_truth(truth);
         }
-        say(&format!(
+        self.say(&format!(
             "fit: {} values of the structure alone, multi-step RMS {:.4} px (track noise {:.4} px)",
             base.report.parameters.len(),
             base.report.costs.multi_step_sequence.rms,
             base.report.track_noise
         ));
-        Some(base)
-    };
-    times.fit = t.elapsed().as_secs_f64();
+        Ok(Some(base))
+    }
 
-    // Stage diagnose.
-    explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
-    let t = Instant::now();
-    let spinner = progress::spinner(verbosity, "diagnose");
-    let diagnosed = diagnose(
-        &structure,
-        &tracked.table,
-        &DiagnoseOptions {
-            seed: args.seed,
-            window,
+    /// Stage diagnose: the missing physics named, added and refitted, compared with the
+    /// truth for scenes. The diagnosis fits the structure alone again itself (it takes no
+    /// base fit).
+    fn diagnose(&self, r: &Rendered, tracked: &Tracked) -> anyhow::Result<Diagnosed> {
+        self.explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
+        let spinner = progress::spinner(self.verbosity, "diagnose");
+        let options = DiagnoseOptions {
+            seed: self.args.seed,
+            window: r.recording.window,
             ..DiagnoseOptions::default()
-        },
-        &spinner,
-    );
-    spinner.finish();
-    let d = diagnosed.context("stage diagnose: tracks.csv against the structure")?;
-    times.diagnose = t.elapsed().as_secs_f64();
-    if verbosity != Verbosity::Quiet {
-        print!("diagnose: {}", super::diagnose::sections::summary(&d));
-    }
-    let comparison = truth
-        .as_ref()
-        .map(|truth| compare_scenes(&d.final_scene, truth, &structure));
-    if let Some(c) = &comparison {
-        say(&note::truth_line(c));
+        };
+        let diagnosed = diagnose(&r.structure, &tracked.outcome.table, &options, &spinner);
+        spinner.finish();
+        let diagnosis = diagnosed.context("stage diagnose: tracks.csv against the structure")?;
+        if self.verbosity != Verbosity::Quiet {
+            print!("diagnose: {}", super::diagnose::sections::summary(&diagnosis));
+        }
+        let truth = r
+            .truth
+            .as_ref()
+            .map(|truth| compare_scenes(&diagnosis.final_scene, truth, &r.structure));
+        if let Some(c) = &truth {
+            self.say(&note::truth_line(c));
+        }
+        Ok(Diagnosed { diagnosis, truth })
     }
 
-    // Stage report.
-    let t = Instant::now();
-    d.final_scene
-        .save(&dir.join("fitted.toml"))
-        .context("stage report: writing fitted.toml")?;
-    let given = Given {
-        kind: if truth.is_some() { "scene" } else { "recording" },
-        source: source.display().to_string(),
-        frames: if truth.is_some() {
-            out.join("frames")
+    /// Stage report: `fitted.toml`, the pictures and `report.md`, `report.html`,
+    /// `report.json` in the staging folder; `times` gets the report's and the total time.
+    fn report(
+        &self,
+        r: &Rendered,
+        tracked: &Tracked,
+        base: Option<&FitResult>,
+        diagnosed: &Diagnosed,
+        times: &mut StageTimes,
+        started: Instant,
+    ) -> anyhow::Result<()> {
+        let t = Instant::now();
+        let d = &diagnosed.diagnosis;
+        d.final_scene
+            .save(&self.dir.join("fitted.toml"))
+            .context("stage report: writing fitted.toml")?;
+        let given = self.given(r);
+        let (pictures, mut outputs) =
+            figures::figures(&self.dir, &r.recording.source, &tracked.outcome.table, base, d)
+                .context("stage report: pictures")?;
+        outputs.splice(0..0, REPORT_FILES.map(String::from));
+        times.report = t.elapsed().as_secs_f64();
+        times.total = started.elapsed().as_secs_f64();
+        let report = RunReport {
+            given: &given,
+            tracking: &tracked.summary,
+            fit: base.map(|b| &b.report),
+            diagnosis: d,
+            truth: diagnosed.truth.as_ref(),
+            outputs,
+            times,
+        };
+        write_reports(&self.dir, &report, &pictures).context("stage report")
+    }
+
+    /// What the run was given, for the report.
+    fn given(&self, r: &Rendered) -> Given {
+        let s = &r.structure;
+        let frames = if r.truth.is_some() {
+            self.args.out.join("frames")
         } else {
-            frames_dir.clone()
+            r.frames_dir.clone()
+        };
+        Given {
+            kind: if r.truth.is_some() { "scene" } else { "recording" },
+            source: r.source.display().to_string(),
+            frames: frames.display().to_string(),
+            structure: s.name.clone(),
+            particles: s.particles.len(),
+            springs: s.springs.len(),
+            torsions: s.torsions.len(),
+            unknowns: s.unknown_count(),
+            fps: s.recording.fps,
+            metres_per_px: s.recording.metres_per_px,
+            window: r.recording.window.map(|(a, b)| [a, b]),
+            seed: self.args.seed,
         }
-        .display()
-        .to_string(),
-        structure: structure.name.clone(),
-        particles: structure.particles.len(),
-        springs: structure.springs.len(),
-        torsions: structure.torsions.len(),
-        unknowns: structure.unknown_count(),
-        fps: structure.recording.fps,
-        metres_per_px: structure.recording.metres_per_px,
-        window: window.map(|(a, b)| [a, b]),
-        seed: args.seed,
-    };
-    let (pictures, mut outputs) =
-        figures::figures(&dir, &recording.source, &tracked.table, base.as_ref(), &d)
-            .context("stage report: pictures")?;
-    outputs.splice(
-        0..0,
-        [
-            "tracks.csv",
-            "fitted.toml",
-            "report.json",
-            "report.md",
-            "report.html",
-        ]
-        .map(String::from),
-    );
-    times.report = t.elapsed().as_secs_f64();
-    times.total = started.elapsed().as_secs_f64();
-    let report = RunReport {
-        given: &given,
-        tracking: &tracking,
-        fit: base.as_ref().map(|b| &b.report),
-        diagnosis: &d,
-        truth: comparison.as_ref(),
-        outputs,
-        times: &times,
-    };
-    write_reports(&dir, &report, &pictures).context("stage report")?;
-    staged.commit().context("stage report")?;
-    say(&format!(
-        "report -> {} (also report.html, report.json) in {:.1} s",
-        out.join("report.md").display(),
-        started.elapsed().as_secs_f64()
-    ));
-    Ok(())
+    }
 }
 
 /// The tracking figures of a run.

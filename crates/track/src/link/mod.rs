@@ -8,9 +8,9 @@
 //! or three anchors) from points located from the particle's own blob, preferring those no
 //! other tracked particle was near enough to share light with (a soft Voronoi split pulls
 //! touching particles' centroids), as long as the newest of them is recent. Candidate
-//! detections within a gate of that scale come from a kd-tree, and tracks are assigned to
-//! detections by optimal assignment over the whole frame (Hungarian method on each
-//! connected group of competing tracks), never greedily.
+//! detections within a gate of that scale come from a cell grid (`point_grid.rs`), and
+//! tracks are assigned to detections by optimal assignment over the whole frame (Hungarian
+//! method on each connected group of competing tracks), never greedily.
 //!
 //! Appearance tells a particle from untracked objects: a track with no other track's
 //! prediction within reach compares each candidate's log mass and size with its own recent
@@ -35,6 +35,7 @@
 
 mod claimants;
 mod link_detections;
+mod linker;
 mod options;
 mod outcome;
 mod reacquire;

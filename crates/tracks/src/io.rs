@@ -1,4 +1,6 @@
-//! Atomic file output shared by every stage: never a half-written file.
+//! Atomic file output shared by every stage: never a half-written file. The one
+//! implementation: physfit-model re-exports it (`physfit_model::write_atomic`), and the
+//! track table's writers wrap its error in [`crate::TableError::Io`].
 
 use std::io::Write;
 use std::path::Path;
