@@ -267,7 +267,9 @@ pub fn run(args: &RunArgs, verbosity: Verbosity) -> anyhow::Result<()> {
     let rendered = stages.render(input, &mut times.render)?;
     let tracked = timed(&mut times.track, || stages.track(&rendered))?;
     let base = timed(&mut times.fit, || stages.fit(&rendered, &tracked))?;
-    let diagnosed = timed(&mut times.diagnose, || stages.diagnose(&rendered, &tracked))?;
+    let diagnosed = timed(&mut times.diagnose, || {
+        stages.diagnose(&rendered, &tracked, base.as_ref())
+    })?;
     stages.report(
         &rendered,
         &tracked,
@@ -419,14 +421,20 @@ impl Stages<'_> {
     }
 
     /// Stage diagnose: the missing physics named, added and refitted, compared with the
-    /// truth for scenes. The diagnosis fits the structure alone again itself (it takes no
-    /// base fit).
-    fn diagnose(&self, r: &Rendered, tracked: &Tracked) -> anyhow::Result<Diagnosed> {
+    /// truth for scenes. The diagnosis fits the structure alone again on the frames it does
+    /// not hold out, multi-step, starting also from the stage fit's bond values.
+    fn diagnose(
+        &self,
+        r: &Rendered,
+        tracked: &Tracked,
+        base: Option<&FitResult>,
+    ) -> anyhow::Result<Diagnosed> {
         self.explain("diagnose: locate where the fitted model and the tracks disagree, try each candidate effect on held-out frames, add those that earn their place, refit");
         let spinner = progress::spinner(self.verbosity, "diagnose");
         let options = DiagnoseOptions {
             seed: self.args.seed,
             window: r.recording.window,
+            base: base.map(|b| b.fitted.clone()),
             ..DiagnoseOptions::default()
         };
         let diagnosed = diagnose(&r.structure, &tracked.outcome.table, &options, &spinner);

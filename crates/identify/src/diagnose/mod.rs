@@ -80,6 +80,11 @@ pub struct DiagnoseOptions {
     pub max_effects: usize,
     /// Weak-form test window, frames (`None`: about one typical period).
     pub test_window: Option<usize>,
+    /// A fit of the structure alone (its bond values; e.g. [`crate::fit`]'s, over every
+    /// frame), from which the diagnosis's own base fit, a multi-step fit on the frames not
+    /// held out, also starts (`None`: from the weak form's estimate alone).
+    #[serde(skip)]
+    pub base: Option<Scene>,
 }
 
 impl Default for DiagnoseOptions {
@@ -90,6 +95,7 @@ impl Default for DiagnoseOptions {
             holdout_fraction: 0.25,
             max_effects: 6,
             test_window: None,
+            base: None,
         }
     }
 }
@@ -267,7 +273,7 @@ fn diagnose_inner(
 
     // 3. Base fit on the fitted frames.
     let base = ctx
-        .base_fit(&family0)
+        .base_fit(&family0, options.base.as_ref())
         .ok_or_else(|| IdentifyError::NoFiniteCost {
             method: "diagnosis base fit".into(),
             detail: "the structure's model from the weak-form estimate cannot be simulated".into(),

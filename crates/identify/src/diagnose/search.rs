@@ -16,7 +16,7 @@
 //! `k` parameters and `N` held-out residuals (the Bayesian information criterion's
 //! penalty). The best positive score is accepted; the search stops when none is positive.
 
-use physfit_model::{State, Vec2};
+use physfit_model::{Scene, State, Vec2};
 
 use super::effect::Effect;
 use super::family::{DataScales, Family};
@@ -876,14 +876,30 @@ impl Context<'_> {
     /// Bond stiffnesses the weak form cannot tell (it gives them no positive value, and they
     /// start at their parameter's scale) are also started at [`BASE_STIFFNESS_FACTORS`] times
     /// that scale unless the first fit is at the noise level: a multi-step fit of a coupled
-    /// oscillation has narrow basins in its stiffnesses. The best fit on the fitted frames
-    /// is kept.
-    pub fn base_fit(&self, family: &Family) -> Option<Current> {
+    /// oscillation has narrow basins in its stiffnesses. It also starts from `given`'s bond
+    /// values (a fit over every frame, such as `physfit run`'s), when given. The best fit on
+    /// the fitted frames is kept.
+    pub fn base_fit(&self, family: &Family, given: Option<&Scene>) -> Option<Current> {
         let params = self.joint_estimate(family, &[]);
         let mut best = self.fit(family, &params, self.start, false);
         let Some(problem) = &family.problem else {
             return best;
         };
+        let keep_better = |best: &mut Option<Current>, b: Option<Current>| {
+            if let Some(b) = b {
+                if best
+                    .as_ref()
+                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
+                {
+                    *best = Some(b);
+                }
+            }
+        };
+        if let Some(given) = given.and_then(|scene| problem.params_of(scene)) {
+            if given.len() == params.len() && !best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
+                keep_better(&mut best, self.fit(family, &given, self.start, false));
+            }
+        }
         let guess = problem.initial_guess();
         let untold: Vec<usize> = problem
             .layout
@@ -909,14 +925,7 @@ impl Context<'_> {
             for &i in &untold {
                 start[i] *= factor;
             }
-            if let Some(b) = self.fit(family, &start, self.start, false) {
-                if best
-                    .as_ref()
-                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
-                {
-                    best = Some(b);
-                }
-            }
+            keep_better(&mut best, self.fit(family, &start, self.start, false));
         }
         best
     }
