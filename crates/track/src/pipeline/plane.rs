@@ -394,6 +394,7 @@ pub(super) fn corrected_position(
         return None;
     }
     let c = points[i];
+    let keep_out = window + 1.0;
     let mut nearest = f64::INFINITY;
     let mut others: Vec<[f64; 2]> = Vec::new();
     for (j, p) in points.iter().enumerate() {
@@ -402,14 +403,14 @@ pub(super) fn corrected_position(
         }
         let dist = (p[0] - c[0]).hypot(p[1] - c[1]);
         nearest = nearest.min(dist);
-        if dist < 8.0 * window + 4.0 {
+        // Only points whose keep-out disc can reach the widest ring matter.
+        if dist < 1.5 * most.max(window) + 3.0 + 2.0 * keep_out {
             others.push(*p);
         }
     }
     if nearest < 2.0 * window + 2.0 {
         return None;
     }
-    let keep_out = window + 1.0;
     let limit = most.min(nearest - keep_out);
     let reach = extent(
         signal,
@@ -446,12 +447,20 @@ pub(super) fn corrected_position(
     ((moved[0] - c[0]).hypot(moved[1] - c[1]) <= most_move).then_some(moved)
 }
 
+/// Sample frames [`planes_move_points`] reads at most (spread evenly over the samples).
+const GATE_SAMPLES: usize = 8;
+/// Samples in which a track must move for [`planes_move_points`] (and in more than half of
+/// those where it has a detection): at N = 1000 two tracks seen in two or three samples
+/// moved in two by chance.
+const GATE_SAMPLES_MOVED: usize = 3;
+
 /// Returns true if and only if correcting for the local background ([`corrected_position`])
-/// moves some track of `pass`, in most of the sample frames where it has a detection, by
-/// more than half its standard error (`ep`): then the frames are worth locating again with
-/// the correction. A slope that noise alone shows beyond 3 standard errors around one point
-/// (0.3 % of them: a few at N = 1000) does not repeat on the same track. Read on the samples
-/// only (each point's detection within a pixel of it, at its class's window).
+/// moves some track of `pass`, in most of the sample frames where it has a detection and in
+/// [`GATE_SAMPLES_MOVED`] at least, by more than half its standard error (`ep`): then the
+/// frames are worth locating again with the correction. A slope that noise alone shows
+/// beyond 3 standard errors around one point does not repeat on the same track. Read on up
+/// to [`GATE_SAMPLES`] samples (each point's detection within a pixel of it, at its class's
+/// window).
 pub(super) fn planes_move_points(
     background: &Background,
     samples: &[FrameView<'_>],
@@ -471,9 +480,16 @@ pub(super) fn planes_move_points(
     }
     // Per track: samples where its detection was measured, and where it moved.
     let mut counts: BTreeMap<&str, [usize; 2]> = BTreeMap::new();
+    let read: Vec<(usize, usize)> = sample_of
+        .iter()
+        .enumerate()
+        .filter_map(|(i, j)| j.map(|j| (i, j)))
+        .collect();
+    let step = read.len().div_ceil(GATE_SAMPLES).max(1);
+    let read_count = read.len().div_ceil(step);
     workers.with(|w| {
-        for (i, j) in sample_of.iter().enumerate() {
-            let Some(&frame) = j.as_ref().and_then(|&j| samples.get(j)) else {
+        for &(i, j) in read.iter().step_by(step) {
+            let Some(&frame) = samples.get(j) else {
                 continue;
             };
             let mut levelled = false;
@@ -504,17 +520,23 @@ pub(super) fn planes_move_points(
                     else {
                         continue;
                     };
+                    // A track that stayed in half the samples read cannot move in most.
+                    let count = counts.entry(name).or_default();
+                    if 2 * (count[0] - count[1]) >= read_count {
+                        continue;
+                    }
                     let d = &f.detections[k];
                     let moved = corrected_position(&image, &at, k, window, most, background.noise_sigma)
                         .is_some_and(|c| (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
-                    let count = counts.entry(name).or_default();
                     count[0] += 1;
                     count[1] += usize::from(moved);
                 }
             }
         }
     });
-    counts.values().any(|&[seen, moved]| 2 * moved > seen)
+    counts
+        .values()
+        .any(|&[seen, moved]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen)
 }
 
 /// The farthest a particle's window may reach when located with the local background taken
