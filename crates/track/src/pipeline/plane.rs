@@ -30,7 +30,10 @@
 //! It stays where it was when nothing is to be corrected (the particle ends within `W` and
 //! the ring's slope is within 3 standard errors of zero), when its window is cut by the
 //! image border or shares pixels with a neighbour's (the joint Voronoi split of
-//! [`crate::refine_centroids`] handles those), and when the move exceeds what a background
+//! [`crate::refine_centroids`] handles those), when the ring's pixels spread about the plane
+//! more than the measured noise allows (a wall or a grid is no plane: corrected there, the
+//! real pendulum's diagnosis gained a drag and the bouncing ball's lost its shelf), and
+//! when the move exceeds what a background
 //! as high and as steep as the ring's, wholly on one side, could cause (clutter in the ring
 //! or a smear of the particle, not a background: on the real bouncing-ball video, frames
 //! where the ball flies fast moved 2.3 px with no such bound).
@@ -51,6 +54,8 @@ pub(super) struct Plane {
     pub(super) b_sigma: f64,
     /// Robust standard deviation of the fitted pixels about the plane, grey levels.
     pub(super) sigma: f64,
+    /// Pixels the plane was fitted on.
+    pub(super) count: usize,
 }
 
 impl Plane {
@@ -149,6 +154,7 @@ pub(super) fn fit_ring_plane(
             b: [fit[1], fit[2]],
             b_sigma: sigma / spread.max(1.0).sqrt(),
             sigma,
+            count: n as usize,
         });
         let limit = CLIP_SIGMAS * sigma;
         let mut changed = false;
@@ -431,6 +437,16 @@ pub(super) fn corrected_position(
         return None;
     }
     let plane = fit_ring_plane(signal, width, height, c, reach, &others, keep_out)?;
+    // The ring must look like background: its pixels about the plane no more spread than
+    // the measured noise, within 3 standard errors of a robust spread estimate
+    // (1.16 / sqrt(n) of it, the median absolute deviation's efficiency being 37 %). Clutter
+    // or structure in the ring (a wall, a grid, a dial on real video) is not a background a
+    // plane describes, and the estimate stays: the bouncing ball's and the pendulum's rings
+    // read 1.3-3 times their noise.
+    let spread_limit = noise_sigma * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
+    if plane.sigma > spread_limit {
+        return None;
+    }
     let sloped = plane.b.iter().any(|b| b.abs() > SIGNIFICANT * plane.b_sigma);
     if reach <= window && !sloped {
         return None;
