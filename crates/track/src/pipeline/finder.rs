@@ -83,7 +83,8 @@ impl Finder {
 
     /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
     /// window of radius `window` (px) of the gain-corrected signal, estimates that end within
-    /// a radius of each other joined as `parts` says.
+    /// a radius of each other joined as `parts` says, then corrected for the local background
+    /// as `surround` says (after joining; not with [`Parts::Keep`]).
     pub(super) fn locate(
         &mut self,
         background: &Background,
@@ -91,6 +92,7 @@ impl Finder {
         params: &DetectParameters,
         window: f64,
         parts: Parts,
+        surround: Surround,
     ) -> Vec<Detection> {
         let blobs = self.find(background, frame, params, true).blobs;
         let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
@@ -113,6 +115,7 @@ impl Finder {
         if parts == Parts::Keep {
             return found;
         }
+
         // Joined estimates move, and may then end within a radius of another: joined again,
         // a few rounds at most (each round leaves fewer estimates). One round left a ring of
         // 9 px 0.62 / 0.98 px RMS off (test `rings_beside_neighbours_are_not_split_between_them`,
@@ -124,6 +127,10 @@ impl Finder {
                 break;
             };
             found = locate(&seeds, &areas);
+        }
+        if surround == Surround::Plane {
+            let most = super::plane::most_reach(params, window);
+            super::plane::correct_for_planes(&self.signal, width, height, &mut found, window, most, noise);
         }
         found
     }
@@ -144,6 +151,16 @@ pub(super) enum Parts {
     /// At 3.48 px the skirt check refuses it, the honest outcome until those answers are
     /// told apart.
     Keep,
+}
+
+/// What [`Finder::locate`] does with the background left around each particle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Surround {
+    /// Nothing: the signal against the background model is taken as it is.
+    Ignore,
+    /// Each estimate is located again in a window reaching as far as its particle does, on
+    /// the signal with a plane fitted just beyond taken out (`super::plane`).
+    Plane,
 }
 
 /// Most rounds of joining estimates that converged within a radius of each other.

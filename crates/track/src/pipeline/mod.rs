@@ -10,6 +10,7 @@
 mod finder;
 mod options;
 mod outcome;
+mod plane;
 mod radius;
 mod samples;
 mod size_class;

@@ -1,6 +1,6 @@
 //! The skirt self-check's samples: signal around each tracked particle, located unfiltered.
 
-use super::finder::{locate_window, Finder, Parts, Workers};
+use super::finder::{locate_window, Finder, Parts, Surround, Workers};
 use super::radius::nearest_each;
 use super::size_class::Sizes;
 use super::window_frames::WindowFrames;
@@ -87,6 +87,7 @@ pub(super) fn particle_contrast(
             &sizes.params,
             locate_window(sizes.radius),
             Parts::Join,
+            Surround::Ignore,
         );
         let particles: Vec<&Detection> = match starts {
             Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
@@ -130,6 +131,7 @@ pub(super) fn locate_unfiltered(
         &unfiltered(background, radius),
         locate_window(radius),
         Parts::Keep,
+        Surround::Ignore,
     )
 }
 

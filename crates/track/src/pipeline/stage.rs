@@ -1,6 +1,6 @@
 //! One size class's pass over the frames: located and linked at its own radius.
 
-use super::finder::{Parts, Workers};
+use super::finder::{Parts, Surround, Workers};
 use super::options::TrackOptions;
 use super::size_class::SizeClass;
 use super::skirts::sample_skirts;
@@ -40,13 +40,15 @@ pub(super) struct Stage<'a> {
 }
 
 impl Stage<'_> {
-    /// Locates every frame against `background` (in parallel, once for each size class) and
+    /// Locates every frame against `background` (in parallel, once for each size class; the
+    /// local background around each particle as `surround` says) and
     /// links each class's detections, then places again the points of named particles that
     /// shared a blob and checks the tracks.
     pub(super) fn locate_and_link(
         &self,
         background: &Background,
         classes: &[SizeClass],
+        surround: Surround,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<Pass, TrackError> {
         let Stage {
@@ -76,6 +78,7 @@ impl Stage<'_> {
                                 &c.sizes.params,
                                 c.window(),
                                 Parts::Join,
+                                surround,
                             ),
                         })
                         .collect();

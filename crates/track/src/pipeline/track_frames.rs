@@ -1,8 +1,9 @@
 //! The tracking stage of a recording, from its frames to the linked and checked track table.
 
-use super::finder::Workers;
+use super::finder::{Surround, Workers};
 use super::options::TrackOptions;
 use super::outcome::{TrackOutcome, TrackStats};
+use super::plane::planes_move_points;
 use super::radius::first_frame_scan;
 use super::samples::{check_size, load_sample, moving_blobs, views};
 use super::size_class::{largest_radius, SizeClass, Sizes};
@@ -330,7 +331,7 @@ fn track_frames(
         first,
         last,
     };
-    let mut pass = stage.locate_and_link(&background, &classes, progress)?;
+    let mut pass = stage.locate_and_link(&background, &classes, Surround::Ignore, progress)?;
     // Named particles that move less than their size over the samples leave part of
     // themselves in the per-pixel median where the first blobs missed them; the tracks say
     // where every particle was in every sample, so the median is taken again without them.
@@ -349,7 +350,7 @@ fn track_frames(
         }) else {
             break;
         };
-        let second = stage.locate_and_link(&cleaner, &classes, progress)?;
+        let second = stage.locate_and_link(&cleaner, &classes, Surround::Ignore, progress)?;
         // A clean background leaves each particle's integrated signal steady along its
         // track; the particle itself in the median makes it swell and fade.
         if !second.concerns.is_empty() || mass_spread(&second.table) >= mass_spread(&pass.table) {
@@ -359,6 +360,23 @@ fn track_frames(
         background = cleaner;
     }
     let background = background;
+    // A background the model could not see (under a large particle that hovers, under
+    // uneven light) is left in each centroid window: where taking out the plane around each
+    // particle moves a tracked point by half its standard error, the frames are located
+    // again with it, unless that raises concerns the first pass did not.
+    if planes_move_points(
+        &background,
+        &views(&sample_frames),
+        &sample_of,
+        &pass,
+        &classes,
+        &workers,
+    ) {
+        let corrected = stage.locate_and_link(&background, &classes, Surround::Plane, progress)?;
+        if corrected.concerns.len() <= pass.concerns.len() {
+            pass = corrected;
+        }
+    }
     let Pass {
         located: by_class,
         table,

@@ -186,6 +186,10 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     // A point farther than the smallest true radius from a true centre is on another
     // particle or none.
     let s = score_tracks(&outcome.table, &truth, style.radius);
+    // PHYSFIT_SWEEP_DEBUG prints each particle's mean error and spread.
+    if std::env::var("PHYSFIT_SWEEP_DEBUG").is_ok() {
+        debug_errors(&style, &outcome, &seq.truth);
+    }
     let c = score_tracks(&outcome.table, &centroid_truth, style.radius);
     row.recall = s.matched_count as f64 / s.truth_count.max(1) as f64;
     row.rms = [s.rms_x, s.rms_y];
@@ -208,9 +212,51 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     row
 }
 
+/// Prints the tracker's figures and each particle's mean and spread of error per axis
+/// (`PHYSFIT_SWEEP_DEBUG`): a bias tells a systematic error from noise.
+fn debug_errors(style: &Style, outcome: &physfit_track::TrackOutcome, truth: &physfit_synth::Truth) {
+    eprintln!("style {}: {}", style.seed, outcome.stats);
+    for (i, name) in truth.names.iter().enumerate() {
+        let mut e: Vec<[f64; 2]> = Vec::new();
+        for p in outcome.table.points.iter().filter(|p| &p.particle == name) {
+            if let Some(t) = truth.positions.get(p.frame).map(|f| f[i]) {
+                e.push([p.x - t[0], p.y - t[1]]);
+            }
+        }
+        let n = e.len().max(1) as f64;
+        let mean = [0, 1].map(|a| e.iter().map(|v| v[a]).sum::<f64>() / n);
+        let sd = [0, 1].map(|a| (e.iter().map(|v| (v[a] - mean[a]).powi(2)).sum::<f64>() / n).sqrt());
+        let at = truth.positions[0][i];
+        eprintln!(
+            "  {name} at ({:.0}, {:.0}): {} points, mean error {:+.3} / {:+.3}, spread {:.3} / {:.3}",
+            at[0],
+            at[1],
+            e.len(),
+            mean[0],
+            mean[1],
+            sd[0],
+            sd[1]
+        );
+    }
+}
+
 /// A synth style drawn from `seed`, tracked.
 fn synth_row(seed: u64) -> Row {
-    let seq = Sequence::new(Style::random(seed));
+    let mut style = Style::random(seed);
+    // PHYSFIT_SWEEP_VARIANT=nogradient,novignetting,noexposure,nonoise draws the style without
+    // those, to tell which of them a failure comes from.
+    if let Ok(v) = std::env::var("PHYSFIT_SWEEP_VARIANT") {
+        for part in v.split(',') {
+            match part {
+                "nogradient" => style.gradient = 0.0,
+                "novignetting" => style.vignetting = 0.0,
+                "noexposure" => style.exposure = 0.0,
+                "nonoise" => style.noise = 0.0,
+                _ => {}
+            }
+        }
+    }
+    let seq = Sequence::new(style);
     let dir = TempDir::new("sweep");
     seq.write_frames(dir.path()).expect("write frames");
     run("synth", &seq, dir.path())
@@ -272,11 +318,14 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (33 of the 48 with [`FOLLOWED_RENDER`]):
-/// they must stay followed while the rest are worked on.
+/// The synth styles the tracker follows today (36 of the 48 with [`FOLLOWED_RENDER`]):
+/// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
+/// a ring, textured balls, under uneven light or exposure drift) are followed since each
+/// particle is located again on the signal with the plane fitted just beyond it taken out
+/// (`pipeline/plane.rs`).
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1010, 1012, 1013, 1014, 1015, 1016, 1020, 1021, 1022, 1023,
-    1024, 1027, 1028, 1029, 1032, 1034, 1035, 1036,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1020, 1021, 1022,
+    1023, 1024, 1027, 1028, 1029, 1032, 1034, 1035, 1036, 1037, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -316,14 +365,20 @@ fn styles_refused_today_are_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 15 of 48 styles fail (rings, saturating exposure, large Gaussians and textures under vignetting), see the table"]
+#[ignore = "tracker issue 20: 12 of 48 styles fail (rings, saturating exposure, large Gaussian spots and textured balls under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
-    let mut rows: Vec<Row> = SYNTH_SEEDS.map(synth_row).collect();
+    // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
+    let only: Option<Vec<u64>> = std::env::var("PHYSFIT_SWEEP_ONLY")
+        .ok()
+        .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect());
+    let wanted = |seed: &u64| only.as_ref().is_none_or(|o| o.contains(seed));
+    let mut rows: Vec<Row> = SYNTH_SEEDS.filter(wanted).map(synth_row).collect();
     let count = (RENDER_SEEDS.end - RENDER_SEEDS.start) as usize;
     rows.extend(
         RENDER_SEEDS
             .enumerate()
+            .filter(|(_, seed)| wanted(seed))
             .map(|(i, seed)| render_row(seed, i, count)),
     );
     let failed = rows.iter().filter(|r| !r.passed()).count();

@@ -1,0 +1,667 @@
+//! The background left around a particle, taken out before it is located again: a plane
+//! fitted on the ring just beyond the particle, and a window that reaches as far as the
+//! particle does.
+//!
+//! A centroid window integrates whatever the background model left in the signal: a slope
+//! `b` (grey levels per px) across a window of radius `W` moves the centroid by about
+//! `b Σ w dx² / Σ w s`, which grows with the fourth power of the window. Under an
+//! illumination gradient, vignetting or an exposure drift the model leaves such slopes, and
+//! a halo, where it cannot see the background: under a large particle that hovers over its
+//! own patch in every sample. The sweep's textured balls and discs of 12-40 px were 0.3-0.5
+//! px off there, always to the same side (a bias: spread 0.02-0.1 px), and followed to
+//! 0.0-0.1 px when drawn without the uneven light. Where the radius of gyration reads a
+//! textured ball small (36.6 px for 38.2), the window `R + 1` also cuts its edge.
+//!
+//! Each estimate is therefore, when the pass is located again with this correction
+//! ([`planes_move_points`] decides):
+//!
+//! 1. given a window reaching as far as its particle does ([`extent`]): out from `W`, one
+//!    pixel ring at a time while a ring's mean stands 3 standard errors of the measured
+//!    noise above the two-pixel ring beyond it (the particle's image still falls; a
+//!    background, even or sloped, does not on average), at most to the radius of one
+//!    particle's measured extent (its area above the noise mask) and short of neighbours;
+//! 2. given the plane fitted by least squares on the ring from `reach + 1` to
+//!    `1.5 reach + 2`, pixels beyond three robust standard deviations of the residuals left
+//!    out (neighbours, texture), with neighbours' windows left out (the local background
+//!    annulus of aperture photometry, with a plane instead of a level: Stetson 1987, PASP
+//!    99:191);
+//! 3. located by the centroid of the signal minus that plane, iterated to its fixed point.
+//!
+//! It stays where it was when nothing is to be corrected (the particle ends within `W` and
+//! the ring's slope is within 3 standard errors of zero), when its window is cut by the
+//! image border or shares pixels with a neighbour's (the joint Voronoi split of
+//! [`crate::refine_centroids`] handles those), when the ring's pixels spread about the plane
+//! more than the measured noise allows (a wall or a grid is no plane: corrected there, the
+//! real pendulum's diagnosis gained a drag and the bouncing ball's lost its shelf), and
+//! when the move exceeds what a background
+//! as high and as steep as the ring's, wholly on one side, could cause (clutter in the ring
+//! or a smear of the particle, not a background: on the real bouncing-ball video, frames
+//! where the ball flies fast moved 2.3 px with no such bound).
+
+use super::finder::Workers;
+use super::size_class::SizeClass;
+use super::stage::Pass;
+use crate::{Background, Detection, FrameView};
+use std::collections::BTreeMap;
+
+/// A plane `a + bx (x − cx) + by (y − cy)` in grey levels, about the centre `c` (px).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Plane {
+    pub(super) c: [f64; 2],
+    pub(super) a: f64,
+    pub(super) b: [f64; 2],
+    /// Standard error of each slope, grey levels per px, from the residuals' robust spread.
+    pub(super) b_sigma: f64,
+    /// Robust standard deviation of the fitted pixels about the plane, grey levels.
+    pub(super) sigma: f64,
+    /// Pixels the plane was fitted on.
+    pub(super) count: usize,
+}
+
+impl Plane {
+    fn at(&self, x: f64, y: f64) -> f64 {
+        self.a + self.b[0] * (x - self.c[0]) + self.b[1] * (y - self.c[1])
+    }
+}
+
+/// Rounds of refitting with outliers left out.
+const CLIP_ROUNDS: usize = 3;
+/// Residuals beyond this many robust standard deviations are left out of the next fit.
+const CLIP_SIGMAS: f64 = 3.0;
+
+/// Inner and outer radius of the ring a plane is fitted on around a window of radius
+/// `window`, px: just beyond the window's weight ramp, and wide enough that the ring's second
+/// moment is four times the window's (the slope's error then moves the centroid by about
+/// half the centroid's own noise error, which adds a tenth to it).
+pub(super) fn ring_radii(window: f64) -> (f64, f64) {
+    let inner = window + 1.0;
+    (inner, (1.5 * window + 2.0).max(inner + 3.0))
+}
+
+/// The plane fitted on the ring around `c` (see [`ring_radii`]) of `signal`
+/// (`width * height`, row-major), leaving out pixels within `keep_out` px of any point of
+/// `others`; `None` when fewer than 12 pixels remain.
+pub(super) fn fit_ring_plane(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    c: [f64; 2],
+    window: f64,
+    others: &[[f64; 2]],
+    keep_out: f64,
+) -> Option<Plane> {
+    let (inner, outer) = ring_radii(window);
+    let x0 = (c[0] - outer).floor().max(0.0) as usize;
+    let y0 = (c[1] - outer).floor().max(0.0) as usize;
+    let x1 = ((c[0] + outer).ceil() as usize).min(width.checked_sub(1)?);
+    let y1 = ((c[1] + outer).ceil() as usize).min(height.checked_sub(1)?);
+    let near: Vec<[f64; 2]> = others
+        .iter()
+        .copied()
+        .filter(|o| (o[0] - c[0]).hypot(o[1] - c[1]) < outer + keep_out)
+        .collect();
+    let keep2 = keep_out * keep_out;
+    let mut pixels: Vec<[f64; 3]> = Vec::new();
+    for y in y0..=y1 {
+        let dy = y as f64 - c[1];
+        for x in x0..=x1 {
+            let dx = x as f64 - c[0];
+            let r2 = dx * dx + dy * dy;
+            if r2 < inner * inner || r2 > outer * outer {
+                continue;
+            }
+            if near
+                .iter()
+                .any(|o| (x as f64 - o[0]).powi(2) + (y as f64 - o[1]).powi(2) < keep2)
+            {
+                continue;
+            }
+            pixels.push([dx, dy, f64::from(signal[y * width + x])]);
+        }
+    }
+    let mut used = vec![true; pixels.len()];
+    let mut plane = None;
+    let mut residuals: Vec<f64> = Vec::with_capacity(pixels.len());
+    for _ in 0..CLIP_ROUNDS {
+        let fit = least_squares_plane(&pixels, &used)?;
+        residuals.clear();
+        residuals.extend(
+            pixels
+                .iter()
+                .zip(&used)
+                .filter(|(_, &u)| u)
+                .map(|(p, _)| (p[2] - fit[0] - fit[1] * p[0] - fit[2] * p[1]).abs()),
+        );
+        let mid = residuals.len() / 2;
+        let mad = *residuals.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let sigma = 1.4826 * mad;
+        // The slope's standard error: sigma over the root of the ring's second moment about
+        // the fitted pixels' mean.
+        let (mut n, mut sx, mut sy, mut sxx, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for (p, &u) in pixels.iter().zip(&used) {
+            if u {
+                n += 1.0;
+                sx += p[0];
+                sy += p[1];
+                sxx += p[0] * p[0];
+                syy += p[1] * p[1];
+            }
+        }
+        let spread = ((sxx - sx * sx / n) + (syy - sy * sy / n)) / 2.0;
+        plane = Some(Plane {
+            c,
+            a: fit[0],
+            b: [fit[1], fit[2]],
+            b_sigma: sigma / spread.max(1.0).sqrt(),
+            sigma,
+            count: n as usize,
+        });
+        let limit = CLIP_SIGMAS * sigma;
+        let mut changed = false;
+        for (p, u) in pixels.iter().zip(used.iter_mut()) {
+            let keep = (p[2] - fit[0] - fit[1] * p[0] - fit[2] * p[1]).abs() <= limit;
+            changed |= keep != *u;
+            *u = keep;
+        }
+        if !changed {
+            break;
+        }
+    }
+    plane
+}
+
+/// Least-squares plane `[a, bx, by]` through the `used` points `[dx, dy, value]`; `None`
+/// with fewer than 12 points or a singular system.
+fn least_squares_plane(points: &[[f64; 3]], used: &[bool]) -> Option<[f64; 3]> {
+    let mut m = [[0.0f64; 3]; 3];
+    let mut v = [0.0f64; 3];
+    let mut count = 0;
+    for (p, &u) in points.iter().zip(used) {
+        if !u {
+            continue;
+        }
+        count += 1;
+        let f = [1.0, p[0], p[1]];
+        for i in 0..3 {
+            v[i] += f[i] * p[2];
+            for j in 0..3 {
+                m[i][j] += f[i] * f[j];
+            }
+        }
+    }
+    if count < 12 {
+        return None;
+    }
+    solve3(m, v)
+}
+
+/// Solves the 3 x 3 system `m x = v` by Cramer's rule; `None` when it is singular.
+fn solve3(m: [[f64; 3]; 3], v: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: &[[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(&m);
+    if d.abs() < 1e-12 {
+        return None;
+    }
+    let mut out = [0.0; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut mk = m;
+        for i in 0..3 {
+            mk[i][k] = v[i];
+        }
+        *o = det(&mk) / d;
+    }
+    Some(out)
+}
+
+/// Most centroid iterations on the plane-corrected signal.
+const MAX_ITERATIONS: usize = 40;
+
+/// The centroid of `signal − plane` in the window of radius `window` (weights
+/// `clamp(W + 1/2 − d, 0, 1)`, as [`crate::refine_centroids`] uses), iterated from `start`
+/// until a step is below 1e-4 px; `None` when the window's corrected mass is not positive or
+/// the estimate runs off by more than the window.
+pub(super) fn centroid_on_plane(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    start: [f64; 2],
+    window: f64,
+    plane: &Plane,
+) -> Option<[f64; 2]> {
+    let reach = window + 0.5;
+    let mut c = start;
+    for _ in 0..MAX_ITERATIONS {
+        let x0 = (c[0] - reach).floor().max(0.0) as usize;
+        let y0 = (c[1] - reach).floor().max(0.0) as usize;
+        let x1 = ((c[0] + reach).ceil().max(0.0) as usize).min(width - 1);
+        let y1 = ((c[1] + reach).ceil().max(0.0) as usize).min(height - 1);
+        let (mut m, mut mx, mut my) = (0.0, 0.0, 0.0);
+        for y in y0..=y1 {
+            let dy = y as f64 - c[1];
+            for x in x0..=x1 {
+                let dx = x as f64 - c[0];
+                let w = (reach - (dx * dx + dy * dy).sqrt()).clamp(0.0, 1.0);
+                if w == 0.0 {
+                    continue;
+                }
+                let s = w * (f64::from(signal[y * width + x]) - plane.at(x as f64, y as f64));
+                m += s;
+                mx += s * dx;
+                my += s * dy;
+            }
+        }
+        if m <= 0.0 {
+            return None;
+        }
+        let step = [mx / m, my / m];
+        c = [c[0] + step[0], c[1] + step[1]];
+        if (c[0] - start[0]).hypot(c[1] - start[1]) > window {
+            return None;
+        }
+        if step[0].hypot(step[1]) < 1e-4 {
+            break;
+        }
+    }
+    Some(c)
+}
+
+/// Standard deviations of its own noise that a ring's mean signal must stand above zero for
+/// the particle to reach into it, and that a fitted slope must stand above zero to be taken
+/// out.
+const SIGNIFICANT: f64 = 3.0;
+
+/// How far the particle around `c` reaches, px: from `window` outwards in steps of a pixel,
+/// the inner radius of the first one-pixel ring whose mean signal no longer stands
+/// [`SIGNIFICANT`] standard errors above the mean of the two-pixel ring just beyond it (the
+/// particle's image still falls there; a background left in the signal, even or sloped,
+/// does not fall on average), pixels within `keep_out` of `others` left out; at most `limit`.
+#[allow(clippy::too_many_arguments)]
+fn extent(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    c: [f64; 2],
+    window: f64,
+    noise_sigma: f64,
+    others: &[[f64; 2]],
+    keep_out: f64,
+    limit: f64,
+) -> f64 {
+    let ring = |a: f64, b: f64| ring_mean(signal, width, height, c, (a, b), others, keep_out);
+    let mut r = window;
+    while r < limit {
+        let (inside, n1) = ring(r, r + 1.0);
+        let (beyond, n2) = ring(r + 1.0, r + 3.0);
+        if n1 < 8 || n2 < 8 {
+            return r;
+        }
+        let error = noise_sigma * (1.0 / n1 as f64 + 1.0 / n2 as f64).sqrt();
+        if inside - beyond < SIGNIFICANT * error {
+            return r;
+        }
+        r += 1.0;
+    }
+    limit
+}
+
+/// Mean signal and pixel count of the ring from `radii.0` to `radii.1` px around `c`,
+/// pixels within `keep_out` px of any of `others` left out.
+fn ring_mean(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    c: [f64; 2],
+    radii: (f64, f64),
+    others: &[[f64; 2]],
+    keep_out: f64,
+) -> (f64, usize) {
+    let (a, b) = radii;
+    let keep2 = keep_out * keep_out;
+    let x0 = (c[0] - b).floor().max(0.0) as usize;
+    let y0 = (c[1] - b).floor().max(0.0) as usize;
+    let x1 = ((c[0] + b).ceil().max(0.0) as usize).min(width - 1);
+    let y1 = ((c[1] + b).ceil().max(0.0) as usize).min(height - 1);
+    let (mut sum, mut n) = (0.0, 0usize);
+    for y in y0..=y1 {
+        let dy = y as f64 - c[1];
+        for x in x0..=x1 {
+            let dx = x as f64 - c[0];
+            let d2 = dx * dx + dy * dy;
+            if d2 < a * a || d2 >= b * b {
+                continue;
+            }
+            if others
+                .iter()
+                .any(|o| (x as f64 - o[0]).powi(2) + (y as f64 - o[1]).powi(2) < keep2)
+            {
+                continue;
+            }
+            sum += f64::from(signal[y * width + x]);
+            n += 1;
+        }
+    }
+    (sum / (n.max(1) as f64), n)
+}
+
+/// Moves each of `found` to its [`corrected_position`].
+pub(super) fn correct_for_planes(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    found: &mut [Detection],
+    window: f64,
+    most: f64,
+    noise_sigma: f64,
+) {
+    let points: Vec<[f64; 2]> = found.iter().map(|d| [d.x, d.y]).collect();
+    for (i, d) in found.iter_mut().enumerate() {
+        let image = Signal {
+            signal,
+            width,
+            height,
+        };
+        if let Some(p) = corrected_position(&image, &points, i, window, most, noise_sigma) {
+            d.x = p[0];
+            d.y = p[1];
+        }
+    }
+}
+
+/// A frame's signal image, row-major, grey levels.
+pub(super) struct Signal<'a> {
+    pub(super) signal: &'a [f32],
+    pub(super) width: usize,
+    pub(super) height: usize,
+}
+
+/// Where estimate `i` of `points` (px) moves when located in a window reaching as far as its
+/// particle does ([`extent`], at least `window`), on the signal with the plane fitted on the
+/// ring just beyond taken out; `None` where it stays: an estimate whose window another's
+/// reaches (their pixels are split between them by [`crate::refine_centroids`]), one whose
+/// particle ends within `window` and whose ring shows no slope beyond [`SIGNIFICANT`]
+/// standard errors, or one whose corrected centroid has no positive mass.
+pub(super) fn corrected_position(
+    image: &Signal<'_>,
+    points: &[[f64; 2]],
+    i: usize,
+    window: f64,
+    most: f64,
+    noise_sigma: f64,
+) -> Option<[f64; 2]> {
+    let Signal {
+        signal,
+        width,
+        height,
+    } = *image;
+    if width == 0 || height == 0 {
+        return None;
+    }
+    let c = points[i];
+    let keep_out = window + 1.0;
+    let mut nearest = f64::INFINITY;
+    let mut others: Vec<[f64; 2]> = Vec::new();
+    for (j, p) in points.iter().enumerate() {
+        if j == i {
+            continue;
+        }
+        let dist = (p[0] - c[0]).hypot(p[1] - c[1]);
+        nearest = nearest.min(dist);
+        // Only points whose keep-out disc can reach the widest ring matter.
+        if dist < 1.5 * most.max(window) + 3.0 + 2.0 * keep_out {
+            others.push(*p);
+        }
+    }
+    if nearest < 2.0 * window + 2.0 {
+        return None;
+    }
+    let limit = most.min(nearest - keep_out);
+    let reach = extent(
+        signal,
+        width,
+        height,
+        c,
+        window,
+        noise_sigma,
+        &others,
+        keep_out,
+        limit,
+    )
+    .max(window);
+    // A window cut by the image border has lost part of its particle, and the ring around it
+    // extrapolates a plane from one side: left as it is.
+    let edge = reach + 0.5;
+    if c[0] < edge || c[1] < edge || c[0] + edge > (width - 1) as f64 || c[1] + edge > (height - 1) as f64 {
+        return None;
+    }
+    let plane = fit_ring_plane(signal, width, height, c, reach, &others, keep_out)?;
+    // The ring must look like background: its pixels about the plane no more spread than
+    // the measured noise, within 3 standard errors of a robust spread estimate
+    // (1.16 / sqrt(n) of it, the median absolute deviation's efficiency being 37 %). Clutter
+    // or structure in the ring (a wall, a grid, a dial on real video) is not a background a
+    // plane describes, and the estimate stays: the bouncing ball's and the pendulum's rings
+    // read 1.3-3 times their noise.
+    let spread_limit = noise_sigma * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
+    if plane.sigma > spread_limit {
+        return None;
+    }
+    let sloped = plane.b.iter().any(|b| b.abs() > SIGNIFICANT * plane.b_sigma);
+    if reach <= window && !sloped {
+        return None;
+    }
+    let moved = centroid_on_plane(signal, width, height, c, reach, &plane)?;
+    // A background as high and as steep as the ring's, wholly on one side of the window,
+    // moves the centroid by at most (level + slope x reach) x window area x reach / mass: a
+    // move beyond that is not the background's (clutter in the ring, a smear of the
+    // particle itself), and the estimate stays.
+    let (mass, _) = ring_mean(signal, width, height, c, (0.0, reach), &others, keep_out);
+    let area = std::f64::consts::PI * reach * reach;
+    let level = plane.a.abs() + plane.b[0].hypot(plane.b[1]) * reach;
+    let most_move = level * area * reach / (mass * area).max(f64::MIN_POSITIVE);
+    ((moved[0] - c[0]).hypot(moved[1] - c[1]) <= most_move).then_some(moved)
+}
+
+/// Sample frames [`planes_move_points`] reads at most (spread evenly over the samples).
+const GATE_SAMPLES: usize = 8;
+/// Samples in which a track must move for [`planes_move_points`] (and in more than half of
+/// those where it has a detection): at N = 1000 two tracks seen in two or three samples
+/// moved in two by chance.
+const GATE_SAMPLES_MOVED: usize = 3;
+
+/// Returns true if and only if correcting for the local background ([`corrected_position`])
+/// moves some track of `pass`, in most of the sample frames where it has a detection and in
+/// [`GATE_SAMPLES_MOVED`] at least, by more than half its standard error (`ep`): then the
+/// frames are worth locating again with the correction. A slope that noise alone shows
+/// beyond 3 standard errors around one point does not repeat on the same track. Read on up
+/// to [`GATE_SAMPLES`] samples (each point's detection within a pixel of it, at its class's
+/// window).
+pub(super) fn planes_move_points(
+    background: &Background,
+    samples: &[FrameView<'_>],
+    sample_of: &[Option<usize>],
+    pass: &Pass,
+    classes: &[SizeClass],
+    workers: &Workers,
+) -> bool {
+    let mut tracked: BTreeMap<usize, Vec<(&str, [f64; 2])>> = BTreeMap::new();
+    for p in &pass.table.points {
+        if p.ep.is_finite() {
+            tracked
+                .entry(p.frame)
+                .or_default()
+                .push((p.particle.as_str(), [p.x, p.y]));
+        }
+    }
+    // Per track: samples where its detection was measured, and where it moved.
+    let mut counts: BTreeMap<&str, [usize; 2]> = BTreeMap::new();
+    let read: Vec<(usize, usize)> = sample_of
+        .iter()
+        .enumerate()
+        .filter_map(|(i, j)| j.map(|j| (i, j)))
+        .collect();
+    let step = read.len().div_ceil(GATE_SAMPLES).max(1);
+    let read_count = read.len().div_ceil(step);
+    workers.with(|w| {
+        for &(i, j) in read.iter().step_by(step) {
+            let Some(&frame) = samples.get(j) else {
+                continue;
+            };
+            let mut levelled = false;
+            for (class, located) in classes.iter().zip(&pass.located) {
+                let Some(f) = located.get(i) else {
+                    continue;
+                };
+                let Some(points) = tracked.get(&f.frame) else {
+                    continue;
+                };
+                if !levelled {
+                    w.finder.levelled_signal(background, frame);
+                    levelled = true;
+                }
+                let (width, height) = frame.size();
+                let image = Signal {
+                    signal: &w.finder.signal,
+                    width,
+                    height,
+                };
+                let at: Vec<[f64; 2]> = f.detections.iter().map(|d| [d.x, d.y]).collect();
+                let (window, most) = (class.window(), most_reach(&class.sizes.params, class.window()));
+                for &(name, p) in points {
+                    let Some(k) = f
+                        .detections
+                        .iter()
+                        .position(|d| (p[0] - d.x).hypot(p[1] - d.y) < 1.0)
+                    else {
+                        continue;
+                    };
+                    // A track that stayed in half the samples read cannot move in most.
+                    let count = counts.entry(name).or_default();
+                    if 2 * (count[0] - count[1]) >= read_count {
+                        continue;
+                    }
+                    let d = &f.detections[k];
+                    let moved = corrected_position(&image, &at, k, window, most, background.noise_sigma)
+                        .is_some_and(|c| (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
+                    count[0] += 1;
+                    count[1] += usize::from(moved);
+                }
+            }
+        }
+    });
+    counts
+        .values()
+        .any(|&[seen, moved]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen)
+}
+
+/// The farthest a particle's window may reach when located with the local background taken
+/// out, px: the radius of the disc of one particle's measured extent (its area above the
+/// noise mask, [`crate::BlobSize::extent`]), at least `window`; `window` when no extent was
+/// measured.
+pub(super) fn most_reach(params: &crate::DetectParameters, window: f64) -> f64 {
+    params
+        .expected
+        .map_or(window, |e| (e.extent / std::f64::consts::PI).sqrt())
+        .max(window)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A disc of radius `r` and amplitude `amp` at `c` on `width x height`, exact area
+    /// coverage (the project's renderer), plus `background(x, y)`.
+    fn disc_on(
+        width: usize,
+        height: usize,
+        c: [f64; 2],
+        r: f64,
+        amp: f32,
+        background: impl Fn(f64, f64) -> f64,
+    ) -> Vec<f32> {
+        let mut plane = vec![0.0f32; width * height];
+        physfit_render::add_disc_coverage(
+            &mut plane,
+            width as u32,
+            height as u32,
+            physfit_model::Vec2::new(c[0], c[1]),
+            r,
+        );
+        plane
+            .iter()
+            .enumerate()
+            .map(|(i, cov)| amp * cov + background((i % width) as f64, (i / width) as f64) as f32)
+            .collect()
+    }
+
+    /// A disc of 20 px on a background rising 0.3 grey levels per px: the plain centroid is
+    /// pulled 0.2 px up the slope, the corrected one lies on the centre.
+    #[test]
+    fn a_slope_left_in_the_signal_is_taken_out() {
+        let (w, h, c) = (128, 128, [60.3, 58.7]);
+        let signal = disc_on(w, h, c, 20.0, 100.0, |x, _| 5.0 + 0.3 * (x - 64.0));
+        let window = 21.0;
+        let plain = crate::refine_centroids(&signal, w, h, &[[60.0, 59.0]], &[0.0], window, 1.0);
+        assert!(plain[0].x - c[0] > 0.1, "plain centroid {:?}", plain[0]);
+        let image = Signal {
+            signal: &signal,
+            width: w,
+            height: h,
+        };
+        let p = corrected_position(&image, &[[plain[0].x, plain[0].y]], 0, window, 30.0, 1.0)
+            .expect("a slope to take out");
+        assert!(
+            (p[0] - c[0]).abs() < 0.01 && (p[1] - c[1]).abs() < 0.01,
+            "{p:?} vs {c:?}"
+        );
+    }
+
+    /// On a flat background a disc that ends within its window is left where it is.
+    #[test]
+    fn a_disc_on_a_flat_background_stays() {
+        let (w, h, c) = (96, 96, [47.6, 48.2]);
+        let signal = disc_on(w, h, c, 12.0, 100.0, |_, _| 0.0);
+        let image = Signal {
+            signal: &signal,
+            width: w,
+            height: h,
+        };
+        assert_eq!(corrected_position(&image, &[c], 0, 13.0, 20.0, 1.0), None);
+    }
+
+    /// A window cut by the image border, or one that a neighbour's reaches, is left alone.
+    #[test]
+    fn windows_at_the_border_or_beside_a_neighbour_stay() {
+        let (w, h) = (96, 96);
+        let signal = disc_on(w, h, [12.0, 48.0], 12.0, 100.0, |x, _| 0.3 * x);
+        let image = Signal {
+            signal: &signal,
+            width: w,
+            height: h,
+        };
+        assert_eq!(
+            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, 1.0),
+            None
+        );
+        let points = [[48.0, 48.0], [70.0, 48.0]];
+        assert_eq!(corrected_position(&image, &points, 0, 13.0, 20.0, 1.0), None);
+    }
+
+    /// The plane fitted on a ring of a noise-free plane is that plane, with one pixel of
+    /// clutter in the ring left out.
+    #[test]
+    fn the_ring_plane_ignores_clutter() {
+        let (w, h, c) = (64, 64, [31.5, 32.25]);
+        let mut signal: Vec<f32> = (0..w * h)
+            .map(|i| (2.0 + 0.1 * (i % w) as f64 - 0.05 * (i / w) as f64) as f32)
+            .collect();
+        signal[32 * w + 46] += 500.0;
+        let plane = fit_ring_plane(&signal, w, h, c, 10.0, &[], 0.0).expect("a plane");
+        assert!(
+            (plane.b[0] - 0.1).abs() < 1e-6 && (plane.b[1] + 0.05).abs() < 1e-6,
+            "{plane:?}"
+        );
+        assert!((plane.at(c[0], c[1]) - (2.0 + 0.1 * c[0] - 0.05 * c[1])).abs() < 1e-6);
+    }
+}
