@@ -18,7 +18,7 @@
 //! relative error is about `2 ep / W` (both follow from the same weighted pixel sums), so
 //! its change between two frames has spread `2 √2 ep / W`; the size's is about `√2 ep`.
 
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use crate::point_grid::PointGrid;
 use physfit_tracks::stats::{robust_spread_upper, MAD_TO_SIGMA};
 
 use crate::link::FrameDetections;
@@ -121,20 +121,18 @@ impl AppearanceSpread {
             }
             let pa: Vec<[f64; 2]> = a.iter().map(|d| [d.x, d.y]).collect();
             let pb: Vec<[f64; 2]> = b.iter().map(|d| [d.x, d.y]).collect();
-            let ta = ImmutableKdTree::<f64, 2>::new_from_slice(&pa);
-            let tb = ImmutableKdTree::<f64, 2>::new_from_slice(&pb);
+            let ta = PointGrid::new(&pa);
+            let tb = PointGrid::new(&pb);
+            let far = |n: Option<(usize, f64)>| n.map_or(f64::INFINITY, |(_, d)| d.sqrt());
             for (i, p) in pa.iter().enumerate() {
-                let nb = tb.nearest_n::<SquaredEuclidean>(p, 2);
-                let Some(first) = nb.first() else { continue };
-                let j = first.item as usize;
-                let d1 = first.distance.sqrt();
-                let next_b = nb.get(1).map_or(f64::INFINITY, |n| n.distance.sqrt());
+                let [first, second] = tb.nearest_two(p);
+                let Some((j, d)) = first else { continue };
+                let d1 = d.sqrt();
+                let next_b = far(second);
                 // Back from j: i must be its nearest in frame a, the next far away.
-                let back = ta.nearest_n::<SquaredEuclidean>(&pb[j], 2);
-                let next_a = back.get(1).map_or(f64::INFINITY, |n| n.distance.sqrt());
-                if back.first().map(|n| n.item as usize) != Some(i)
-                    || d1 > UNAMBIGUOUS_RATIO * next_b.min(next_a)
-                {
+                let back = ta.nearest_two(&pb[j]);
+                let next_a = far(back[1]);
+                if back[0].map(|(k, _)| k) != Some(i) || d1 > UNAMBIGUOUS_RATIO * next_b.min(next_a) {
                     continue;
                 }
                 if let (Some(x), Some(y)) = (Appearance::of(&a[i], 1), Appearance::of(&b[j], 1)) {

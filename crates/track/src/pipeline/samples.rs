@@ -2,8 +2,8 @@
 
 use super::finder::{Finder, Workers};
 use super::skirts::locate_unfiltered;
+use crate::point_grid::PointGrid;
 use crate::{Background, DecodedFrame, FrameSource, FrameView, TrackError};
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -81,21 +81,22 @@ pub(super) fn moving_blobs(
             .collect()
     });
     let later = [b, c];
-    let tree = |pts: &[[f64; 2]]| (!pts.is_empty()).then(|| ImmutableKdTree::<f64, 2>::new_from_slice(pts));
-    let (Some(tb), Some(tc)) = (tree(&later[0]), tree(&later[1])) else {
+    if later.iter().any(|pts| pts.is_empty()) {
         return Vec::new();
-    };
+    }
+    let (tb, tc) = (PointGrid::new(&later[0]), PointGrid::new(&later[1]));
     a.into_iter()
         .filter(|p| {
-            let nb = tb.nearest_one::<SquaredEuclidean>(p);
-            let b = later[0][nb.item as usize];
-            let step = nb.distance.sqrt();
+            let Some((j, d)) = tb.nearest_two(p)[0] else {
+                return false;
+            };
+            let b = later[0][j];
+            let step = d.sqrt();
             if step <= 0.5 {
                 return false;
             }
             let predicted = [2.0 * b[0] - p[0], 2.0 * b[1] - p[1]];
-            let nc = tc.nearest_one::<SquaredEuclidean>(&predicted);
-            nc.distance.sqrt() <= (0.1 * step).max(1.0)
+            tc.nearest_two(&predicted)[0].is_some_and(|(_, d)| d.sqrt() <= (0.1 * step).max(1.0))
         })
         .collect()
 }
