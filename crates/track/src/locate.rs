@@ -591,7 +591,7 @@ fn neighbour_lists(points: &[[f64; 2]], reach: f64, neighbours: &mut Vec<u32>, o
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// The SSE2 row sums equal the portable loop's to the bit, with none, one and three

@@ -423,13 +423,9 @@ mod tests {
     fn nearest_two_agrees_with_a_search_of_every_point() {
         // Spread, clustered and collinear sets; queries on points, between them and far
         // outside their bounding box.
-        let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut next = || rng.gen::<f64>();
         let sets: Vec<Vec<[f64; 2]>> = vec![
             (0..300).map(|_| [500.0 * next(), 400.0 * next()]).collect(),
             (0..200)
@@ -465,13 +461,9 @@ mod tests {
     #[allow(clippy::float_cmp)] // the same arithmetic: equal to the bit
     fn kiddo_nearest_one_against_every_point() {
         use kiddo::{ImmutableKdTree, SquaredEuclidean};
-        let mut seed = 11u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut next = || rng.gen::<f64>();
         let mut wrong = 0;
         let mut asked = 0;
         for n in [3usize, 10, 40, 200, 1000] {

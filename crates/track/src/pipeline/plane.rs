@@ -580,19 +580,11 @@ mod tests {
         amp: f32,
         background: impl Fn(f64, f64) -> f64,
     ) -> Vec<f32> {
-        let mut plane = vec![0.0f32; width * height];
-        physfit_render::add_disc_coverage(
-            &mut plane,
-            width as u32,
-            height as u32,
-            physfit_model::Vec2::new(c[0], c[1]),
-            r,
-        );
-        plane
-            .iter()
-            .enumerate()
-            .map(|(i, cov)| amp * cov + background((i % width) as f64, (i / width) as f64) as f32)
-            .collect()
+        let mut img: Vec<f32> = (0..width * height)
+            .map(|i| background((i % width) as f64, (i / width) as f64) as f32)
+            .collect();
+        crate::locate::tests::render_disc(&mut img, width, height, c, r, amp);
+        img
     }
 
     /// A disc of 20 px on a background rising 0.3 grey levels per px: the plain centroid is
