@@ -706,14 +706,7 @@ impl Context<'_> {
             circle[o] = centre.x;
             circle[o + 1] = centre.y;
             circle[o + 2] = (radius - stretch(rigid)).max(1e-3);
-            if let Some(b) = self.fit(&pinned, &circle, &with.fit.state, false) {
-                if best
-                    .as_ref()
-                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
-                {
-                    best = Some(b);
-                }
-            }
+            keep_better(&mut best, self.fit(&pinned, &circle, &with.fit.state, false));
         }
         let best = best?;
         let held = self.held_count(family);
@@ -884,16 +877,6 @@ impl Context<'_> {
         let mut best = self.fit(family, &params, self.start, false);
         let Some(problem) = &family.problem else {
             return best;
-        };
-        let keep_better = |best: &mut Option<Current>, b: Option<Current>| {
-            if let Some(b) = b {
-                if best
-                    .as_ref()
-                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
-                {
-                    *best = Some(b);
-                }
-            }
         };
         if let Some(given) = given.and_then(|scene| problem.params_of(scene)) {
             if given.len() == params.len() && !best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
@@ -1114,27 +1097,22 @@ impl Context<'_> {
         // Both starts unless the first already fits to the noise: the current fit may be a
         // poor optimum when a strong term is missing.
         let mut best = self.fit(&family, &warm, &current.fit.state, true);
-        let mut starts = vec![self.joint_estimate(&family, &warm)];
-        // Proposals started from the path's geometry (no screen score) are held while the
-        // bonds are estimated beside them (see `joint_estimate_holding`).
-        if proposals
+        // Proposals started from the path's geometry (no screen score) are also held while
+        // the bonds are estimated beside them (see `joint_estimate_holding`).
+        let geometric = proposals
             .iter()
-            .all(|p| p.screen.is_none() && p.effect.is_smooth())
-        {
-            starts.push(self.joint_estimate_holding(&family, &warm, current.family.effects.len()));
-        }
-        for joint in starts {
+            .all(|p| p.screen.is_none() && p.effect.is_smooth());
+        let held_from = if geometric {
+            vec![family.effects.len(), current.family.effects.len()]
+        } else {
+            vec![family.effects.len()]
+        };
+        for from in held_from {
             if best.as_ref().is_some_and(|b| self.at_noise_level(b)) {
                 break;
             }
-            if let Some(b) = self.fit(&family, &joint, self.start, false) {
-                if best
-                    .as_ref()
-                    .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
-                {
-                    best = Some(b);
-                }
-            }
+            let joint = self.joint_estimate_holding(&family, &warm, from);
+            keep_better(&mut best, self.fit(&family, &joint, self.start, false));
         }
         let evidence = self.evidence(current, best.as_ref(), proposals);
         Verified {
@@ -1179,6 +1157,18 @@ impl Context<'_> {
         };
         evidence.score = variance.and_then(|v| evidence.score_on(v));
         evidence
+    }
+}
+
+/// Replaces `best` by `b` when `b` fits the fitted frames better (or `best` is `None`).
+fn keep_better(best: &mut Option<Current>, b: Option<Current>) {
+    if let Some(b) = b {
+        if best
+            .as_ref()
+            .map_or(true, |a| b.fit.sum_squares < a.fit.sum_squares)
+        {
+            *best = Some(b);
+        }
     }
 }
 
