@@ -213,36 +213,26 @@ fn bench_full_seed_53() {
 /// stiffness, and the base fit started at its scale stopped in a minimum at 0.73 px RMS; the
 /// tether's tension shows only in stretches of the track noise, so the weak form proposed a
 /// near, soft anchor. Now the base fit also starts a decade and two below, and a tether is
-/// proposed from the circle its particle's path follows: it is found, its fixed point within
-/// 2 % of its length. (Its faint linear drag is still taken for quadratic drag, and the
-/// verdict must then not call the tracks explained.)
+/// proposed from the circle its particle's path follows. Its stiffness came out 420 against
+/// 3291, and its faint linear drag as quadratic drag (0.08 px RMS, 9.7 noises); now the
+/// tether's stiffness is also started from its radial oscillation, heard at 3294.
 #[test]
-fn bench_full_seed_95_finds_the_tether_from_its_arc() {
-    let r = bench_result(95, false, &[]);
-    let j = &r["judgement"];
-    let tether = j["effects"]
-        .as_array()
-        .expect("effects")
-        .iter()
-        .find(|e| e["concealed"]["effect"] == "tether")
-        .expect("a concealed tether");
-    assert!(tether["found"].is_string(), "tether not found: {j}");
-    let length = tether["concealed"]["length"].as_f64().expect("length");
-    let off = tether["errors"]
-        .as_array()
-        .expect("errors")
-        .iter()
-        .find(|x| x["name"] == "fixed point")
-        .and_then(|x| x["value"].as_f64())
-        .expect("fixed point error");
-    assert!(
-        off <= FIXED_POINT_OF_LENGTH * length,
-        "fixed point {off:.2} px off: {j}"
-    );
-    if j["exactly_right"] != true {
-        let verdict = j["verdict"].as_str().unwrap_or_default();
-        assert!(verdict.starts_with("not explained"), "{verdict}");
-    }
+fn bench_full_seed_95() {
+    judge_seed(95, false);
+}
+
+// Stiff tethers out of view whose stiffness only their ring tells (S 4326 and 5075): 63 had
+// its tether at S 3978 with the anchor 70 px off (1.2 px RMS, 840 noises) and missed a soft
+// spring; 50 had quadratic drag alone, twice its truth (0.80 px RMS).
+
+#[test]
+fn bench_full_seed_50() {
+    judge_seed(50, false);
+}
+
+#[test]
+fn bench_full_seed_63() {
+    judge_seed(63, false);
 }
 
 #[test]

@@ -28,6 +28,7 @@ mod flights;
 mod inclusion;
 mod jolts;
 mod localise;
+mod oscillation;
 mod outcome;
 mod report;
 mod score_test;
@@ -467,6 +468,20 @@ fn diagnose_inner(
             {
                 to_verify.push(vec![tether]);
             }
+        }
+        // Tethers from the strongest ring in a particle's residual (see `ringing_tether`).
+        let ringing = current
+            .family
+            .free
+            .iter()
+            .filter_map(|&p| ctx.ringing_tether(&current, p))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((tethers, amplitude)) = ringing {
+            if debug {
+                let starts: Vec<&Vec<f64>> = tethers.iter().map(|t| &t.init).collect();
+                eprintln!("   ringing tether (amplitude {amplitude:.3} px): {starts:?}");
+            }
+            to_verify.extend(tethers.into_iter().map(|t| vec![t]));
         }
         if debug {
             for pair in pairs.iter().take(3) {

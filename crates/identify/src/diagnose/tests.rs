@@ -605,6 +605,7 @@ fn a_short_toss_of_eleven_frames_gets_its_field() {
 }
 
 mod issue_21;
+mod stiff;
 
 /// The jolts `find_jolts` sees, with no model, in `truth`'s tracks of its particle `ball`.
 fn jolts_of_ball(truth: &Scene) -> Vec<Jolt> {

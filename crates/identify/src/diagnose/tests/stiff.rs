@@ -1,0 +1,128 @@
+//! Stiff springs and tethers, whose oscillation is faster than the weak form's test
+//! functions see: the weak form tells a soft stiffness or none, and a multi-step fit started
+//! there stops in another basin (each frequency the recording holds a whole number of
+//! periods of is one). Their stiffness is taken from the oscillation they make (module
+//! `oscillation`). Drawn from fixed seeds over stiffnesses, masses, frame rates, lengths of
+//! recording and noise.
+
+use rand::{Rng, SeedableRng};
+
+use super::*;
+
+const TETHER: &str = "tether of p0 to a fixed point";
+
+/// Two particles joined by a soft spring, `p0` also tied to a fixed pivot out of the
+/// structure by a stiff tether, released stretched by 0.2-1 px so that the tether rings;
+/// drawn from `seed`.
+fn tethered_pair(seed: u64) -> (Scene, Scene) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let fps: f64 = rng.gen_range(50.0..150.0);
+    let frames = rng.gen_range(150..300);
+    let stiffness: f64 = rng.gen_range(1500.0..5000.0);
+    let m0: f64 = rng.gen_range(1.0..2.0);
+    let length: f64 = rng.gen_range(150.0..300.0);
+    let angle: f64 = rng.gen_range(-0.5..0.5);
+    // Released stretched, so that the tether rings.
+    let stretch: f64 = rng.gen_range(0.2..1.0);
+    let pivot = [80.0 + length * angle.sin(), 80.0 + length * angle.cos()];
+    let p0: [f64; 2] = [80.0, 80.0];
+    let p1: [f64; 2] = [
+        80.0 + rng.gen_range(30.0..50.0),
+        80.0 + rng.gen_range(-10.0..10.0),
+    ];
+    let v0 = [rng.gen_range(-25.0..25.0), rng.gen_range(-25.0..25.0)];
+    let text = |hidden: bool| {
+        let pivot_text = if hidden {
+            String::new()
+        } else {
+            format!(
+                r#"
+                [[particles]]
+                id = "pivot"
+                mass = 1.0
+                position = [{}, {}]
+                fixed = true
+                [[springs]]
+                between = ["p0", "pivot"]
+                length = {}
+                stiffness = {stiffness}
+                "#,
+                pivot[0],
+                pivot[1],
+                length - stretch
+            )
+        };
+        format!(
+            r#"
+            name = "tethered-pair"
+            [recording]
+            fps = {fps}
+            frames = {frames}
+            substeps = 10
+            [[particles]]
+            id = "p0"
+            mass = {m0}
+            position = [{}, {}]
+            velocity = [{}, {}]
+            [[particles]]
+            id = "p1"
+            mass = 1.0
+            position = [{}, {}]
+            velocity = [{}, {}]
+            [[springs]]
+            between = ["p0", "p1"]
+            length = {}
+            stiffness = 3.0
+            {pivot_text}
+            "#,
+            p0[0],
+            p0[1],
+            v0[0],
+            v0[1],
+            p1[0],
+            p1[1],
+            v0[0],
+            v0[1],
+            ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2)).sqrt() * 0.9,
+        )
+    };
+    let parse = |t: String| Scene::from_toml_str(&t, "tethered-pair").unwrap_or_else(|e| panic!("{e}"));
+    let truth = parse(text(false));
+    let mut structure = parse(text(true));
+    for s in &mut structure.springs {
+        s.rest_length = None;
+        s.stiffness = None;
+    }
+    (truth, structure)
+}
+
+#[test]
+fn stiff_tethers_take_the_stiffness_of_their_oscillation() {
+    for seed in 0..4u64 {
+        let (truth, structure) = tethered_pair(seed);
+        let sigma = 0.01;
+        let mut t = crate::testutil::tracks(&truth, sigma, seed);
+        t.points.retain(|p| p.particle != "pivot");
+        let options = DiagnoseOptions {
+            seed,
+            ..DiagnoseOptions::default()
+        };
+        let name = format!("tethered pair {seed}");
+        let d = diagnose(&structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let c = Case {
+            name: name.clone(),
+            truth: truth.clone(),
+            tracks: t,
+            d,
+        };
+        eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
+        c.names_exactly(&[TETHER]);
+        assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
+        let want = truth.springs[1].stiffness.unwrap_or(f64::NAN);
+        let got = c.value(TETHER, "stiffness");
+        assert!(
+            (got - want).abs() <= 0.01 * want,
+            "{name}: stiffness {got:.1}, truth {want:.1}"
+        );
+    }
+}
