@@ -469,19 +469,24 @@ fn diagnose_inner(
                 to_verify.push(vec![tether]);
             }
         }
-        // Tethers from the strongest ring in a particle's residual (see `ringing_tether`).
-        let ringing = current
-            .family
-            .free
-            .iter()
-            .filter_map(|&p| ctx.ringing_tether(&current, p))
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((tethers, amplitude)) = ringing {
+        // Tethers and missing springs from the rings in the particles' residuals (see
+        // `rings`).
+        let rings = ctx.rings(&current);
+        if let Some((tethers, amplitude)) = ctx.ringing_tether(&current, &rings) {
             if debug {
                 let starts: Vec<&Vec<f64>> = tethers.iter().map(|t| &t.init).collect();
                 eprintln!("   ringing tether (amplitude {amplitude:.3} px): {starts:?}");
             }
             to_verify.extend(tethers.into_iter().map(|t| vec![t]));
+        }
+        if let Some((spring, amplitude)) = ctx.ringing_spring(&current, &rings) {
+            if debug {
+                eprintln!(
+                    "   ringing spring {:?} (amplitude {amplitude:.3} px): {:?}",
+                    spring.effect, spring.init
+                );
+            }
+            to_verify.push(vec![spring]);
         }
         if debug {
             for pair in pairs.iter().take(3) {

@@ -104,6 +104,21 @@ pub struct Proposal {
     pub jolts: Vec<Jolt>,
 }
 
+/// A particle's ring in its residual (see [`Context::rings`]).
+#[derive(Clone, Debug)]
+pub struct Ring {
+    /// The particle (structure index).
+    pub particle: usize,
+    /// Angular frequency, rad/s.
+    pub omega: f64,
+    /// Unit direction of the ring's line.
+    pub direction: Vec2,
+    /// Amplitude along that line, px.
+    pub amplitude: f64,
+    /// The particle's mean observed position, px.
+    pub mean: Vec2,
+}
+
 /// A verified candidate (one effect, or a wall with a smooth effect).
 #[derive(Clone, Debug)]
 pub struct Verified {
@@ -771,74 +786,99 @@ impl Context<'_> {
         }
     }
 
-    /// Tethers on `particle` from a ring in its residual under `current`: an oscillation
-    /// faster than the weak form's test window resolves (a period under the window), heard
-    /// in the residual's components (module `oscillation`) and along one line (the minor
-    /// axis of its ellipse under a third of the major). A stiff tether rings along itself,
-    /// and its pull is balanced by the motion's mean, so neither the weak form nor the
-    /// path's arc shows it; its anchor lies on that line, on either side, its stiffness is
-    /// `m ω² / 2`. Returns a proposal for each side, at [`RING_ANCHOR_SCALES`] length scales
-    /// from the particle's mean position, with the ring's amplitude (px).
-    pub fn ringing_tether(&self, current: &Current, particle: usize) -> Option<(Vec<Proposal>, f64)> {
+    /// The ring of each free particle in its residual under `current` (module
+    /// `oscillation`): the strongest oscillation of either component faster than the weak
+    /// form's test window resolves (a period under the window), along one line (the minor
+    /// axis of its ellipse under a third of the major). A stiff bond the model lacks rings
+    /// along itself, and its mean pull is balanced by the motion's, so neither the weak form
+    /// nor the path's arc shows it. Empty at the noise level.
+    pub fn rings(&self, current: &Current) -> Vec<Ring> {
         let family = &current.family;
-        if family.effects.contains(&Effect::Tether { particle }) || self.at_noise_level(current) {
-            return None;
+        if self.at_noise_level(current) {
+            return Vec::new();
         }
-        let trajectory = self
+        let Some(trajectory) = self
             .shot
-            .trajectory(family, &current.fit.params, &current.fit.state)?;
+            .trajectory(family, &current.fit.params, &current.fit.state)
+        else {
+            return Vec::new();
+        };
         let fps = self.obs.fps;
-        let mut times = Vec::new();
-        let mut residual = [Vec::new(), Vec::new()];
-        let mut sum = Vec2::zeros();
-        for (k, predicted) in trajectory.iter().enumerate() {
-            let (Some(x), Some(o)) = (
-                predicted.as_ref().map(|x| x[particle]),
-                self.obs.positions[k][particle],
-            ) else {
-                continue;
-            };
-            times.push(k as f64 / fps);
-            residual[0].push(o.x - x.x);
-            residual[1].push(o.y - x.y);
-            sum += o;
-        }
-        let mean = sum / times.len().max(1) as f64;
         let low = std::f64::consts::TAU * fps / self.weak.window.max(1) as f64;
         let high = 0.95 * std::f64::consts::PI * fps;
-        let heard: Vec<f64> = residual
+        let mut out = Vec::new();
+        for &particle in &family.free {
+            let mut times = Vec::new();
+            let mut residual = [Vec::new(), Vec::new()];
+            let mut sum = Vec2::zeros();
+            for (k, predicted) in trajectory.iter().enumerate() {
+                let (Some(x), Some(o)) = (
+                    predicted.as_ref().map(|x| x[particle]),
+                    self.obs.positions[k][particle],
+                ) else {
+                    continue;
+                };
+                times.push(k as f64 / fps);
+                residual[0].push(o.x - x.x);
+                residual[1].push(o.y - x.y);
+                sum += o;
+            }
+            let mean = sum / times.len().max(1) as f64;
+            let ring = residual
+                .iter()
+                .filter_map(|r| {
+                    oscillation::strongest_frequencies(&times, r, low, high, 1)
+                        .first()
+                        .copied()
+                })
+                .filter_map(|omega| {
+                    let [(ax, bx), (ay, by)] = residual
+                        .clone()
+                        .map(|r| oscillation::amplitudes(&times, &r, omega));
+                    // The ellipse's axes: the singular values of [[ax, bx], [ay, by]].
+                    let svd = nalgebra::Matrix2::new(ax, bx, ay, by).svd(true, false);
+                    let u = svd.u?;
+                    let (major, minor) = (svd.singular_values[0], svd.singular_values[1]);
+                    (minor < major / 3.0).then(|| Ring {
+                        particle,
+                        omega,
+                        direction: Vec2::new(u[(0, 0)], u[(1, 0)]),
+                        amplitude: major,
+                        mean,
+                    })
+                })
+                .max_by(|a, b| a.amplitude.total_cmp(&b.amplitude));
+            out.extend(ring);
+        }
+        out
+    }
+
+    /// Tethers on a ringing particle (see [`Context::rings`]), the strongest ring of a
+    /// particle without one: its anchor lies on the ring's line, on either side (a proposal
+    /// for each, [`RING_ANCHOR_SCALES`] length scales from the particle's mean position),
+    /// its stiffness is `m ω² / 2`. Returned with the ring's amplitude (px).
+    pub fn ringing_tether(&self, current: &Current, rings: &[Ring]) -> Option<(Vec<Proposal>, f64)> {
+        let family = &current.family;
+        let ring = rings
             .iter()
-            .filter_map(|r| {
-                oscillation::strongest_frequencies(&times, r, low, high, 1)
-                    .first()
-                    .copied()
-            })
-            .collect();
-        // The stronger of the two components' rings, by its amplitude along its line.
-        let (omega, direction, amplitude) = heard
-            .iter()
-            .filter_map(|&w| {
-                let [(ax, bx), (ay, by)] = residual.clone().map(|r| oscillation::amplitudes(&times, &r, w));
-                // The ellipse's axes: the singular values of [[ax, bx], [ay, by]].
-                let m = nalgebra::Matrix2::new(ax, bx, ay, by);
-                let svd = m.svd(true, false);
-                let u = svd.u?;
-                let (major, minor) = (svd.singular_values[0], svd.singular_values[1]);
-                (minor < major / 3.0).then(|| (w, Vec2::new(u[(0, 0)], u[(1, 0)]), major))
-            })
-            .max_by(|a, b| a.2.total_cmp(&b.2))?;
-        let mass = family.structure.particles.get(particle).map_or(1.0, |p| p.mass);
-        let substep = family.structure.integration_parameters().dt();
-        let stable = 0.25 * mass / (substep * substep);
-        let stiffness = (mass * omega * omega / 2.0).min(stable);
+            .filter(|r| !family.effects.contains(&Effect::Tether { particle: r.particle }))
+            .max_by(|a, b| a.amplitude.total_cmp(&b.amplitude))?;
+        let mass = family
+            .structure
+            .particles
+            .get(ring.particle)
+            .map_or(1.0, |p| p.mass);
+        let stiffness = (mass * ring.omega * ring.omega / 2.0).min(self.stable_stiffness(family, mass));
         let proposals = RING_ANCHOR_SCALES
             .iter()
             .flat_map(|&scale| [scale, -scale])
             .map(|scale| {
                 let distance = scale * self.scales.length;
-                let anchor = mean + direction * distance;
+                let anchor = ring.mean + ring.direction * distance;
                 Proposal {
-                    effect: Effect::Tether { particle },
+                    effect: Effect::Tether {
+                        particle: ring.particle,
+                    },
                     init: vec![anchor.x, anchor.y, distance.abs(), stiffness],
                     screen: None,
                     score_test: None,
@@ -846,7 +886,73 @@ impl Context<'_> {
                 }
             })
             .collect();
-        Some((proposals, amplitude))
+        Some((proposals, ring.amplitude))
+    }
+
+    /// A missing spring between two ringing particles (see [`Context::rings`]) not joined
+    /// by the structure or the model: both ring at one frequency (within the periodogram's
+    /// resolution), and the distance between them rings with at least half the larger
+    /// particle amplitude, as the two ends of a stiff spring do. Its stiffness is
+    /// `μ ω² / 2` (`μ` the reduced mass), its length the mean distance. Returned with the
+    /// distance's ring amplitude (px); the strongest such pair.
+    pub fn ringing_spring(&self, current: &Current, rings: &[Ring]) -> Option<(Proposal, f64)> {
+        let family = &current.family;
+        let structure = &family.structure;
+        let fps = self.obs.fps;
+        let span = self.obs.frame_count() as f64 / fps;
+        let resolution = std::f64::consts::TAU / span.max(f64::MIN_POSITIVE);
+        let joined = |a: usize, b: usize| {
+            structure.springs.iter().any(|sp| {
+                let [i, j] = [sp.ends[0].index(), sp.ends[1].index()];
+                (i == a && j == b) || (i == b && j == a)
+            }) || family.effects.iter().any(|e| {
+                matches!(*e, Effect::MissingSpring { a: i, b: j } if (i == a && j == b) || (i == b && j == a))
+            })
+        };
+        let mut best: Option<(Proposal, f64)> = None;
+        for (i, ra) in rings.iter().enumerate() {
+            for rb in &rings[i + 1..] {
+                let (a, b) = (ra.particle.min(rb.particle), ra.particle.max(rb.particle));
+                if (ra.omega - rb.omega).abs() > resolution || joined(a, b) {
+                    continue;
+                }
+                let omega = 0.5 * (ra.omega + rb.omega);
+                let (times, distances): (Vec<f64>, Vec<f64>) = self
+                    .obs
+                    .positions
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, x)| Some((k as f64 / fps, (x[b]? - x[a]?).norm())))
+                    .unzip();
+                let (c, s) = oscillation::amplitudes(&times, &distances, omega);
+                let amplitude = c.hypot(s);
+                if amplitude < 0.5 * ra.amplitude.max(rb.amplitude) {
+                    continue;
+                }
+                let inverse = |p: usize| structure.particles.get(p).map_or(1.0, |q| 1.0 / q.mass);
+                let mu = 1.0 / (inverse(a) + inverse(b));
+                let stiffness = (mu * omega * omega / 2.0).min(self.stable_stiffness(family, mu));
+                let length = distances.iter().sum::<f64>() / distances.len().max(1) as f64;
+                if best.as_ref().map_or(true, |(_, x)| amplitude > *x) {
+                    let proposal = Proposal {
+                        effect: Effect::MissingSpring { a, b },
+                        init: vec![length, stiffness],
+                        screen: None,
+                        score_test: None,
+                        jolts: Vec::new(),
+                    };
+                    best = Some((proposal, amplitude));
+                }
+            }
+        }
+        best
+    }
+
+    /// The stiffest spring on a mass `mass` the integration keeps stable, `m / (4 dt²)` with
+    /// `dt` the substep (s).
+    fn stable_stiffness(&self, family: &Family, mass: f64) -> f64 {
+        let substep = family.structure.integration_parameters().dt();
+        0.25 * mass / (substep * substep)
     }
 
     /// The stiffness `μ ω² / 2` of `structure`'s spring `k` from the strongest oscillation

@@ -126,3 +126,116 @@ fn stiff_tethers_take_the_stiffness_of_their_oscillation() {
         );
     }
 }
+
+/// Three particles in a row joined by two soft springs, `p0` and `p2` also joined by a stiff
+/// spring the structure leaves out, released stretched by 0.2-1 px so that it rings; drawn
+/// from `seed`.
+fn ringing_triple(seed: u64) -> (Scene, Scene) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let fps: f64 = rng.gen_range(50.0..150.0);
+    let frames = rng.gen_range(150..300);
+    let stiffness: f64 = rng.gen_range(1500.0..5000.0);
+    let gap: f64 = rng.gen_range(30.0..50.0);
+    let stretch: f64 = rng.gen_range(0.2..1.0);
+    let v: [f64; 3] = [
+        rng.gen_range(-20.0..20.0),
+        rng.gen_range(-20.0..20.0),
+        rng.gen_range(-5.0..5.0),
+    ];
+    let text = |hidden: bool| {
+        let extra = if hidden {
+            String::new()
+        } else {
+            format!(
+                r#"
+                [[springs]]
+                between = ["p0", "p2"]
+                length = {}
+                stiffness = {stiffness}
+                "#,
+                2.0 * gap - stretch
+            )
+        };
+        format!(
+            r#"
+            name = "ringing-triple"
+            [recording]
+            fps = {fps}
+            frames = {frames}
+            substeps = 10
+            [[particles]]
+            id = "p0"
+            mass = 1.0
+            position = [60.0, 80.0]
+            velocity = [{}, {}]
+            [[particles]]
+            id = "p1"
+            mass = 1.3
+            position = [{}, 80.0]
+            velocity = [{}, {}]
+            [[particles]]
+            id = "p2"
+            mass = 1.6
+            position = [{}, 80.0]
+            velocity = [{}, {}]
+            [[springs]]
+            between = ["p0", "p1"]
+            length = {}
+            stiffness = 3.0
+            [[springs]]
+            between = ["p1", "p2"]
+            length = {}
+            stiffness = 4.0
+            {extra}
+            "#,
+            v[0],
+            v[1],
+            60.0 + gap,
+            v[0],
+            v[1] + v[2],
+            60.0 + 2.0 * gap,
+            v[0],
+            v[1] - v[2],
+            gap * 0.9,
+            gap * 1.1,
+        )
+    };
+    let parse = |t: String| Scene::from_toml_str(&t, "ringing-triple").unwrap_or_else(|e| panic!("{e}"));
+    let truth = parse(text(false));
+    let mut structure = parse(text(true));
+    for s in &mut structure.springs {
+        s.rest_length = None;
+        s.stiffness = None;
+    }
+    (truth, structure)
+}
+
+#[test]
+fn stiff_missing_springs_take_the_stiffness_of_their_oscillation() {
+    const SPRING: &str = "missing spring p0-p2";
+    for seed in 0..4u64 {
+        let (truth, structure) = ringing_triple(seed);
+        let t = crate::testutil::tracks(&truth, 0.01, seed);
+        let options = DiagnoseOptions {
+            seed,
+            ..DiagnoseOptions::default()
+        };
+        let name = format!("ringing triple {seed}");
+        let d = diagnose(&structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let c = Case {
+            name: name.clone(),
+            truth: truth.clone(),
+            tracks: t,
+            d,
+        };
+        eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
+        c.names_exactly(&[SPRING]);
+        assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
+        let want = truth.springs[2].stiffness.unwrap_or(f64::NAN);
+        let got = c.value(SPRING, "stiffness");
+        assert!(
+            (got - want).abs() <= 0.01 * want,
+            "{name}: stiffness {got:.1}, truth {want:.1}"
+        );
+    }
+}
