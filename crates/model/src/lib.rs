@@ -57,7 +57,7 @@ pub use integrator::{
     step, step_frame, step_frame_prescribed, step_prescribed, IntegrationParameters, IntegratorKind,
     StepScratch,
 };
-pub use model::{dashpot_force_on_i, Model};
+pub use model::{body_drag_force, dashpot_force_on_i, Model};
 pub use particle::{Particle, ParticleId, ParticleSet};
 /// Atomic file output (the one implementation lives in physfit-tracks, the lowest crate).
 pub use physfit_tracks::write_atomic;

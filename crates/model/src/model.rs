@@ -86,13 +86,25 @@ impl Model {
         let ph = &self.physics;
         ph.drag != 0.0
             || ph.quadratic_drag != 0.0
+            || self.has_body_drag()
             || self
                 .springs
                 .iter()
                 .any(|s| s.damping.unwrap_or(ph.spring_damping) != 0.0)
     }
 
-    /// Adds the velocity-dependent forces (drag, quadratic drag, dashpots) into `force`.
+    /// Returns true if and only if some body drag (not scaled by mass) is on: the shared
+    /// `physics.body_drag` or `body_quadratic_drag`, or a particle's own value, is not zero.
+    pub fn has_body_drag(&self) -> bool {
+        let ph = &self.physics;
+        self.particles.particles.iter().any(|p| {
+            p.body_drag.unwrap_or(ph.body_drag) != 0.0
+                || p.body_quadratic_drag.unwrap_or(ph.body_quadratic_drag) != 0.0
+        })
+    }
+
+    /// Adds the velocity-dependent forces (drag per mass and per body, quadratic drag,
+    /// dashpots) into `force`.
     pub fn add_dissipative_forces(&self, state: &State, force: &mut [Vec2]) {
         let ph = &self.physics;
         if ph.drag != 0.0 || ph.quadratic_drag != 0.0 {
@@ -104,6 +116,19 @@ impl Model {
                 .zip(force.iter_mut())
             {
                 *f -= v * (p.mass * (ph.drag + ph.quadratic_drag * v.norm()));
+            }
+        }
+        if self.has_body_drag() {
+            for ((p, v), f) in self
+                .particles
+                .particles
+                .iter()
+                .zip(&state.velocities)
+                .zip(force.iter_mut())
+            {
+                let b = p.body_drag.unwrap_or(ph.body_drag);
+                let c = p.body_quadratic_drag.unwrap_or(ph.body_quadratic_drag);
+                *f += body_drag_force(*v, b, c);
             }
         }
         for s in &self.springs {
@@ -190,8 +215,17 @@ impl Model {
 
     /// Adds a particle (convenience for building models in code) and returns its id.
     pub fn add_particle(&mut self, mass: f64, fixed: bool) -> crate::ParticleId {
-        self.particles.insert(Particle { mass, fixed })
+        self.particles.insert(Particle::new(mass, fixed))
     }
+}
+
+/// Drag force on a body moving at `v` (px/s) through a medium, mass·px/s²: `-(b + c |v|) v`
+/// with linear coefficient `b` (mass/s) and quadratic coefficient `c` (mass/px), not scaled
+/// by the body's mass. A body of mass `m` alone then slows as `v0 exp(-b t / m)` (`c = 0`),
+/// and falls at most at `sqrt(m g / c)` under a field `g` (`b = 0`).
+#[inline]
+pub fn body_drag_force(v: Vec2, b: f64, c: f64) -> Vec2 {
+    -v * (b + c * v.norm())
 }
 
 /// Dashpot force on particle `i` of a spring: `c ((v_j - v_i) . u_ij) u_ij`, for relative

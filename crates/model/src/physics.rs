@@ -113,16 +113,27 @@ pub struct Physics {
     pub quadratic_drag: f64,
     /// Global spring dashpot coefficient, mass/s: `F_i = c ((v_j - v_i) . u_ij) u_ij`.
     pub spring_damping: f64,
+    /// Linear drag coefficient `b` of every body without its own, mass/s: `F = -b v`, not
+    /// scaled by the mass (bodies of one shape and different masses share one medium).
+    pub body_drag: f64,
+    /// Quadratic drag coefficient `c` of every body without its own, mass/px:
+    /// `F = -c |v| v`, not scaled by the mass.
+    pub body_quadratic_drag: f64,
     /// Walls the particles' centres bounce off.
     pub walls: Vec<Wall>,
 }
 
 impl Physics {
     /// Returns true if and only if a global velocity-dependent force is on (linear or quadratic
-    /// drag, global spring dashpot). Per-spring dashpot overrides live on the springs: ask
+    /// drag per mass or per body, global spring dashpot). Per-spring dashpot and per-particle
+    /// drag overrides live on the springs and particles: ask
     /// [`crate::Model::has_velocity_dependent_forces`] for the whole model.
     pub fn has_dissipation(&self) -> bool {
-        self.drag != 0.0 || self.quadratic_drag != 0.0 || self.spring_damping != 0.0
+        self.drag != 0.0
+            || self.quadratic_drag != 0.0
+            || self.spring_damping != 0.0
+            || self.body_drag != 0.0
+            || self.body_quadratic_drag != 0.0
     }
 }
 

@@ -98,7 +98,7 @@ pub struct RulerFile {
 }
 
 /// One `[[particles]]` entry.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleFile {
     /// Unique id.
@@ -113,6 +113,14 @@ pub struct ParticleFile {
     /// Pinned (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub fixed: bool,
+    /// This body's linear drag coefficient, mass/s (`F = -b v`; default
+    /// `physics.body_drag`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_drag: Option<f64>,
+    /// This body's quadratic drag coefficient, mass/px (`F = -c |v| v`; default
+    /// `physics.body_quadratic_drag`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_quadratic_drag: Option<f64>,
 }
 
 fn is_false(b: &bool) -> bool {
@@ -180,6 +188,12 @@ pub struct PhysicsFile {
     /// Global spring dashpot coefficient, mass/s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spring_damping: Option<f64>,
+    /// Linear drag of every body without its own, mass/s (`F = -b v`, not per mass).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_drag: Option<f64>,
+    /// Quadratic drag of every body without its own, mass/px (`F = -c |v| v`, not per mass).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_quadratic_drag: Option<f64>,
     /// Walls.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub walls: Vec<WallFile>,

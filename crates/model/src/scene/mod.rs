@@ -42,7 +42,7 @@ pub struct RecordingSettings {
 }
 
 /// A particle as a scene describes it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ParticleSpec {
     /// Unique id.
     pub id: String,
@@ -54,6 +54,11 @@ pub struct ParticleSpec {
     pub velocity: Vec2,
     /// Pinned.
     pub fixed: bool,
+    /// This body's own linear drag coefficient, mass/s (`None` = `physics.body_drag`).
+    pub body_drag: Option<f64>,
+    /// This body's own quadratic drag coefficient, mass/px (`None` =
+    /// `physics.body_quadratic_drag`).
+    pub body_quadratic_drag: Option<f64>,
 }
 
 /// A spring as a scene describes it: values may be unknown (`None`).
@@ -146,6 +151,12 @@ fn check_range(
             allowed,
         })
     }
+}
+
+/// Checks that `value` is finite, at most [`MAX_MAGNITUDE`] and not negative.
+fn check_non_negative(key: impl Fn() -> String, value: f64) -> Result<(), SceneProblem> {
+    check_finite(&key, &[value])?;
+    check_range(key, value, value >= 0.0, "zero or positive")
 }
 
 fn v2(a: [f64; 2]) -> Vec2 {
@@ -311,12 +322,22 @@ impl Scene {
             check_finite(|| format!("particle \"{}\" position", p.id), &p.position)?;
             let velocity = p.velocity.unwrap_or([0.0, 0.0]);
             check_finite(|| format!("particle \"{}\" velocity", p.id), &velocity)?;
+            for (key, v) in [
+                ("body_drag", p.body_drag),
+                ("body_quadratic_drag", p.body_quadratic_drag),
+            ] {
+                if let Some(v) = v {
+                    check_non_negative(|| format!("particle \"{}\" {key}", p.id), v)?;
+                }
+            }
             particles.push(ParticleSpec {
                 id: p.id.clone(),
                 mass: p.mass,
                 position: v2(p.position),
                 velocity: v2(velocity),
                 fixed: p.fixed,
+                body_drag: p.body_drag,
+                body_quadratic_drag: p.body_quadratic_drag,
             });
         }
         let resolve = |bond: &dyn Fn() -> String, ids: &[&String]| -> Result<Vec<ParticleId>, SceneProblem> {
@@ -417,6 +438,8 @@ impl Scene {
             && is_plus_zero(ph.drag)
             && is_plus_zero(ph.quadratic_drag)
             && is_plus_zero(ph.spring_damping)
+            && is_plus_zero(ph.body_drag)
+            && is_plus_zero(ph.body_quadratic_drag)
             && ph.walls.is_empty()
         {
             None
@@ -430,6 +453,8 @@ impl Scene {
                 drag: nz(ph.drag),
                 quadratic_drag: nz(ph.quadratic_drag),
                 spring_damping: nz(ph.spring_damping),
+                body_drag: nz(ph.body_drag),
+                body_quadratic_drag: nz(ph.body_quadratic_drag),
                 walls: ph
                     .walls
                     .iter()
@@ -469,6 +494,8 @@ impl Scene {
                         Some(a2(p.velocity))
                     },
                     fixed: p.fixed,
+                    body_drag: p.body_drag,
+                    body_quadratic_drag: p.body_quadratic_drag,
                 })
                 .collect(),
             springs: self
@@ -510,9 +537,13 @@ impl Scene {
     }
 
     /// The structure of this scene: same topology, masses and frame-0 positions; bond values,
-    /// per-spring damping and `[physics]` removed.
+    /// per-spring damping, per-particle drag and `[physics]` removed.
     pub fn structure(&self) -> Scene {
         let mut s = self.clone();
+        for p in &mut s.particles {
+            p.body_drag = None;
+            p.body_quadratic_drag = None;
+        }
         for sp in &mut s.springs {
             sp.rest_length = None;
             sp.stiffness = None;
@@ -572,6 +603,8 @@ impl Scene {
                 .map(|p| Particle {
                     mass: p.mass,
                     fixed: p.fixed,
+                    body_drag: p.body_drag,
+                    body_quadratic_drag: p.body_quadratic_drag,
                 })
                 .collect(),
         };
@@ -658,6 +691,19 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
     ] {
         if let Some(v) = v {
             check_finite(|| key.into(), &[v])?;
+            *slot = v;
+        }
+    }
+    for (key, v, slot) in [
+        ("physics.body_drag", ph.body_drag, &mut out.body_drag),
+        (
+            "physics.body_quadratic_drag",
+            ph.body_quadratic_drag,
+            &mut out.body_quadratic_drag,
+        ),
+    ] {
+        if let Some(v) = v {
+            check_non_negative(|| key.into(), v)?;
             *slot = v;
         }
     }

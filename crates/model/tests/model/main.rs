@@ -2,6 +2,7 @@
 //! against its closed form, and the scene file contract.
 
 mod common;
+mod drag_per_body;
 mod integration_laws;
 mod physics_laws;
 mod scene_file;

@@ -355,6 +355,8 @@ velocity = [-0.0, 1.0]
 id = "p2"
 mass = 1.0
 position = [150.0, 170.0]
+body_drag = 0.1
+body_quadratic_drag = -0.0
 
 [[springs]]
 between = ["p0", "p1"]
@@ -378,6 +380,8 @@ gravity = [0.1, 981.0]
 drag = 0.05
 quadratic_drag = 1e-4
 spring_damping = 0.3
+body_drag = 0.30000000000000004
+body_quadratic_drag = 2.5e-5
 
 [[physics.walls]]
 point = [0.0, 480.0]
@@ -459,8 +463,15 @@ fn a_structure_drops_values_and_physics_and_counts_them() {
         .iter()
         .all(|t| t.rest_cos.is_none() && t.stiffness.is_none()));
     assert_eq!(structure.physics, physfit_model::Physics::default());
-    // Topology, masses, frame-0 state, timing and drawing are kept.
-    assert_eq!(structure.particles, scene.particles);
+    // Topology, masses, frame-0 state, timing and drawing are kept; a body's own drag is a
+    // physics value and goes.
+    let mut particles = scene.particles.clone();
+    assert!(particles[2].body_drag.is_some());
+    for p in &mut particles {
+        p.body_drag = None;
+        p.body_quadratic_drag = None;
+    }
+    assert_eq!(structure.particles, particles);
     assert_eq!(structure.recording, scene.recording);
     assert_eq!(structure.render, scene.render);
     assert_eq!(
