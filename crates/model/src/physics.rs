@@ -3,7 +3,11 @@
 //! Each effect is off unless a scene turns it on, and the model can evaluate any combination.
 //! The conservative field is a [`crate::Potential`] (see [`crate::Model`]); drag and dashpots
 //! depend on velocities and are added as forces; walls are events applied after each
-//! integration substep.
+//! integration substep. A wall's Coulomb friction acts inside that event, as a tangential
+//! impulse bounded by `friction` times the normal impulse: one law gives both the friction
+//! of a bounce and the sliding friction `mu m g_n` of a particle resting on the wall (whose
+//! normal impulse over a substep is `m g_n dt`), and a tangential speed the bound covers is
+//! brought to zero exactly, so a particle stops and stays stopped (no chattering).
 
 use crate::Vec2;
 
@@ -16,6 +20,9 @@ pub struct Wall {
     pub normal: Vec2,
     /// Coefficient of restitution on the normal velocity (0 = stops, 1 = elastic).
     pub restitution: f64,
+    /// Coulomb friction coefficient `mu` (dimensionless, 0 = frictionless): the tangential
+    /// velocity change of a contact is at most `mu` times its normal velocity change.
+    pub friction: f64,
 }
 
 impl Wall {
@@ -36,10 +43,16 @@ impl Wall {
                 point,
                 normal,
                 restitution,
+                friction: 0.0,
             })
         } else {
             None
         }
+    }
+
+    /// This wall with Coulomb friction coefficient `mu` (dimensionless).
+    pub fn with_friction(self, mu: f64) -> Wall {
+        Wall { friction: mu, ..self }
     }
 
     /// Signed distance of `x` from the wall line, px: positive on the allowed side.
@@ -78,7 +91,8 @@ impl Wall {
     /// is off by `(1 + e) a_n tau` in velocity, an energy gain at every bounce under gravity).
     /// When `a_n` pushes the particle back faster than it rebounds (resting contact), it is
     /// left on the line with no normal velocity: it never ends a substep on the wrong side.
-    /// The tangential velocity is unchanged.
+    /// Without friction the tangential velocity is unchanged; with friction see
+    /// [`Wall::apply_friction`].
     #[inline]
     pub fn reflect_in_substep(&self, x: &mut Vec2, v: &mut Vec2, a: Vec2, dt: f64) -> bool {
         let s = self.signed_distance(*x);
@@ -94,11 +108,34 @@ impl Wall {
             let vn_new = (-e * vn + (1.0 + e) * an * tau).max(0.0);
             *x += self.normal * (s_new - s);
             *v += self.normal * (vn_new - vn);
+            if self.friction != 0.0 {
+                self.apply_friction(x, v, vn_new - vn, tau);
+            }
         } else {
             // Already leaving (pushed across by another force): only the position is wrong.
             *x -= self.normal * ((1.0 + self.restitution) * s);
         }
         true
+    }
+
+    /// Coulomb friction of one contact: the tangential velocity `v_t` (px/s) loses
+    /// `min(mu * dv_n, |v_t|)`, where `dv_n` (px/s, >= 0) is the contact's normal velocity
+    /// change (its normal impulse per unit mass). Resting on the wall under a normal
+    /// acceleration `g_n`, `dv_n = g_n dt` each substep: a sliding particle decelerates at
+    /// `mu g_n` and stops after `v0^2 / (2 mu g_n)` px; once stopped it stays stopped while the
+    /// tangential push is at most `mu g_n` (the static condition), since the bound then
+    /// covers what the push added. The impulse is taken at the contact, `tau` s before the end
+    /// of the substep, so the position moves back by the velocity change times `tau` (for a
+    /// resting contact `tau = dt / 2`: the trapezoidal rule of a constant deceleration).
+    #[inline]
+    pub fn apply_friction(&self, x: &mut Vec2, v: &mut Vec2, dv_n: f64, tau: f64) {
+        let vt = *v - self.normal * v.dot(&self.normal);
+        let speed = vt.norm();
+        if speed > 0.0 && dv_n > 0.0 {
+            let change = vt * -((self.friction * dv_n).min(speed) / speed);
+            *v += change;
+            *x += change * tau;
+        }
     }
 }
 

@@ -170,6 +170,9 @@ pub struct WallFile {
     pub normal: [f64; 2],
     /// Restitution of the normal velocity, 0..1.
     pub restitution: f64,
+    /// Coulomb friction coefficient, dimensionless, >= 0 (absent = frictionless).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
 }
 
 /// `[physics]`: each key absent = effect off.

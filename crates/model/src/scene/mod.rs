@@ -462,6 +462,7 @@ impl Scene {
                         point: a2(w.point),
                         normal: a2(w.normal),
                         restitution: w.restitution,
+                        friction: nz(w.friction),
                     })
                     .collect(),
             })
@@ -717,8 +718,12 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
             (0.0..=1.0).contains(&w.restitution),
             "in [0, 1]",
         )?;
-        let wall =
+        let mut wall =
             Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
+        if let Some(mu) = w.friction {
+            check_non_negative(|| format!("physics.walls[{k}].friction"), mu)?;
+            wall = wall.with_friction(mu);
+        }
         out.walls.push(wall);
     }
     Ok(out)

@@ -6,3 +6,4 @@ mod drag_per_body;
 mod integration_laws;
 mod physics_laws;
 mod scene_file;
+mod wall_friction;

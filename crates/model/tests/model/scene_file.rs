@@ -387,6 +387,7 @@ body_quadratic_drag = 2.5e-5
 point = [0.0, 480.0]
 normal = [1.0, -3.0]
 restitution = 0.8
+friction = 0.45
 
 [[physics.walls]]
 point = [10.0, 0.0]
