@@ -20,7 +20,12 @@ impl Potential for Model {
     fn energy(&self, x: &[Vec2]) -> f64 {
         let bonds: f64 = self.springs.iter().map(|s| s.energy(x)).sum::<f64>()
             + self.torsions.iter().map(|t| t.energy(x)).sum::<f64>();
-        bonds + self.field_energy(x)
+        let total = bonds + self.field_energy(x);
+        if self.has_bumpers() {
+            total + self.bumper_energy(x)
+        } else {
+            total
+        }
     }
 
     fn add_gradient(&self, x: &[Vec2], grad: &mut [Vec2]) {
@@ -37,6 +42,13 @@ impl Potential for Model {
             for (p, gr) in self.particles.particles.iter().zip(grad.iter_mut()) {
                 if !p.fixed {
                     *gr -= g * p.mass;
+                }
+            }
+        }
+        for w in self.physics.walls.iter().filter(|w| w.is_bumper()) {
+            for ((p, xi), gr) in self.particles.particles.iter().zip(x).zip(grad.iter_mut()) {
+                if !p.fixed {
+                    *gr += w.bumper_gradient(*xi);
                 }
             }
         }
@@ -58,6 +70,27 @@ impl Model {
             .zip(x)
             .filter(|(p, _)| !p.fixed)
             .map(|(p, xi)| -p.mass * g.dot(xi))
+            .sum()
+    }
+
+    /// Returns true if and only if some wall is a spring bumper.
+    fn has_bumpers(&self) -> bool {
+        self.physics.walls.iter().any(|w| w.is_bumper())
+    }
+
+    /// Energy of the bumper springs, `sum S s^2` over bumpers and penetrating free particles.
+    fn bumper_energy(&self, x: &[Vec2]) -> f64 {
+        let walls = self.physics.walls.iter().filter(|w| w.is_bumper());
+        walls
+            .map(|w| {
+                self.particles
+                    .particles
+                    .iter()
+                    .zip(x)
+                    .filter(|(p, _)| !p.fixed)
+                    .map(|(_, xi)| w.bumper_energy(*xi))
+                    .sum::<f64>()
+            })
             .sum()
     }
 
@@ -87,6 +120,7 @@ impl Model {
         ph.drag != 0.0
             || ph.quadratic_drag != 0.0
             || self.has_body_drag()
+            || ph.walls.iter().any(|w| w.is_bumper() && w.damping != 0.0)
             || self
                 .springs
                 .iter()
@@ -131,6 +165,16 @@ impl Model {
                 *f += body_drag_force(*v, b, c);
             }
         }
+        for w in ph.walls.iter().filter(|w| w.is_bumper() && w.damping != 0.0) {
+            for ((x, v), f) in state
+                .positions
+                .iter()
+                .zip(&state.velocities)
+                .zip(force.iter_mut())
+            {
+                *f += w.bumper_damping_force(*x, *v);
+            }
+        }
         for s in &self.springs {
             let c = s.damping.unwrap_or(ph.spring_damping);
             if c == 0.0 {
@@ -171,7 +215,7 @@ impl Model {
     }
 
     /// Applies every wall's reflection law ([`crate::Wall::reflect`], constant velocity) to
-    /// every free particle. Returns the number of bounces.
+    /// every free particle. Returns the number of bounces (bumpers act as forces, never here).
     pub fn apply_walls(&self, state: &mut State) -> usize {
         self.apply_walls_with(state, |_| Vec2::zeros(), f64::INFINITY)
     }

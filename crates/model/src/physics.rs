@@ -8,6 +8,11 @@
 //! of a bounce and the sliding friction `mu m g_n` of a particle resting on the wall (whose
 //! normal impulse over a substep is `m g_n dt`), and a tangential speed the bound covers is
 //! brought to zero exactly, so a particle stops and stays stopped (no chattering).
+//!
+//! A wall with a `stiffness` is a spring bumper instead: no event, but a one-sided spring
+//! (energy `S s^2` for a penetration `s < 0`, once and with no 1/2 like a bond) and dashpot
+//! along its normal, so the contact line moves with the impact speed. Its spring is part of
+//! the model's [`crate::Potential`], its dashpot a velocity-dependent force.
 
 use crate::Vec2;
 
@@ -23,6 +28,13 @@ pub struct Wall {
     /// Coulomb friction coefficient `mu` (dimensionless, 0 = frictionless): the tangential
     /// velocity change of a contact is at most `mu` times its normal velocity change.
     pub friction: f64,
+    /// Bumper stiffness `S`, energy/px² (mass/s²): 0 = a rigid wall (the event law); above
+    /// 0 a one-sided spring of energy `S s^2` for a penetration `s < 0`, so force `-2 S s`
+    /// along the normal (the usual spring constant is `k = 2 S`).
+    pub stiffness: f64,
+    /// Bumper dashpot coefficient `c`, mass/s: force `-c v_n` along the normal while the
+    /// centre is beyond the line (only on a bumper, `stiffness > 0`).
+    pub damping: f64,
 }
 
 impl Wall {
@@ -44,6 +56,8 @@ impl Wall {
                 normal,
                 restitution,
                 friction: 0.0,
+                stiffness: 0.0,
+                damping: 0.0,
             })
         } else {
             None
@@ -55,6 +69,53 @@ impl Wall {
         Wall { friction: mu, ..self }
     }
 
+    /// This wall as a spring bumper of stiffness `stiffness` (energy/px²) and dashpot
+    /// `damping` (mass/s). A mass `m` that hits it at normal speed `v` with no other force
+    /// stays in contact for `pi / w_d` s and leaves at `e v`, with `w = sqrt(2 S / m)`,
+    /// `zeta = c / (2 sqrt(2 S m))`, `w_d = w sqrt(1 - zeta^2)` and
+    /// `e = exp(-zeta pi / sqrt(1 - zeta^2))` (light damping); it enters at most `v / w` px
+    /// when `c = 0`.
+    pub fn with_bumper(self, stiffness: f64, damping: f64) -> Wall {
+        Wall {
+            stiffness,
+            damping,
+            ..self
+        }
+    }
+
+    /// Returns true if and only if the wall is a spring bumper (`stiffness > 0`): forces,
+    /// not the event law.
+    #[inline]
+    pub fn is_bumper(&self) -> bool {
+        self.stiffness > 0.0
+    }
+
+    /// Energy of the bumper spring with a centre at `x` (px), mass·px²/s²: `S s^2` for a
+    /// penetration `s < 0`, else 0.
+    #[inline]
+    pub fn bumper_energy(&self, x: Vec2) -> f64 {
+        let s = self.signed_distance(x).min(0.0);
+        self.stiffness * s * s
+    }
+
+    /// Gradient of [`Wall::bumper_energy`] at `x`, energy per px: `2 S s n` for `s < 0`.
+    #[inline]
+    pub fn bumper_gradient(&self, x: Vec2) -> Vec2 {
+        let s = self.signed_distance(x).min(0.0);
+        self.normal * (2.0 * self.stiffness * s)
+    }
+
+    /// Dashpot force of the bumper on a centre at `x` (px) moving at `v` (px/s),
+    /// mass·px/s²: `-c (v . n) n` while `s < 0`, else zero.
+    #[inline]
+    pub fn bumper_damping_force(&self, x: Vec2, v: Vec2) -> Vec2 {
+        if self.signed_distance(x) < 0.0 {
+            self.normal * (-self.damping * v.dot(&self.normal))
+        } else {
+            Vec2::zeros()
+        }
+    }
+
     /// Signed distance of `x` from the wall line, px: positive on the allowed side.
     #[inline]
     pub fn signed_distance(&self, x: Vec2) -> f64 {
@@ -63,11 +124,12 @@ impl Wall {
 
     /// Applies the reflection law to one particle: a centre found on the wrong side is
     /// mirrored back with its penetration scaled by the restitution, and an approaching normal
-    /// velocity `v_n < 0` becomes `-restitution * v_n`. Returns true if and only if it bounced.
+    /// velocity `v_n < 0` becomes `-restitution * v_n`. Returns true if and only if it bounced
+    /// (never for a bumper, whose contact is a force).
     #[inline]
     pub fn reflect(&self, x: &mut Vec2, v: &mut Vec2) -> bool {
         let s = self.signed_distance(*x);
-        if s >= 0.0 {
+        if s >= 0.0 || self.is_bumper() {
             return false;
         }
         *x -= self.normal * ((1.0 + self.restitution) * s);
@@ -92,11 +154,11 @@ impl Wall {
     /// When `a_n` pushes the particle back faster than it rebounds (resting contact), it is
     /// left on the line with no normal velocity: it never ends a substep on the wrong side.
     /// Without friction the tangential velocity is unchanged; with friction see
-    /// [`Wall::apply_friction`].
+    /// [`Wall::apply_friction`]. A bumper never bounces (its contact is a force).
     #[inline]
     pub fn reflect_in_substep(&self, x: &mut Vec2, v: &mut Vec2, a: Vec2, dt: f64) -> bool {
         let s = self.signed_distance(*x);
-        if s >= 0.0 {
+        if s >= 0.0 || self.is_bumper() {
             return false;
         }
         let e = self.restitution;

@@ -168,11 +168,21 @@ pub struct WallFile {
     pub point: [f64; 2],
     /// Normal pointing into the allowed side (normalised on load).
     pub normal: [f64; 2],
-    /// Restitution of the normal velocity, 0..1.
-    pub restitution: f64,
-    /// Coulomb friction coefficient, dimensionless, >= 0 (absent = frictionless).
+    /// Restitution of the normal velocity, 0..1: required on a rigid wall, absent on a
+    /// spring bumper.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    /// Coulomb friction coefficient, dimensionless, >= 0 (absent = frictionless; rigid
+    /// walls only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
+    /// Bumper stiffness `S`, energy/px² (absent = a rigid wall): energy `S s^2` for a
+    /// penetration `s < 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// Bumper dashpot coefficient, mass/s (bumpers only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<f64>,
 }
 
 /// `[physics]`: each key absent = effect off.

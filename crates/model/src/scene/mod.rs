@@ -461,8 +461,10 @@ impl Scene {
                     .map(|w| WallFile {
                         point: a2(w.point),
                         normal: a2(w.normal),
-                        restitution: w.restitution,
+                        restitution: (!w.is_bumper()).then_some(w.restitution),
                         friction: nz(w.friction),
+                        stiffness: nz(w.stiffness),
+                        damping: nz(w.damping),
                     })
                     .collect(),
             })
@@ -709,24 +711,60 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
         }
     }
     for (k, w) in ph.walls.iter().enumerate() {
-        check_finite(|| format!("physics.walls[{k}].point"), &w.point)?;
-        check_finite(|| format!("physics.walls[{k}].normal"), &w.normal)?;
-        check_finite(|| format!("physics.walls[{k}].restitution"), &[w.restitution])?;
-        check_range(
-            || format!("physics.walls[{k}].restitution"),
-            w.restitution,
-            (0.0..=1.0).contains(&w.restitution),
-            "in [0, 1]",
-        )?;
-        let mut wall =
-            Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
-        if let Some(mu) = w.friction {
-            check_non_negative(|| format!("physics.walls[{k}].friction"), mu)?;
-            wall = wall.with_friction(mu);
-        }
-        out.walls.push(wall);
+        out.walls.push(wall_from_file(k, w)?);
     }
     Ok(out)
+}
+
+/// Validates `[[physics.walls]]` entry `k`: a rigid wall (restitution, optional friction)
+/// or a spring bumper (stiffness, optional damping; no restitution or friction).
+fn wall_from_file(k: usize, w: &WallFile) -> Result<Wall, SceneProblem> {
+    let key = |name: &str| format!("physics.walls[{k}].{name}");
+    check_finite(|| key("point"), &w.point)?;
+    check_finite(|| key("normal"), &w.normal)?;
+    let stiffness = w.stiffness.unwrap_or(0.0);
+    check_non_negative(|| key("stiffness"), stiffness)?;
+    let bumper = stiffness > 0.0;
+    let restitution = match (w.restitution, bumper) {
+        (Some(e), false) => {
+            check_finite(|| key("restitution"), &[e])?;
+            check_range(|| key("restitution"), e, (0.0..=1.0).contains(&e), "in [0, 1]")?;
+            e
+        }
+        (None, false) => return Err(SceneProblem::NoWallRestitution(k)),
+        (Some(e), true) => return Err(SceneProblem::OutOfRange {
+            key: key("restitution"),
+            value: e,
+            allowed:
+                "absent on a spring bumper (a wall with stiffness): its stiffness and damping set the rebound",
+        }),
+        (None, true) => 0.0,
+    };
+    let mut wall =
+        Wall::new(v2(w.point), v2(w.normal), restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
+    if let Some(mu) = w.friction {
+        check_non_negative(|| key("friction"), mu)?;
+        check_range(
+            || key("friction"),
+            mu,
+            !bumper || mu == 0.0,
+            "zero on a spring bumper (a wall with stiffness)",
+        )?;
+        wall = wall.with_friction(mu);
+    }
+    if let Some(c) = w.damping {
+        check_non_negative(|| key("damping"), c)?;
+        check_range(
+            || key("damping"),
+            c,
+            bumper || c == 0.0,
+            "zero on a rigid wall (give the wall a stiffness to make it a bumper)",
+        )?;
+    }
+    if bumper {
+        wall = wall.with_bumper(stiffness, w.damping.unwrap_or(0.0));
+    }
+    Ok(wall)
 }
 
 /// A spring's display name from its two ids: `spring a-b`.

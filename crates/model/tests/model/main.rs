@@ -1,6 +1,7 @@
 //! Integration tests of physfit-model through its public API: integrators, each physics law
 //! against its closed form, and the scene file contract.
 
+mod bumper;
 mod common;
 mod drag_per_body;
 mod integration_laws;

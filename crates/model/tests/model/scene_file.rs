@@ -393,6 +393,12 @@ friction = 0.45
 point = [10.0, 0.0]
 normal = [1.0, 0.0]
 restitution = 0.0
+
+[[physics.walls]]
+point = [630.0, 0.0]
+normal = [-1.0, 0.0]
+stiffness = 123.5
+damping = 0.7
 "#;
 
 #[test]
@@ -412,7 +418,8 @@ fn every_key_is_read() {
     assert!(s.particles[0].fixed && !s.particles[1].fixed);
     assert_eq!(s.springs[0].damping.map(f64::to_bits), Some(0.125f64.to_bits()));
     assert_eq!(s.springs[1].damping, None);
-    assert_eq!(s.physics.walls.len(), 2);
+    assert_eq!(s.physics.walls.len(), 3);
+    assert!(s.physics.walls[2].is_bumper() && !s.physics.walls[0].is_bumper());
     // Normals are normalised on load.
     assert!((s.physics.walls[0].normal - Vec2::new(1.0, -3.0) / 10f64.sqrt()).norm() < 1e-15);
     let p = s.integration_parameters();
@@ -613,7 +620,7 @@ fn the_documented_example_is_valid_and_uses_every_key() {
     let scene = Scene::from_toml_str(example, "docs/scene-format.md").unwrap();
     assert_eq!(scene.unknown_count(), 0);
     let model = scene.model().unwrap();
-    assert!(model.has_velocity_dependent_forces() && model.physics.walls.len() == 2);
+    assert!(model.has_velocity_dependent_forces() && model.physics.walls.len() == 3);
     // Every key the writer knows appears in the example.
     let written = scene.to_toml_string().unwrap();
     for line in written.lines().filter(|l| l.contains(" = ")) {
