@@ -257,6 +257,13 @@ impl Model {
         bounces
     }
 
+    /// Projects `state`, the end of a substep of `dt` s that started at positions `x_old`
+    /// (px), onto the ropes and rails ([`crate::constraint`]'s RATTLE-like projection).
+    pub fn apply_constraints(&self, x_old: &[Vec2], state: &mut State, dt: f64) {
+        let ph = &self.physics;
+        crate::constraint::project(&self.particles, &ph.ropes, &ph.rails, x_old, state, dt);
+    }
+
     /// Adds a particle (convenience for building models in code) and returns its id.
     pub fn add_particle(&mut self, mass: f64, fixed: bool) -> crate::ParticleId {
         self.particles.insert(Particle::new(mass, fixed))

@@ -14,7 +14,7 @@
 //! along its normal, so the contact line moves with the impact speed. Its spring is part of
 //! the model's [`crate::Potential`], its dashpot a velocity-dependent force.
 
-use crate::Vec2;
+use crate::{Rail, Rope, Vec2};
 
 /// A straight wall: the line through `point` with unit `normal` pointing into the allowed side.
 #[derive(Clone, Debug, PartialEq)]
@@ -220,9 +220,18 @@ pub struct Physics {
     pub body_quadratic_drag: f64,
     /// Walls the particles' centres bounce off.
     pub walls: Vec<Wall>,
+    /// Ropes and rods: distance constraints between particles.
+    pub ropes: Vec<Rope>,
+    /// Rails: particles held on lines.
+    pub rails: Vec<Rail>,
 }
 
 impl Physics {
+    /// Returns true if and only if some rope or rail constrains the motion.
+    pub fn has_constraints(&self) -> bool {
+        !self.ropes.is_empty() || !self.rails.is_empty()
+    }
+
     /// Returns true if and only if a global velocity-dependent force is on (linear or quadratic
     /// drag per mass or per body, global spring dashpot). Per-spring dashpot and per-particle
     /// drag overrides live on the springs and particles: ask

@@ -185,6 +185,31 @@ pub struct WallFile {
     pub damping: Option<f64>,
 }
 
+/// One `[[physics.ropes]]` entry: an inextensible rope (or rod) between two particles.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RopeFile {
+    /// The two particle ids (one may be a fixed particle: a rope to a fixed point).
+    pub between: [String; 2],
+    /// Length, px (> 0).
+    pub length: f64,
+    /// Slack when the ends come closer than `length` (default false: a rigid rod).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub slack: bool,
+}
+
+/// One `[[physics.rails]]` entry: a particle held on a line.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RailFile {
+    /// The particle id.
+    pub particle: String,
+    /// A point of the line, px.
+    pub point: [f64; 2],
+    /// Direction of the line (normalised on load).
+    pub direction: [f64; 2],
+}
+
 /// `[physics]`: each key absent = effect off.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -210,6 +235,12 @@ pub struct PhysicsFile {
     /// Walls.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub walls: Vec<WallFile>,
+    /// Ropes and rods (distance constraints).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ropes: Vec<RopeFile>,
+    /// Rails (particles held on lines).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rails: Vec<RailFile>,
 }
 
 /// A whole scene file.

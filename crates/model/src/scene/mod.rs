@@ -11,16 +11,16 @@ mod file;
 pub use compare::{compare_scenes, effects_beyond, SceneComparison, ValueComparison};
 pub use error::{SceneError, SceneProblem};
 pub use file::{
-    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, RulerFile, SceneFile, SpringFile,
-    TorsionFile, WallFile,
+    Colour, ParticleFile, PhysicsFile, RailFile, RecordingFile, RenderSettings, RopeFile, RulerFile,
+    SceneFile, SpringFile, TorsionFile, WallFile,
 };
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use crate::{
-    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Spring, State,
-    Torsion, Vec2, Wall,
+    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Rail, Rope,
+    Spring, State, Torsion, Vec2, Wall,
 };
 
 /// Default integration substeps per frame when `[recording]` gives none.
@@ -406,7 +406,7 @@ impl Scene {
 
         let physics = match &raw.physics {
             None => Physics::default(),
-            Some(ph) => physics_from_file(ph)?,
+            Some(ph) => physics_from_file(ph, &resolve)?,
         };
 
         Ok(Scene {
@@ -441,6 +441,8 @@ impl Scene {
             && is_plus_zero(ph.body_drag)
             && is_plus_zero(ph.body_quadratic_drag)
             && ph.walls.is_empty()
+            && ph.ropes.is_empty()
+            && ph.rails.is_empty()
         {
             None
         } else {
@@ -465,6 +467,24 @@ impl Scene {
                         friction: nz(w.friction),
                         stiffness: nz(w.stiffness),
                         damping: nz(w.damping),
+                    })
+                    .collect(),
+                ropes: ph
+                    .ropes
+                    .iter()
+                    .map(|r| RopeFile {
+                        between: [id(r.ends[0]), id(r.ends[1])],
+                        length: r.length,
+                        slack: r.slack,
+                    })
+                    .collect(),
+                rails: ph
+                    .rails
+                    .iter()
+                    .map(|r| RailFile {
+                        particle: id(r.particle),
+                        point: a2(r.point),
+                        direction: a2(r.direction),
                     })
                     .collect(),
             })
@@ -673,7 +693,10 @@ impl Scene {
     }
 }
 
-fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
+/// Resolves the particle ids a bond or constraint (named by the first argument) lists.
+type Resolve<'a> = dyn Fn(&dyn Fn() -> String, &[&String]) -> Result<Vec<ParticleId>, SceneProblem> + 'a;
+
+fn physics_from_file(ph: &PhysicsFile, resolve: &Resolve) -> Result<Physics, SceneProblem> {
     let mut out = Physics::default();
     if let Some(g) = ph.gravity {
         check_finite(|| "physics.gravity".into(), &g)?;
@@ -712,6 +735,35 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
     }
     for (k, w) in ph.walls.iter().enumerate() {
         out.walls.push(wall_from_file(k, w)?);
+    }
+    for r in &ph.ropes {
+        let name = || format!("rope {}-{}", r.between[0], r.between[1]);
+        let ends = resolve(&name, &[&r.between[0], &r.between[1]])?;
+        check_finite(|| format!("{} length", name()), &[r.length])?;
+        check_range(
+            || format!("{} length", name()),
+            r.length,
+            r.length > 0.0,
+            "positive",
+        )?;
+        out.ropes.push(Rope {
+            ends: [ends[0], ends[1]],
+            length: r.length,
+            slack: r.slack,
+        });
+    }
+    for (k, r) in ph.rails.iter().enumerate() {
+        let key = |name: &str| format!("physics.rails[{k}].{name}");
+        let ids = resolve(&|| format!("rail {}", r.particle), &[&r.particle])?;
+        check_finite(|| key("point"), &r.point)?;
+        check_finite(|| key("direction"), &r.direction)?;
+        let direction = v2(r.direction);
+        let rail = Rail::new(ids[0], v2(r.point), direction).ok_or_else(|| SceneProblem::OutOfRange {
+            key: key("direction"),
+            value: direction.norm(),
+            allowed: "of non-zero length",
+        })?;
+        out.rails.push(rail);
     }
     Ok(out)
 }

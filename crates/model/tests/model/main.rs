@@ -3,6 +3,7 @@
 
 mod bumper;
 mod common;
+mod constraints;
 mod drag_per_body;
 mod integration_laws;
 mod physics_laws;

@@ -399,6 +399,20 @@ point = [630.0, 0.0]
 normal = [-1.0, 0.0]
 stiffness = 123.5
 damping = 0.7
+
+[[physics.ropes]]
+between = ["p0", "p2"]
+length = 77.7
+slack = true
+
+[[physics.ropes]]
+between = ["p2", "p1"]
+length = 1e-3
+
+[[physics.rails]]
+particle = "p1"
+point = [-0.0, 3.5]
+direction = [0.6, 0.8]
 "#;
 
 #[test]
@@ -628,7 +642,14 @@ fn the_documented_example_is_valid_and_uses_every_key() {
         let used = example.lines().any(|l| l.starts_with(&format!("{key} = ")));
         assert!(used, "the example lacks `{key}`");
     }
-    for table in ["[render]", "[physics]", "[[physics.walls]]", "[[torsions]]"] {
+    for table in [
+        "[render]",
+        "[physics]",
+        "[[physics.walls]]",
+        "[[physics.ropes]]",
+        "[[physics.rails]]",
+        "[[torsions]]",
+    ] {
         assert!(example.contains(table));
     }
     // It simulates to finite positions, above the floor.
