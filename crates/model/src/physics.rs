@@ -280,6 +280,32 @@ mod tests {
     }
 
     #[test]
+    fn the_bumper_force_is_minus_the_gradient_of_its_energy() {
+        // Central differences of S s^2 against 2 S s n, inside and outside the line.
+        let wall = Wall::new(Vec2::new(1.0, 2.0), Vec2::new(3.0, -4.0), 0.0)
+            .unwrap()
+            .with_bumper(7.5, 0.0);
+        let h = 1e-6;
+        for x in [Vec2::new(0.3, 4.1), Vec2::new(-2.0, 5.5), Vec2::new(4.0, -1.0)] {
+            let g = wall.bumper_gradient(x);
+            let fd = Vec2::new(
+                wall.bumper_energy(x + Vec2::new(h, 0.0)) - wall.bumper_energy(x - Vec2::new(h, 0.0)),
+                wall.bumper_energy(x + Vec2::new(0.0, h)) - wall.bumper_energy(x - Vec2::new(0.0, h)),
+            ) / (2.0 * h);
+            assert!(
+                (g - fd).norm() <= 1e-6 * (1.0 + g.norm()),
+                "{x:?}: {g:?} vs {fd:?}"
+            );
+        }
+        // Beyond the line only; a bumper never takes the event law.
+        assert!(wall.bumper_gradient(Vec2::new(4.0, -1.0)).norm() == 0.0);
+        let (mut x, mut v) = (Vec2::new(0.3, 4.1), Vec2::new(-1.0, 1.0));
+        assert!(
+            wall.signed_distance(x) < 0.0 && !wall.reflect_in_substep(&mut x, &mut v, Vec2::zeros(), 1e-3)
+        );
+    }
+
+    #[test]
     fn resting_contact_leaves_the_particle_on_the_line() {
         // Inelastic, slow, strongly pushed into the wall: it stays on the line, at rest in n.
         let wall = Wall::new(Vec2::new(0.0, 10.0), Vec2::new(0.0, -1.0), 0.0).unwrap();
