@@ -33,7 +33,7 @@ pub struct Rope {
 }
 
 /// A rail: particle `particle` moves along the line through `point` (px) with unit
-/// `direction`.
+/// `direction`, with Coulomb friction `friction` against the rail's normal impulse.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rail {
     /// The particle held on the rail.
@@ -42,6 +42,11 @@ pub struct Rail {
     pub point: Vec2,
     /// Unit direction of the line.
     pub direction: Vec2,
+    /// Coulomb friction coefficient `mu` (dimensionless, 0 = frictionless): over a substep
+    /// the speed along the rail loses at most `mu` times the normal velocity change the rail
+    /// imposed, as at a wall ([`crate::Wall::apply_friction`]): a cart pressed on the rail
+    /// by `m g_n` slides with deceleration `mu g_n` and sticks while pushed by at most that.
+    pub friction: f64,
 }
 
 impl Rail {
@@ -61,7 +66,13 @@ impl Rail {
             particle,
             point,
             direction,
+            friction: 0.0,
         })
+    }
+
+    /// This rail with Coulomb friction coefficient `mu` (dimensionless).
+    pub fn with_friction(self, mu: f64) -> Rail {
+        Rail { friction: mu, ..self }
     }
 
     /// Unit normal of the rail line.
@@ -81,7 +92,8 @@ fn inverse_mass(particles: &ParticleSet, k: usize) -> f64 {
 }
 
 /// Projects `state` (the end of a substep of `dt` s that started at positions `x_old`, px)
-/// onto the ropes and rails, positions then velocities, as the module doc says.
+/// onto the ropes and rails, positions then velocities, as the module doc says, then applies
+/// the rails' friction. `rails_dv` is a buffer (resized here, so no allocation once sized).
 pub fn project(
     particles: &ParticleSet,
     ropes: &[Rope],
@@ -89,14 +101,19 @@ pub fn project(
     x_old: &[Vec2],
     state: &mut State,
     dt: f64,
+    rails_dv: &mut Vec<[f64; 2]>,
 ) {
+    // Each rail's normal velocity change over the substep and the time since the particle
+    // crossed the line, s (for its friction).
+    rails_dv.clear();
+    rails_dv.resize(rails.len(), [0.0, f64::NAN]);
     for _ in 0..MAX_SWEEPS {
         let mut worst = 0.0f64;
         for rope in ropes {
             worst = worst.max(project_rope_position(particles, rope, x_old, state, dt));
         }
-        for rail in rails {
-            project_rail_position(particles, rail, state, dt);
+        for (rail, dv) in rails.iter().zip(rails_dv.iter_mut()) {
+            project_rail_position(particles, rail, state, dt, dv);
         }
         if worst <= TOLERANCE {
             break;
@@ -107,17 +124,42 @@ pub fn project(
         for rope in ropes {
             worst = worst.max(project_rope_velocity(particles, rope, state));
         }
-        for rail in rails {
+        for (rail, dv) in rails.iter().zip(rails_dv.iter_mut()) {
             let k = rail.particle.index();
             if !particles.particles[k].fixed {
                 let n = rail.normal();
                 let v = &mut state.velocities[k];
-                *v -= n * v.dot(&n);
+                let vn = v.dot(&n);
+                *v -= n * vn;
+                dv[0] -= vn;
             }
         }
         if worst <= TOLERANCE {
             break;
         }
+    }
+    for (rail, &[dv, tau]) in rails.iter().zip(rails_dv.iter()) {
+        let tau = if tau.is_nan() { 0.5 * dt } else { tau };
+        apply_rail_friction(particles, rail, state, dv.abs(), tau);
+    }
+}
+
+/// Coulomb friction along a rail: the speed along it loses `min(mu dv_n, |v_t|)`, `dv_n`
+/// (px/s) the normal velocity change the rail imposed over the substep; the position moves
+/// back by the change times `tau` (s), the time since the particle left the line, as at a
+/// wall's resting contact ([`crate::Wall::apply_friction`]: `dt / 2` for Verlet, `dt` for
+/// semi-implicit Euler), so that a particle held by static friction does not creep.
+fn apply_rail_friction(particles: &ParticleSet, rail: &Rail, state: &mut State, dv_n: f64, tau: f64) {
+    let k = rail.particle.index();
+    if rail.friction == 0.0 || particles.particles[k].fixed {
+        return;
+    }
+    let vt = state.velocities[k].dot(&rail.direction);
+    let loss = (rail.friction * dv_n).min(vt.abs());
+    if loss > 0.0 {
+        let change = rail.direction * (-loss * vt.signum());
+        state.velocities[k] += change;
+        state.positions[k] += change * tau;
     }
 }
 
@@ -191,14 +233,28 @@ fn project_rope_velocity(particles: &ParticleSet, rope: &Rope, state: &mut State
     }
 }
 
-/// Puts a rail's particle back on its line, the displacement over `dt` taken as an impulse.
-fn project_rail_position(particles: &ParticleSet, rail: &Rail, state: &mut State, dt: f64) {
+/// Puts a rail's particle back on its line, the displacement over `dt` taken as an impulse;
+/// adds that impulse's normal velocity change (px/s, signed along the rail's normal) to
+/// `dv[0]` and, the first time the particle is found off the line, the time since it left
+/// it (`off / v_n`, clamped to `[0, dt]`) to `dv[1]`.
+fn project_rail_position(
+    particles: &ParticleSet,
+    rail: &Rail,
+    state: &mut State,
+    dt: f64,
+    dv: &mut [f64; 2],
+) {
     let k = rail.particle.index();
     if particles.particles[k].fixed {
         return;
     }
     let n = rail.normal();
-    let off = n * (state.positions[k] - rail.point).dot(&n);
-    state.positions[k] -= off;
-    state.velocities[k] -= off / dt;
+    let off = (state.positions[k] - rail.point).dot(&n);
+    let vn = state.velocities[k].dot(&n);
+    if dv[1].is_nan() && off != 0.0 && vn * off > 0.0 {
+        dv[1] = (off / vn).clamp(0.0, dt);
+    }
+    state.positions[k] -= n * off;
+    state.velocities[k] -= n * (off / dt);
+    dv[0] -= off / dt;
 }

@@ -46,6 +46,8 @@ pub struct StepScratch {
     v_old: Vec<Vec2>,
     /// Positions at the start of the substep (used only by models with constraints).
     x_old: Vec<Vec2>,
+    /// Each rail's normal velocity change over the substep (models with rails only).
+    rail_dv: Vec<[f64; 2]>,
     /// True if and only if `acc` holds the acceleration at the current state (reused only
     /// between the substeps of one [`step_frame`] call, where nobody else touches the state).
     acc_valid: bool,
@@ -59,6 +61,7 @@ impl StepScratch {
             acc_new: vec![Vec2::zeros(); n],
             v_old: vec![Vec2::zeros(); n],
             x_old: Vec::new(),
+            rail_dv: Vec::new(),
             acc_valid: false,
         }
     }
@@ -220,7 +223,7 @@ pub(crate) fn step_substep(
         }
     }
     if constrained {
-        model.apply_constraints(&scratch.x_old, state, dt);
+        model.apply_constraints(&scratch.x_old, state, dt, &mut scratch.rail_dv);
         // The projection moved the positions the end acceleration was evaluated at.
         scratch.acc_valid = false;
     }

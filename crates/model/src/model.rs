@@ -258,10 +258,11 @@ impl Model {
     }
 
     /// Projects `state`, the end of a substep of `dt` s that started at positions `x_old`
-    /// (px), onto the ropes and rails ([`crate::constraint`]'s RATTLE-like projection).
-    pub fn apply_constraints(&self, x_old: &[Vec2], state: &mut State, dt: f64) {
+    /// (px), onto the ropes and rails ([`crate::constraint`]'s RATTLE-like projection), with
+    /// the rails' friction; `buffer` is reused scratch.
+    pub fn apply_constraints(&self, x_old: &[Vec2], state: &mut State, dt: f64, buffer: &mut Vec<[f64; 2]>) {
         let ph = &self.physics;
-        crate::constraint::project(&self.particles, &ph.ropes, &ph.rails, x_old, state, dt);
+        crate::constraint::project(&self.particles, &ph.ropes, &ph.rails, x_old, state, dt, buffer);
     }
 
     /// Adds a particle (convenience for building models in code) and returns its id.

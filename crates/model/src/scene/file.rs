@@ -208,6 +208,9 @@ pub struct RailFile {
     pub point: [f64; 2],
     /// Direction of the line (normalised on load).
     pub direction: [f64; 2],
+    /// Coulomb friction coefficient along the rail, dimensionless, >= 0 (absent = none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
 }
 
 /// `[physics]`: each key absent = effect off.

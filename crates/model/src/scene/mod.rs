@@ -485,6 +485,7 @@ impl Scene {
                         particle: id(r.particle),
                         point: a2(r.point),
                         direction: a2(r.direction),
+                        friction: nz(r.friction),
                     })
                     .collect(),
             })
@@ -758,11 +759,15 @@ fn physics_from_file(ph: &PhysicsFile, resolve: &Resolve) -> Result<Physics, Sce
         check_finite(|| key("point"), &r.point)?;
         check_finite(|| key("direction"), &r.direction)?;
         let direction = v2(r.direction);
-        let rail = Rail::new(ids[0], v2(r.point), direction).ok_or_else(|| SceneProblem::OutOfRange {
+        let mut rail = Rail::new(ids[0], v2(r.point), direction).ok_or_else(|| SceneProblem::OutOfRange {
             key: key("direction"),
             value: direction.norm(),
             allowed: "of non-zero length",
         })?;
+        if let Some(mu) = r.friction {
+            check_non_negative(|| key("friction"), mu)?;
+            rail = rail.with_friction(mu);
+        }
         out.rails.push(rail);
     }
     Ok(out)

@@ -180,6 +180,7 @@ slack = true
 particle = "cart"
 point = [0.0, 300.0]
 direction = [1.0, 0.0]
+friction = 0.01
 "#;
 
 #[test]
@@ -200,8 +201,10 @@ fn rope_and_rail_keys_are_read_written_back_and_bad_values_are_named() {
     };
     let rec = run(&back);
     assert_eq!(run(&scene), rec);
-    // The cart stays on its horizontal rail under gravity: 30 px/s for 0.59 s.
-    assert!((rec.frame(59)[2] - Vec2::new(50.0 + 30.0 * 0.59, 300.0)).norm() < 1e-9);
+    // The cart stays on its horizontal rail under gravity, 30 px/s slowed at 10 px/s² for
+    // 0.59 s.
+    let x = 50.0 + 30.0 * 0.59 - 5.0 * 0.59 * 0.59;
+    assert!((rec.frame(59)[2] - Vec2::new(x, 300.0)).norm() < 1e-9);
     for (from, to, expected) in [
         (
             "length = 150.0",
@@ -229,6 +232,11 @@ fn rope_and_rail_keys_are_read_written_back_and_bad_values_are_named() {
             "physics.rails[0].direction is 0; it must be of non-zero length",
         ),
         (
+            "friction = 0.01",
+            "friction = -1.0",
+            "physics.rails[0].friction is -1; it must be zero or positive",
+        ),
+        (
             "particle = \"cart\"",
             "particle = \"car\"",
             "rail car names particle \"car\", which is not defined",
@@ -241,4 +249,56 @@ fn rope_and_rail_keys_are_read_written_back_and_bad_values_are_named() {
             Ok(_) => panic!("accepted {to}"),
         }
     }
+}
+
+/// Distance a cart set on a rail descending at `angle` rad (g = 1000 px/s² down) with
+/// speed `v0` along it travels down the rail in `frames` frames, with friction `mu`.
+fn slide_on_rail(angle: f64, mu: f64, v0: f64, frames: usize, kind: IntegratorKind) -> Vec<f64> {
+    let mut model = Model::default();
+    let cart = model.add_particle(1.5, false);
+    model.physics.gravity = Vec2::new(0.0, 1000.0);
+    let dir = Vec2::new(angle.cos(), angle.sin());
+    let p0 = Vec2::new(100.0, 300.0);
+    model
+        .physics
+        .rails
+        .push(Rail::new(cart, p0, dir).unwrap().with_friction(mu));
+    let rec = simulate(
+        &model,
+        &State::new(vec![p0], vec![dir * v0]),
+        &params(kind),
+        frames,
+    );
+    (0..frames).map(|k| (rec.frame(k)[0] - p0).dot(&dir)).collect()
+}
+
+#[test]
+fn a_cart_on_a_rail_with_friction_stops_after_v0_squared_over_2_mu_g_and_sticks() {
+    // Level rail, mu 0.3, 150 px/s: 37.5 px in 0.5 s, then at rest.
+    for kind in [IntegratorKind::Verlet, IntegratorKind::Euler] {
+        let run = slide_on_rail(0.0, 0.3, 150.0, 101, kind);
+        // Measured: Verlet 37.5 px to 1e-11, Euler 37.4625 (first order).
+        let tol = if kind == IntegratorKind::Verlet {
+            1e-9
+        } else {
+            0.05
+        };
+        for (k, d) in run.iter().enumerate() {
+            let t = k as f64 / FPS;
+            let exact = if t < 0.5 { 150.0 * t - 150.0 * t * t } else { 37.5 };
+            assert!((d - exact).abs() < tol, "{kind:?} frame {k}: {d} vs {exact}");
+        }
+        // On a 20 degree slope, mu 0.5 > tan 20 holds a cart at rest: not a nanometre in 1 s.
+        let held = slide_on_rail(20f64.to_radians(), 0.5, 0.0, 101, kind);
+        assert!(
+            held.iter().all(|d| d.abs() < 1e-9),
+            "{kind:?}: crept {:?}",
+            held[100]
+        );
+    }
+    // mu 0.2 on that slope: g (sin - mu cos) t^2 / 2 = 77.04 px in 1 s.
+    let angle = 20f64.to_radians();
+    let slid = slide_on_rail(angle, 0.2, 0.0, 101, IntegratorKind::Verlet)[100];
+    let exact = 500.0 * (angle.sin() - 0.2 * angle.cos());
+    assert!((slid - exact).abs() < 1e-6 * exact, "slid {slid} vs {exact}");
 }

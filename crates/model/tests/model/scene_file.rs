@@ -413,6 +413,7 @@ length = 1e-3
 particle = "p1"
 point = [-0.0, 3.5]
 direction = [0.6, 0.8]
+friction = 0.125
 "#;
 
 #[test]
