@@ -144,6 +144,50 @@ pub fn project(
     }
 }
 
+/// Moves the positions of `state` onto the ropes and rails, velocities untouched: the start
+/// of a substep that violates a constraint (a scene's frame 0 a little off, a fitted start)
+/// is settled first, so that the projection after the substep takes only the substep's own
+/// drift as an impulse (a violation of 0.05 px would otherwise become 100 px/s at 2000
+/// substeps a second). Returns true if and only if it moved a position.
+pub fn settle(particles: &ParticleSet, ropes: &[Rope], rails: &[Rail], state: &mut State) -> bool {
+    let mut moved = false;
+    for _ in 0..MAX_SWEEPS {
+        let mut worst = 0.0f64;
+        for rope in ropes {
+            let [i, j] = [rope.ends[0].index(), rope.ends[1].index()];
+            let (wi, wj) = (inverse_mass(particles, i), inverse_mass(particles, j));
+            let d = state.positions[j] - state.positions[i];
+            let dist = d.norm();
+            let violation = (dist - rope.length) / rope.length;
+            if wi + wj == 0.0
+                || dist == 0.0
+                || (rope.slack && violation <= 0.0)
+                || violation.abs() <= TOLERANCE
+            {
+                continue;
+            }
+            let shift = d * ((rope.length - dist) / (dist * (wi + wj)));
+            state.positions[i] -= shift * wi;
+            state.positions[j] += shift * wj;
+            worst = worst.max(violation.abs());
+            moved = true;
+        }
+        for rail in rails {
+            let k = rail.particle.index();
+            let n = rail.normal();
+            let off = (state.positions[k] - rail.point).dot(&n);
+            if !particles.particles[k].fixed && off != 0.0 {
+                state.positions[k] -= n * off;
+                moved = true;
+            }
+        }
+        if worst <= TOLERANCE {
+            break;
+        }
+    }
+    moved
+}
+
 /// Coulomb friction along a rail: the speed along it loses `min(mu dv_n, |v_t|)`, `dv_n`
 /// (px/s) the normal velocity change the rail imposed over the substep; the position moves
 /// back by the change times `tau` (s), the time since the particle left the line, as at a

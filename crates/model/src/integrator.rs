@@ -149,6 +149,9 @@ pub(crate) fn step_substep(
     debug_assert_eq!(model.particle_count(), n, "state and model sizes differ");
     let constrained = model.physics.has_constraints();
     if constrained {
+        if model.settle_constraints(state) {
+            scratch.acc_valid = false;
+        }
         scratch.x_old.clone_from(&state.positions);
     }
     let particles = &model.particles.particles;

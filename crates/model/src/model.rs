@@ -257,6 +257,13 @@ impl Model {
         bounces
     }
 
+    /// Moves `state`'s positions onto the ropes and rails, velocities untouched
+    /// ([`crate::constraint::settle`]); returns true if and only if it moved one.
+    pub fn settle_constraints(&self, state: &mut State) -> bool {
+        let ph = &self.physics;
+        crate::constraint::settle(&self.particles, &ph.ropes, &ph.rails, state)
+    }
+
     /// Projects `state`, the end of a substep of `dt` s that started at positions `x_old`
     /// (px), onto the ropes and rails ([`crate::constraint`]'s RATTLE-like projection), with
     /// the rails' friction; `buffer` is reused scratch.

@@ -302,3 +302,36 @@ fn a_cart_on_a_rail_with_friction_stops_after_v0_squared_over_2_mu_g_and_sticks(
     let exact = 500.0 * (angle.sin() - 0.2 * angle.cos());
     assert!((slid - exact).abs() < 1e-6 * exact, "slid {slid} vs {exact}");
 }
+
+#[test]
+fn a_start_off_the_constraints_is_settled_without_a_velocity_kick() {
+    // The bob starts 0.5 px beyond its 150 px slack rope and the cart 0.5 px off its rail,
+    // with no field: they are put back, the bob stays at rest (0.5 px over one 0.5 ms
+    // substep taken as an impulse would throw it inwards at 1000 px/s, which a slack rope
+    // does not take back) and the cart keeps its speed.
+    let (mut model, mut initial) = pendulum(150.0, 0.3, true);
+    model.physics.gravity = Vec2::zeros();
+    let cart = model.add_particle(2.0, false);
+    model.physics.rails.push(
+        Rail::new(cart, Vec2::new(0.0, 300.0), Vec2::new(1.0, 0.0))
+            .unwrap()
+            .with_friction(0.4),
+    );
+    let bob = initial.positions[1];
+    initial.positions[1] = bob + (bob - initial.positions[0]).normalize() * 0.5;
+    initial.positions.push(Vec2::new(20.0, 300.5));
+    initial.velocities.push(Vec2::new(10.0, 0.0));
+    let rec = simulate(&model, &initial, &params(IntegratorKind::Verlet), 20);
+    for k in 1..20 {
+        assert!(
+            (rec.frame(k)[1] - bob).norm() < 1e-9,
+            "frame {k}: {:?}",
+            rec.frame(k)[1]
+        );
+        assert!(rec.velocities[3 * k + 1].norm() < 1e-9);
+        // The cart keeps its 10 px/s: no normal load, so no friction.
+        let t = k as f64 / FPS;
+        assert!((rec.frame(k)[2] - Vec2::new(20.0 + 10.0 * t, 300.0)).norm() < 1e-9);
+        assert!((rec.velocities[3 * k + 2] - Vec2::new(10.0, 0.0)).norm() < 1e-9);
+    }
+}
