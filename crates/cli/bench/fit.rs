@@ -428,6 +428,7 @@ fn lattice(side: usize, frames: usize) -> anyhow::Result<Scene> {
                 ],
                 velocity: None,
                 fixed: false,
+                ..Default::default()
             });
         }
     }

@@ -32,10 +32,7 @@ impl Problem {
             particles: structure
                 .particles
                 .iter()
-                .map(|p| Particle {
-                    mass: p.mass,
-                    fixed: p.fixed,
-                })
+                .map(|p| Particle::new(p.mass, p.fixed))
                 .collect(),
         };
         let springs = structure

@@ -65,6 +65,7 @@ pub fn scene_from(
                 position,
                 velocity: None,
                 fixed: false,
+                ..Default::default()
             })
             .collect(),
         springs: springs

@@ -3,7 +3,8 @@
 //! A key design decision made in this module is that an integrator owns no model state: it
 //! advances a [`State`] by one substep of a [`Model`], using a caller-owned scratch buffer, so
 //! the same model can be stepped from many states in parallel (the identifier does this) with
-//! no allocation on the hot path. Walls are applied after each substep, as singular events.
+//! no allocation on the hot path. Ropes and rails are projected after each substep
+//! ([`crate::constraint`]), then walls are applied, as singular events.
 
 use crate::{Model, State, Vec2};
 use serde::{Deserialize, Serialize};
@@ -43,6 +44,10 @@ pub struct StepScratch {
     acc: Vec<Vec2>,
     acc_new: Vec<Vec2>,
     v_old: Vec<Vec2>,
+    /// Positions at the start of the substep (used only by models with constraints).
+    x_old: Vec<Vec2>,
+    /// Each rail's normal velocity change over the substep (models with rails only).
+    rail_dv: Vec<[f64; 2]>,
     /// True if and only if `acc` holds the acceleration at the current state (reused only
     /// between the substeps of one [`step_frame`] call, where nobody else touches the state).
     acc_valid: bool,
@@ -55,6 +60,8 @@ impl StepScratch {
             acc: vec![Vec2::zeros(); n],
             acc_new: vec![Vec2::zeros(); n],
             v_old: vec![Vec2::zeros(); n],
+            x_old: Vec::new(),
+            rail_dv: Vec::new(),
             acc_valid: false,
         }
     }
@@ -140,6 +147,13 @@ pub(crate) fn step_substep(
         *scratch = StepScratch::new(n);
     }
     debug_assert_eq!(model.particle_count(), n, "state and model sizes differ");
+    let constrained = model.physics.has_constraints();
+    if constrained {
+        if model.settle_constraints(state) {
+            scratch.acc_valid = false;
+        }
+        scratch.x_old.clone_from(&state.positions);
+    }
     let particles = &model.particles.particles;
     match kind {
         IntegratorKind::Euler => {
@@ -210,6 +224,11 @@ pub(crate) fn step_substep(
             // With velocity-dependent forces a(x, v_pred) is not a(x, v): recompute next time.
             scratch.acc_valid = !velocity_dependent;
         }
+    }
+    if constrained {
+        model.apply_constraints(&scratch.x_old, state, dt, &mut scratch.rail_dv);
+        // The projection moved the positions the end acceleration was evaluated at.
+        scratch.acc_valid = false;
     }
     // `scratch.acc` is the acceleration at the end of the substep (Verlet) or at its start
     // (Euler): either is the substep's acceleration to first order, all the event law needs.

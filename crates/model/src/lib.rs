@@ -37,6 +37,7 @@
 //! assert!((rec.frame(9)[0].x + rec.frame(9)[1].x - 50.0).abs() < 1e-9);
 //! ```
 
+pub mod constraint;
 mod integrator;
 mod model;
 mod particle;
@@ -53,11 +54,12 @@ mod torsion;
 /// A 2-D vector in image coordinates (px, or px/s, or px/s²).
 pub type Vec2 = nalgebra::Vector2<f64>;
 
+pub use constraint::{Rail, Rope};
 pub use integrator::{
     step, step_frame, step_frame_prescribed, step_prescribed, IntegrationParameters, IntegratorKind,
     StepScratch,
 };
-pub use model::{dashpot_force_on_i, Model};
+pub use model::{body_drag_force, dashpot_force_on_i, Model};
 pub use particle::{Particle, ParticleId, ParticleSet};
 /// Atomic file output (the one implementation lives in physfit-tracks, the lowest crate).
 pub use physfit_tracks::write_atomic;

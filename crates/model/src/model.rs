@@ -20,7 +20,12 @@ impl Potential for Model {
     fn energy(&self, x: &[Vec2]) -> f64 {
         let bonds: f64 = self.springs.iter().map(|s| s.energy(x)).sum::<f64>()
             + self.torsions.iter().map(|t| t.energy(x)).sum::<f64>();
-        bonds + self.field_energy(x)
+        let total = bonds + self.field_energy(x);
+        if self.has_bumpers() {
+            total + self.bumper_energy(x)
+        } else {
+            total
+        }
     }
 
     fn add_gradient(&self, x: &[Vec2], grad: &mut [Vec2]) {
@@ -37,6 +42,13 @@ impl Potential for Model {
             for (p, gr) in self.particles.particles.iter().zip(grad.iter_mut()) {
                 if !p.fixed {
                     *gr -= g * p.mass;
+                }
+            }
+        }
+        for w in self.physics.walls.iter().filter(|w| w.is_bumper()) {
+            for ((p, xi), gr) in self.particles.particles.iter().zip(x).zip(grad.iter_mut()) {
+                if !p.fixed {
+                    *gr += w.bumper_gradient(*xi);
                 }
             }
         }
@@ -58,6 +70,27 @@ impl Model {
             .zip(x)
             .filter(|(p, _)| !p.fixed)
             .map(|(p, xi)| -p.mass * g.dot(xi))
+            .sum()
+    }
+
+    /// Returns true if and only if some wall is a spring bumper.
+    fn has_bumpers(&self) -> bool {
+        self.physics.walls.iter().any(|w| w.is_bumper())
+    }
+
+    /// Energy of the bumper springs, `sum S s^2` over bumpers and penetrating free particles.
+    fn bumper_energy(&self, x: &[Vec2]) -> f64 {
+        let walls = self.physics.walls.iter().filter(|w| w.is_bumper());
+        walls
+            .map(|w| {
+                self.particles
+                    .particles
+                    .iter()
+                    .zip(x)
+                    .filter(|(p, _)| !p.fixed)
+                    .map(|(_, xi)| w.bumper_energy(*xi))
+                    .sum::<f64>()
+            })
             .sum()
     }
 
@@ -86,13 +119,26 @@ impl Model {
         let ph = &self.physics;
         ph.drag != 0.0
             || ph.quadratic_drag != 0.0
+            || self.has_body_drag()
+            || ph.walls.iter().any(|w| w.is_bumper() && w.damping != 0.0)
             || self
                 .springs
                 .iter()
                 .any(|s| s.damping.unwrap_or(ph.spring_damping) != 0.0)
     }
 
-    /// Adds the velocity-dependent forces (drag, quadratic drag, dashpots) into `force`.
+    /// Returns true if and only if some body drag (not scaled by mass) is on: the shared
+    /// `physics.body_drag` or `body_quadratic_drag`, or a particle's own value, is not zero.
+    pub fn has_body_drag(&self) -> bool {
+        let ph = &self.physics;
+        self.particles.particles.iter().any(|p| {
+            p.body_drag.unwrap_or(ph.body_drag) != 0.0
+                || p.body_quadratic_drag.unwrap_or(ph.body_quadratic_drag) != 0.0
+        })
+    }
+
+    /// Adds the velocity-dependent forces (drag per mass and per body, quadratic drag,
+    /// dashpots) into `force`.
     pub fn add_dissipative_forces(&self, state: &State, force: &mut [Vec2]) {
         let ph = &self.physics;
         if ph.drag != 0.0 || ph.quadratic_drag != 0.0 {
@@ -104,6 +150,29 @@ impl Model {
                 .zip(force.iter_mut())
             {
                 *f -= v * (p.mass * (ph.drag + ph.quadratic_drag * v.norm()));
+            }
+        }
+        if self.has_body_drag() {
+            for ((p, v), f) in self
+                .particles
+                .particles
+                .iter()
+                .zip(&state.velocities)
+                .zip(force.iter_mut())
+            {
+                let b = p.body_drag.unwrap_or(ph.body_drag);
+                let c = p.body_quadratic_drag.unwrap_or(ph.body_quadratic_drag);
+                *f += body_drag_force(*v, b, c);
+            }
+        }
+        for w in ph.walls.iter().filter(|w| w.is_bumper() && w.damping != 0.0) {
+            for ((x, v), f) in state
+                .positions
+                .iter()
+                .zip(&state.velocities)
+                .zip(force.iter_mut())
+            {
+                *f += w.bumper_damping_force(*x, *v);
             }
         }
         for s in &self.springs {
@@ -146,7 +215,7 @@ impl Model {
     }
 
     /// Applies every wall's reflection law ([`crate::Wall::reflect`], constant velocity) to
-    /// every free particle. Returns the number of bounces.
+    /// every free particle. Returns the number of bounces (bumpers act as forces, never here).
     pub fn apply_walls(&self, state: &mut State) -> usize {
         self.apply_walls_with(state, |_| Vec2::zeros(), f64::INFINITY)
     }
@@ -188,10 +257,34 @@ impl Model {
         bounces
     }
 
+    /// Moves `state`'s positions onto the ropes and rails, velocities untouched
+    /// ([`crate::constraint::settle`]); returns true if and only if it moved one.
+    pub fn settle_constraints(&self, state: &mut State) -> bool {
+        let ph = &self.physics;
+        crate::constraint::settle(&self.particles, &ph.ropes, &ph.rails, state)
+    }
+
+    /// Projects `state`, the end of a substep of `dt` s that started at positions `x_old`
+    /// (px), onto the ropes and rails ([`crate::constraint`]'s RATTLE-like projection), with
+    /// the rails' friction; `buffer` is reused scratch.
+    pub fn apply_constraints(&self, x_old: &[Vec2], state: &mut State, dt: f64, buffer: &mut Vec<[f64; 2]>) {
+        let ph = &self.physics;
+        crate::constraint::project(&self.particles, &ph.ropes, &ph.rails, x_old, state, dt, buffer);
+    }
+
     /// Adds a particle (convenience for building models in code) and returns its id.
     pub fn add_particle(&mut self, mass: f64, fixed: bool) -> crate::ParticleId {
-        self.particles.insert(Particle { mass, fixed })
+        self.particles.insert(Particle::new(mass, fixed))
     }
+}
+
+/// Drag force on a body moving at `v` (px/s) through a medium, mass·px/s²: `-(b + c |v|) v`
+/// with linear coefficient `b` (mass/s) and quadratic coefficient `c` (mass/px), not scaled
+/// by the body's mass. A body of mass `m` alone then slows as `v0 exp(-b t / m)` (`c = 0`),
+/// and falls at most at `sqrt(m g / c)` under a field `g` (`b = 0`).
+#[inline]
+pub fn body_drag_force(v: Vec2, b: f64, c: f64) -> Vec2 {
+    -v * (b + c * v.norm())
 }
 
 /// Dashpot force on particle `i` of a spring: `c ((v_j - v_i) . u_ij) u_ij`, for relative

@@ -13,12 +13,29 @@ impl ParticleId {
 }
 
 /// The constant properties of one point mass.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Particle {
     /// Mass (arbitrary consistent unit; forces are mass·px/s²).
     pub mass: f64,
     /// True if and only if the particle is pinned: it never moves and takes no force.
     pub fixed: bool,
+    /// This body's own linear drag coefficient `b`, mass/s: `F = -b v`, not scaled by the
+    /// mass. `None` takes [`crate::Physics::body_drag`].
+    pub body_drag: Option<f64>,
+    /// This body's own quadratic drag coefficient `c`, mass/px: `F = -c |v| v`, not scaled by
+    /// the mass. `None` takes [`crate::Physics::body_quadratic_drag`].
+    pub body_quadratic_drag: Option<f64>,
+}
+
+impl Particle {
+    /// A particle of mass `mass` (pinned if `fixed`) with no drag of its own.
+    pub fn new(mass: f64, fixed: bool) -> Particle {
+        Particle {
+            mass,
+            fixed,
+            ..Particle::default()
+        }
+    }
 }
 
 /// All particles of a model, in index order.

@@ -473,6 +473,7 @@ fn final_scene(
                     position: Vec2::new(v[0], v[1]),
                     velocity: Vec2::zeros(),
                     fixed: true,
+                    ..Default::default()
                 });
                 let pid = ParticleId((scene.particles.len() - 1) as u32);
                 scene.springs.push(SpringSpec {

@@ -69,6 +69,9 @@ pub enum SceneProblem {
     /// A wall's normal has zero length.
     #[error("physics.walls[{0}].normal has zero length")]
     ZeroWallNormal(usize),
+    /// A rigid wall (no stiffness) gives no restitution.
+    #[error("physics.walls[{0}] has no restitution: a rigid wall needs one (a spring bumper has a stiffness instead)")]
+    NoWallRestitution(usize),
     /// A bond parameter is unknown where a value is needed (to simulate).
     #[error("{bond} has no {key}: a scene to simulate needs every bond's values")]
     UnknownValue {

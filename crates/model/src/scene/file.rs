@@ -98,7 +98,7 @@ pub struct RulerFile {
 }
 
 /// One `[[particles]]` entry.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticleFile {
     /// Unique id.
@@ -113,6 +113,14 @@ pub struct ParticleFile {
     /// Pinned (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub fixed: bool,
+    /// This body's linear drag coefficient, mass/s (`F = -b v`; default
+    /// `physics.body_drag`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_drag: Option<f64>,
+    /// This body's quadratic drag coefficient, mass/px (`F = -c |v| v`; default
+    /// `physics.body_quadratic_drag`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_quadratic_drag: Option<f64>,
 }
 
 fn is_false(b: &bool) -> bool {
@@ -160,8 +168,49 @@ pub struct WallFile {
     pub point: [f64; 2],
     /// Normal pointing into the allowed side (normalised on load).
     pub normal: [f64; 2],
-    /// Restitution of the normal velocity, 0..1.
-    pub restitution: f64,
+    /// Restitution of the normal velocity, 0..1: required on a rigid wall, absent on a
+    /// spring bumper.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    /// Coulomb friction coefficient, dimensionless, >= 0 (absent = frictionless; rigid
+    /// walls only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    /// Bumper stiffness `S`, energy/px² (absent = a rigid wall): energy `S s^2` for a
+    /// penetration `s < 0`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// Bumper dashpot coefficient, mass/s (bumpers only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<f64>,
+}
+
+/// One `[[physics.ropes]]` entry: an inextensible rope (or rod) between two particles.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RopeFile {
+    /// The two particle ids (one may be a fixed particle: a rope to a fixed point).
+    pub between: [String; 2],
+    /// Length, px (> 0).
+    pub length: f64,
+    /// Slack when the ends come closer than `length` (default false: a rigid rod).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub slack: bool,
+}
+
+/// One `[[physics.rails]]` entry: a particle held on a line.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RailFile {
+    /// The particle id.
+    pub particle: String,
+    /// A point of the line, px.
+    pub point: [f64; 2],
+    /// Direction of the line (normalised on load).
+    pub direction: [f64; 2],
+    /// Coulomb friction coefficient along the rail, dimensionless, >= 0 (absent = none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
 }
 
 /// `[physics]`: each key absent = effect off.
@@ -180,9 +229,21 @@ pub struct PhysicsFile {
     /// Global spring dashpot coefficient, mass/s.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spring_damping: Option<f64>,
+    /// Linear drag of every body without its own, mass/s (`F = -b v`, not per mass).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_drag: Option<f64>,
+    /// Quadratic drag of every body without its own, mass/px (`F = -c |v| v`, not per mass).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub body_quadratic_drag: Option<f64>,
     /// Walls.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub walls: Vec<WallFile>,
+    /// Ropes and rods (distance constraints).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ropes: Vec<RopeFile>,
+    /// Rails (particles held on lines).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rails: Vec<RailFile>,
 }
 
 /// A whole scene file.

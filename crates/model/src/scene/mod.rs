@@ -11,16 +11,16 @@ mod file;
 pub use compare::{compare_scenes, effects_beyond, SceneComparison, ValueComparison};
 pub use error::{SceneError, SceneProblem};
 pub use file::{
-    Colour, ParticleFile, PhysicsFile, RecordingFile, RenderSettings, RulerFile, SceneFile, SpringFile,
-    TorsionFile, WallFile,
+    Colour, ParticleFile, PhysicsFile, RailFile, RecordingFile, RenderSettings, RopeFile, RulerFile,
+    SceneFile, SpringFile, TorsionFile, WallFile,
 };
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use crate::{
-    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Spring, State,
-    Torsion, Vec2, Wall,
+    IntegrationParameters, IntegratorKind, Model, Particle, ParticleId, ParticleSet, Physics, Rail, Rope,
+    Spring, State, Torsion, Vec2, Wall,
 };
 
 /// Default integration substeps per frame when `[recording]` gives none.
@@ -42,7 +42,7 @@ pub struct RecordingSettings {
 }
 
 /// A particle as a scene describes it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct ParticleSpec {
     /// Unique id.
     pub id: String,
@@ -54,6 +54,11 @@ pub struct ParticleSpec {
     pub velocity: Vec2,
     /// Pinned.
     pub fixed: bool,
+    /// This body's own linear drag coefficient, mass/s (`None` = `physics.body_drag`).
+    pub body_drag: Option<f64>,
+    /// This body's own quadratic drag coefficient, mass/px (`None` =
+    /// `physics.body_quadratic_drag`).
+    pub body_quadratic_drag: Option<f64>,
 }
 
 /// A spring as a scene describes it: values may be unknown (`None`).
@@ -146,6 +151,12 @@ fn check_range(
             allowed,
         })
     }
+}
+
+/// Checks that `value` is finite, at most [`MAX_MAGNITUDE`] and not negative.
+fn check_non_negative(key: impl Fn() -> String, value: f64) -> Result<(), SceneProblem> {
+    check_finite(&key, &[value])?;
+    check_range(key, value, value >= 0.0, "zero or positive")
 }
 
 fn v2(a: [f64; 2]) -> Vec2 {
@@ -311,12 +322,22 @@ impl Scene {
             check_finite(|| format!("particle \"{}\" position", p.id), &p.position)?;
             let velocity = p.velocity.unwrap_or([0.0, 0.0]);
             check_finite(|| format!("particle \"{}\" velocity", p.id), &velocity)?;
+            for (key, v) in [
+                ("body_drag", p.body_drag),
+                ("body_quadratic_drag", p.body_quadratic_drag),
+            ] {
+                if let Some(v) = v {
+                    check_non_negative(|| format!("particle \"{}\" {key}", p.id), v)?;
+                }
+            }
             particles.push(ParticleSpec {
                 id: p.id.clone(),
                 mass: p.mass,
                 position: v2(p.position),
                 velocity: v2(velocity),
                 fixed: p.fixed,
+                body_drag: p.body_drag,
+                body_quadratic_drag: p.body_quadratic_drag,
             });
         }
         let resolve = |bond: &dyn Fn() -> String, ids: &[&String]| -> Result<Vec<ParticleId>, SceneProblem> {
@@ -385,7 +406,7 @@ impl Scene {
 
         let physics = match &raw.physics {
             None => Physics::default(),
-            Some(ph) => physics_from_file(ph)?,
+            Some(ph) => physics_from_file(ph, &resolve)?,
         };
 
         Ok(Scene {
@@ -417,7 +438,11 @@ impl Scene {
             && is_plus_zero(ph.drag)
             && is_plus_zero(ph.quadratic_drag)
             && is_plus_zero(ph.spring_damping)
+            && is_plus_zero(ph.body_drag)
+            && is_plus_zero(ph.body_quadratic_drag)
             && ph.walls.is_empty()
+            && ph.ropes.is_empty()
+            && ph.rails.is_empty()
         {
             None
         } else {
@@ -430,13 +455,37 @@ impl Scene {
                 drag: nz(ph.drag),
                 quadratic_drag: nz(ph.quadratic_drag),
                 spring_damping: nz(ph.spring_damping),
+                body_drag: nz(ph.body_drag),
+                body_quadratic_drag: nz(ph.body_quadratic_drag),
                 walls: ph
                     .walls
                     .iter()
                     .map(|w| WallFile {
                         point: a2(w.point),
                         normal: a2(w.normal),
-                        restitution: w.restitution,
+                        restitution: (!w.is_bumper()).then_some(w.restitution),
+                        friction: nz(w.friction),
+                        stiffness: nz(w.stiffness),
+                        damping: nz(w.damping),
+                    })
+                    .collect(),
+                ropes: ph
+                    .ropes
+                    .iter()
+                    .map(|r| RopeFile {
+                        between: [id(r.ends[0]), id(r.ends[1])],
+                        length: r.length,
+                        slack: r.slack,
+                    })
+                    .collect(),
+                rails: ph
+                    .rails
+                    .iter()
+                    .map(|r| RailFile {
+                        particle: id(r.particle),
+                        point: a2(r.point),
+                        direction: a2(r.direction),
+                        friction: nz(r.friction),
                     })
                     .collect(),
             })
@@ -469,6 +518,8 @@ impl Scene {
                         Some(a2(p.velocity))
                     },
                     fixed: p.fixed,
+                    body_drag: p.body_drag,
+                    body_quadratic_drag: p.body_quadratic_drag,
                 })
                 .collect(),
             springs: self
@@ -510,9 +561,13 @@ impl Scene {
     }
 
     /// The structure of this scene: same topology, masses and frame-0 positions; bond values,
-    /// per-spring damping and `[physics]` removed.
+    /// per-spring damping, per-particle drag and `[physics]` removed.
     pub fn structure(&self) -> Scene {
         let mut s = self.clone();
+        for p in &mut s.particles {
+            p.body_drag = None;
+            p.body_quadratic_drag = None;
+        }
         for sp in &mut s.springs {
             sp.rest_length = None;
             sp.stiffness = None;
@@ -572,6 +627,8 @@ impl Scene {
                 .map(|p| Particle {
                     mass: p.mass,
                     fixed: p.fixed,
+                    body_drag: p.body_drag,
+                    body_quadratic_drag: p.body_quadratic_drag,
                 })
                 .collect(),
         };
@@ -637,7 +694,10 @@ impl Scene {
     }
 }
 
-fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
+/// Resolves the particle ids a bond or constraint (named by the first argument) lists.
+type Resolve<'a> = dyn Fn(&dyn Fn() -> String, &[&String]) -> Result<Vec<ParticleId>, SceneProblem> + 'a;
+
+fn physics_from_file(ph: &PhysicsFile, resolve: &Resolve) -> Result<Physics, SceneProblem> {
     let mut out = Physics::default();
     if let Some(g) = ph.gravity {
         check_finite(|| "physics.gravity".into(), &g)?;
@@ -661,21 +721,107 @@ fn physics_from_file(ph: &PhysicsFile) -> Result<Physics, SceneProblem> {
             *slot = v;
         }
     }
+    for (key, v, slot) in [
+        ("physics.body_drag", ph.body_drag, &mut out.body_drag),
+        (
+            "physics.body_quadratic_drag",
+            ph.body_quadratic_drag,
+            &mut out.body_quadratic_drag,
+        ),
+    ] {
+        if let Some(v) = v {
+            check_non_negative(|| key.into(), v)?;
+            *slot = v;
+        }
+    }
     for (k, w) in ph.walls.iter().enumerate() {
-        check_finite(|| format!("physics.walls[{k}].point"), &w.point)?;
-        check_finite(|| format!("physics.walls[{k}].normal"), &w.normal)?;
-        check_finite(|| format!("physics.walls[{k}].restitution"), &[w.restitution])?;
+        out.walls.push(wall_from_file(k, w)?);
+    }
+    for r in &ph.ropes {
+        let name = || format!("rope {}-{}", r.between[0], r.between[1]);
+        let ends = resolve(&name, &[&r.between[0], &r.between[1]])?;
+        check_finite(|| format!("{} length", name()), &[r.length])?;
         check_range(
-            || format!("physics.walls[{k}].restitution"),
-            w.restitution,
-            (0.0..=1.0).contains(&w.restitution),
-            "in [0, 1]",
+            || format!("{} length", name()),
+            r.length,
+            r.length > 0.0,
+            "positive",
         )?;
-        let wall =
-            Wall::new(v2(w.point), v2(w.normal), w.restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
-        out.walls.push(wall);
+        out.ropes.push(Rope {
+            ends: [ends[0], ends[1]],
+            length: r.length,
+            slack: r.slack,
+        });
+    }
+    for (k, r) in ph.rails.iter().enumerate() {
+        let key = |name: &str| format!("physics.rails[{k}].{name}");
+        let ids = resolve(&|| format!("rail {}", r.particle), &[&r.particle])?;
+        check_finite(|| key("point"), &r.point)?;
+        check_finite(|| key("direction"), &r.direction)?;
+        let direction = v2(r.direction);
+        let mut rail = Rail::new(ids[0], v2(r.point), direction).ok_or_else(|| SceneProblem::OutOfRange {
+            key: key("direction"),
+            value: direction.norm(),
+            allowed: "of non-zero length",
+        })?;
+        if let Some(mu) = r.friction {
+            check_non_negative(|| key("friction"), mu)?;
+            rail = rail.with_friction(mu);
+        }
+        out.rails.push(rail);
     }
     Ok(out)
+}
+
+/// Validates `[[physics.walls]]` entry `k`: a rigid wall (restitution, optional friction)
+/// or a spring bumper (stiffness, optional damping; no restitution or friction).
+fn wall_from_file(k: usize, w: &WallFile) -> Result<Wall, SceneProblem> {
+    let key = |name: &str| format!("physics.walls[{k}].{name}");
+    check_finite(|| key("point"), &w.point)?;
+    check_finite(|| key("normal"), &w.normal)?;
+    let stiffness = w.stiffness.unwrap_or(0.0);
+    check_non_negative(|| key("stiffness"), stiffness)?;
+    let bumper = stiffness > 0.0;
+    let restitution = match (w.restitution, bumper) {
+        (Some(e), false) => {
+            check_finite(|| key("restitution"), &[e])?;
+            check_range(|| key("restitution"), e, (0.0..=1.0).contains(&e), "in [0, 1]")?;
+            e
+        }
+        (None, false) => return Err(SceneProblem::NoWallRestitution(k)),
+        (Some(e), true) => return Err(SceneProblem::OutOfRange {
+            key: key("restitution"),
+            value: e,
+            allowed:
+                "absent on a spring bumper (a wall with stiffness): its stiffness and damping set the rebound",
+        }),
+        (None, true) => 0.0,
+    };
+    let mut wall =
+        Wall::new(v2(w.point), v2(w.normal), restitution).ok_or(SceneProblem::ZeroWallNormal(k))?;
+    if let Some(mu) = w.friction {
+        check_non_negative(|| key("friction"), mu)?;
+        check_range(
+            || key("friction"),
+            mu,
+            !bumper || mu == 0.0,
+            "zero on a spring bumper (a wall with stiffness)",
+        )?;
+        wall = wall.with_friction(mu);
+    }
+    if let Some(c) = w.damping {
+        check_non_negative(|| key("damping"), c)?;
+        check_range(
+            || key("damping"),
+            c,
+            bumper || c == 0.0,
+            "zero on a rigid wall (give the wall a stiffness to make it a bumper)",
+        )?;
+    }
+    if bumper {
+        wall = wall.with_bumper(stiffness, w.damping.unwrap_or(0.0));
+    }
+    Ok(wall)
 }
 
 /// A spring's display name from its two ids: `spring a-b`.

@@ -355,6 +355,8 @@ velocity = [-0.0, 1.0]
 id = "p2"
 mass = 1.0
 position = [150.0, 170.0]
+body_drag = 0.1
+body_quadratic_drag = -0.0
 
 [[springs]]
 between = ["p0", "p1"]
@@ -378,16 +380,40 @@ gravity = [0.1, 981.0]
 drag = 0.05
 quadratic_drag = 1e-4
 spring_damping = 0.3
+body_drag = 0.30000000000000004
+body_quadratic_drag = 2.5e-5
 
 [[physics.walls]]
 point = [0.0, 480.0]
 normal = [1.0, -3.0]
 restitution = 0.8
+friction = 0.45
 
 [[physics.walls]]
 point = [10.0, 0.0]
 normal = [1.0, 0.0]
 restitution = 0.0
+
+[[physics.walls]]
+point = [630.0, 0.0]
+normal = [-1.0, 0.0]
+stiffness = 123.5
+damping = 0.7
+
+[[physics.ropes]]
+between = ["p0", "p2"]
+length = 77.7
+slack = true
+
+[[physics.ropes]]
+between = ["p2", "p1"]
+length = 1e-3
+
+[[physics.rails]]
+particle = "p1"
+point = [-0.0, 3.5]
+direction = [0.6, 0.8]
+friction = 0.125
 "#;
 
 #[test]
@@ -407,7 +433,8 @@ fn every_key_is_read() {
     assert!(s.particles[0].fixed && !s.particles[1].fixed);
     assert_eq!(s.springs[0].damping.map(f64::to_bits), Some(0.125f64.to_bits()));
     assert_eq!(s.springs[1].damping, None);
-    assert_eq!(s.physics.walls.len(), 2);
+    assert_eq!(s.physics.walls.len(), 3);
+    assert!(s.physics.walls[2].is_bumper() && !s.physics.walls[0].is_bumper());
     // Normals are normalised on load.
     assert!((s.physics.walls[0].normal - Vec2::new(1.0, -3.0) / 10f64.sqrt()).norm() < 1e-15);
     let p = s.integration_parameters();
@@ -459,8 +486,15 @@ fn a_structure_drops_values_and_physics_and_counts_them() {
         .iter()
         .all(|t| t.rest_cos.is_none() && t.stiffness.is_none()));
     assert_eq!(structure.physics, physfit_model::Physics::default());
-    // Topology, masses, frame-0 state, timing and drawing are kept.
-    assert_eq!(structure.particles, scene.particles);
+    // Topology, masses, frame-0 state, timing and drawing are kept; a body's own drag is a
+    // physics value and goes.
+    let mut particles = scene.particles.clone();
+    assert!(particles[2].body_drag.is_some());
+    for p in &mut particles {
+        p.body_drag = None;
+        p.body_quadratic_drag = None;
+    }
+    assert_eq!(structure.particles, particles);
     assert_eq!(structure.recording, scene.recording);
     assert_eq!(structure.render, scene.render);
     assert_eq!(
@@ -601,7 +635,7 @@ fn the_documented_example_is_valid_and_uses_every_key() {
     let scene = Scene::from_toml_str(example, "docs/scene-format.md").unwrap();
     assert_eq!(scene.unknown_count(), 0);
     let model = scene.model().unwrap();
-    assert!(model.has_velocity_dependent_forces() && model.physics.walls.len() == 2);
+    assert!(model.has_velocity_dependent_forces() && model.physics.walls.len() == 3);
     // Every key the writer knows appears in the example.
     let written = scene.to_toml_string().unwrap();
     for line in written.lines().filter(|l| l.contains(" = ")) {
@@ -609,7 +643,14 @@ fn the_documented_example_is_valid_and_uses_every_key() {
         let used = example.lines().any(|l| l.starts_with(&format!("{key} = ")));
         assert!(used, "the example lacks `{key}`");
     }
-    for table in ["[render]", "[physics]", "[[physics.walls]]", "[[torsions]]"] {
+    for table in [
+        "[render]",
+        "[physics]",
+        "[[physics.walls]]",
+        "[[physics.ropes]]",
+        "[[physics.rails]]",
+        "[[torsions]]",
+    ] {
         assert!(example.contains(table));
     }
     // It simulates to finite positions, above the floor.

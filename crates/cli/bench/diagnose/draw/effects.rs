@@ -97,6 +97,7 @@ pub fn conceal(rng: &mut StdRng, kinds: &[Kind], object: &mut Object) -> Option<
             position: anchor,
             velocity: Vec2::zeros(),
             fixed: true,
+            ..Default::default()
         });
         object.springs.push(SpringSpec {
             ends: [ParticleId(p as u32), ParticleId(n as u32)],

@@ -264,6 +264,7 @@ mod tests {
                 position: Vec2::zeros(),
                 velocity: Vec2::zeros(),
                 fixed: true,
+                ..Default::default()
             },
         );
         for sp in &mut s.springs {

@@ -113,6 +113,7 @@ pub fn draw_object(rng: &mut StdRng, kinds: &[Kind], small: bool) -> Option<Obje
                 position: p,
                 velocity: speed * heading + spin * Vec2::new(-p.y, p.x) + jitter,
                 fixed: false,
+                ..Default::default()
             }
         })
         .collect();
