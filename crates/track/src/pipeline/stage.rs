@@ -6,7 +6,7 @@ use super::size_class::SizeClass;
 use super::skirts::sample_skirts;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
-use crate::checks::check_tracks;
+use crate::checks::{check_tracks, lost_inside};
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -170,6 +170,7 @@ impl Stage<'_> {
             concerns.extend(
                 check_tracks(&class_table, class.sizes.radius, &skirts)
                     .iter()
+                    .chain(&lost_inside(&class_table, class.sizes.radius, size))
                     .map(|c| (c.to_string(), class.sizes.radius)),
             );
             table.points.extend(class_table.points);
