@@ -62,36 +62,18 @@ pub(super) fn estimate_radius(
     starts: Option<&[[f64; 2]]>,
     scale: Option<f64>,
 ) -> f64 {
-    let background = estimation.background;
     let mut radius = scale
         .or_else(|| scale_start(estimation, starts))
         .unwrap_or(START_RADIUS);
+    // The last round's detections, each measured for the half-maximum check as well.
+    let mut cut: Vec<Option<f64>> = Vec::new();
     for _ in 0..RADIUS_ROUNDS {
-        let sizes_of = |found: Vec<Detection>| -> Vec<f64> {
-            found
-                .iter()
-                .filter(|d| !d.clipped && d.size.is_finite())
-                .map(|d| d.size)
-                .collect()
-        };
-        let mut sizes: Vec<f64> = match starts {
-            Some(starts) if !estimation.frames.is_empty() => {
-                let found = estimation
-                    .workers
-                    .with(|w| locate_unfiltered(background, estimation.frames[0], radius, &mut w.finder));
-                sizes_of(
-                    nearest_each(&found, starts, |d| [d.x, d.y])
-                        .into_iter()
-                        .copied()
-                        .collect(),
-                )
-            }
-            _ => estimation
-                .over_frames(|frame, finder| sizes_of(locate_unfiltered(background, frame, radius, finder))),
-        };
-        if sizes.is_empty() {
+        let measured = measure_round(estimation, starts, radius);
+        if measured.is_empty() {
             break;
         }
+        let mut sizes: Vec<f64> = measured.iter().map(|m| m.0).collect();
+        cut = measured.into_iter().map(|m| m.1).collect();
         let next = (median(&mut sizes) * std::f64::consts::SQRT_2).clamp(1.0, 200.0);
         if (next - radius).abs() < 0.01 {
             radius = next;
@@ -99,7 +81,42 @@ pub(super) fn estimate_radius(
         }
         radius = next;
     }
-    widen_to_half_maximum(estimation, starts, radius)
+    widen_to_half_maximum(estimation, starts, radius, cut)
+}
+
+/// One round of the radius estimate at `radius`: for each particle measured (the blob
+/// nearest each of `starts` in the first estimation frame, or every blob of the frames
+/// [`Estimation::over_frames`] searches; window not cut by the border), its radius of
+/// gyration and its [`half_maximum_beyond`] at `radius`.
+fn measure_round(
+    estimation: &Estimation,
+    starts: Option<&[[f64; 2]]>,
+    radius: f64,
+) -> Vec<(f64, Option<f64>)> {
+    let background = estimation.background;
+    let noise = background.noise_sigma;
+    let measure = |frame: FrameView<'_>, finder: &mut Finder| -> Vec<(f64, Option<f64>)> {
+        let found = locate_unfiltered(background, frame, radius, finder);
+        let (width, height) = frame.size();
+        let chosen: Vec<&Detection> = match starts {
+            Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
+            None => found.iter().collect(),
+        };
+        chosen
+            .iter()
+            .filter(|d| !d.clipped && d.size.is_finite())
+            .map(|d| {
+                let cut = half_maximum_beyond(&finder.signal, width, height, [d.x, d.y], radius, noise);
+                (d.size, cut)
+            })
+            .collect()
+    };
+    match starts {
+        Some(_) if !estimation.frames.is_empty() => estimation
+            .workers
+            .with(|w| measure(estimation.frames[0], &mut w.finder)),
+        _ => estimation.over_frames(measure),
+    }
 }
 
 /// Most rounds of [`widen_to_half_maximum`].
@@ -122,29 +139,21 @@ const HALF_MAXIMUM_ROUNDS: usize = 4;
 /// particle's azimuthal profile; when most particles stand above that by 3 standard errors of
 /// the measured noise, the radius is where their profile falls to half its peak (the median
 /// over the particles), measured again from there until the window no longer cuts them.
-fn widen_to_half_maximum(estimation: &Estimation, starts: Option<&[[f64; 2]]>, mut radius: f64) -> f64 {
-    let background = estimation.background;
-    let noise = background.noise_sigma;
-    for _ in 0..HALF_MAXIMUM_ROUNDS {
-        let measure = |frame: FrameView<'_>, finder: &mut Finder| -> Vec<Option<f64>> {
-            let found = locate_unfiltered(background, frame, radius, finder);
-            let (width, height) = frame.size();
-            let chosen: Vec<&Detection> = match starts {
-                Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
-                None => found.iter().collect(),
-            };
-            chosen
-                .iter()
-                .filter(|d| !d.clipped)
-                .map(|d| half_maximum_beyond(&finder.signal, width, height, [d.x, d.y], radius, noise))
-                .collect()
-        };
-        let cut: Vec<Option<f64>> = match starts {
-            Some(_) if !estimation.frames.is_empty() => estimation
-                .workers
-                .with(|w| measure(estimation.frames[0], &mut w.finder)),
-            _ => estimation.over_frames(measure),
-        };
+/// `cut` is the last round's [`half_maximum_beyond`] of each particle at `radius` (within
+/// 0.01 px of it).
+fn widen_to_half_maximum(
+    estimation: &Estimation,
+    starts: Option<&[[f64; 2]]>,
+    mut radius: f64,
+    mut cut: Vec<Option<f64>>,
+) -> f64 {
+    for round in 0..HALF_MAXIMUM_ROUNDS {
+        if round > 0 {
+            cut = measure_round(estimation, starts, radius)
+                .into_iter()
+                .map(|m| m.1)
+                .collect();
+        }
         let mut wider: Vec<f64> = cut.iter().flatten().copied().collect();
         if cut.is_empty() || 2 * wider.len() <= cut.len() {
             break;
@@ -171,35 +180,47 @@ fn half_maximum_beyond(
     radius: f64,
     noise: f64,
 ) -> Option<f64> {
-    let reach = 4.0 * radius + 4.0;
-    let bins = reach.ceil() as usize + 1;
-    let mut sum = vec![0.0f64; bins];
-    let mut count = vec![0usize; bins];
-    let (mut edge_sum, mut edge_count) = (0.0f64, 0usize);
-    let x0 = (centre[0] - reach).floor().max(0.0) as usize;
-    let y0 = (centre[1] - reach).floor().max(0.0) as usize;
-    let x1 = ((centre[0] + reach).ceil().max(0.0) as usize).min(width.saturating_sub(1));
-    let y1 = ((centre[1] + reach).ceil().max(0.0) as usize).min(height.saturating_sub(1));
-    for y in y0..=y1 {
-        let dy = y as f64 - centre[1];
-        for x in x0..=x1 {
-            let d = (x as f64 - centre[0]).hypot(dy);
-            if d >= reach {
-                continue;
-            }
-            let v = f64::from(signal[y * width + x]);
-            let k = d as usize;
-            sum[k] += v;
-            count[k] += 1;
-            if d >= radius + 0.5 && d < radius + 1.5 {
-                edge_sum += v;
-                edge_count += 1;
+    // The profile out to `reach` in one-pixel rings, and the mean of the window's edge ring.
+    let profile = |reach: f64| {
+        let bins = reach.ceil() as usize + 1;
+        let mut sum = vec![0.0f64; bins];
+        let mut count = vec![0usize; bins];
+        let (mut edge_sum, mut edge_count) = (0.0f64, 0usize);
+        let x0 = (centre[0] - reach).floor().max(0.0) as usize;
+        let y0 = (centre[1] - reach).floor().max(0.0) as usize;
+        let x1 = ((centre[0] + reach).ceil().max(0.0) as usize).min(width.saturating_sub(1));
+        let y1 = ((centre[1] + reach).ceil().max(0.0) as usize).min(height.saturating_sub(1));
+        for y in y0..=y1 {
+            let dy = y as f64 - centre[1];
+            for x in x0..=x1 {
+                let d = (x as f64 - centre[0]).hypot(dy);
+                if d >= reach {
+                    continue;
+                }
+                let v = f64::from(signal[y * width + x]);
+                let k = d as usize;
+                sum[k] += v;
+                count[k] += 1;
+                if d >= radius + 0.5 && d < radius + 1.5 {
+                    edge_sum += v;
+                    edge_count += 1;
+                }
             }
         }
-    }
-    let mean = |k: usize| (count[k] > 0).then(|| sum[k] / count[k] as f64);
-    let inside = (radius.floor() as usize).min(bins - 1);
-    let peak = (0..=inside).filter_map(mean).fold(f64::NEG_INFINITY, f64::max);
+        let mean: Vec<Option<f64>> = sum
+            .iter()
+            .zip(&count)
+            .map(|(&s, &n)| (n > 0).then(|| s / n as f64))
+            .collect();
+        (mean, edge_sum, edge_count)
+    };
+    // The window's edge first (most particles end within it: nothing more to measure).
+    let (near, edge_sum, edge_count) = profile(radius + 1.5);
+    let inside = radius.floor() as usize;
+    let peak = near[..=inside.min(near.len() - 1)]
+        .iter()
+        .flatten()
+        .fold(f64::NEG_INFINITY, |a, &b| a.max(b));
     if peak.is_nan() || peak <= 0.0 || edge_count == 0 {
         return None;
     }
@@ -208,9 +229,10 @@ fn half_maximum_beyond(
     if edge - half <= 3.0 * noise / (edge_count as f64).sqrt() {
         return None;
     }
+    let (mean, _, _) = profile(4.0 * radius + 4.0);
     let mut last: Option<(f64, f64)> = None;
-    for k in inside..bins {
-        let Some(m) = mean(k) else { continue };
+    for (k, m) in mean.iter().enumerate().skip(inside) {
+        let Some(m) = *m else { continue };
         let at = k as f64 + 0.5;
         if m < half {
             return Some(match last {

@@ -167,10 +167,16 @@ impl Stage<'_> {
             // Tracks that contradict themselves: named particles not followed are an error (their
             // tracks would be wrong); unnamed ones are warned of.
             let skirts = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            // Unnamed tracks end once lost (a particle found again starts a new one): only named
+            // tracks can be lost and found again.
+            let lost = match named {
+                Some(_) => lost_inside(&class_table, class.sizes.radius, size),
+                None => Vec::new(),
+            };
             concerns.extend(
                 check_tracks(&class_table, class.sizes.radius, &skirts)
                     .iter()
-                    .chain(&lost_inside(&class_table, class.sizes.radius, size))
+                    .chain(&lost)
                     .map(|c| (c.to_string(), class.sizes.radius)),
             );
             table.points.extend(class_table.points);
