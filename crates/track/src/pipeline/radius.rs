@@ -168,10 +168,14 @@ fn widen_to_half_maximum(
 }
 
 /// The radius, px, at which the azimuthal mean of `signal` about `centre` first falls below
-/// half its peak (the largest mean of the one-pixel rings within `radius`), interpolated
+/// half its peak (the largest of the core's mean, the pixels within a quarter of `radius`
+/// (at least one pixel) of the centre, and the means of the one-pixel rings beyond it within
+/// `radius`), interpolated
 /// between ring centres, when the ring from `radius + 0.5` to `radius + 1.5` (the centroid
 /// window's edge) still stands above half the peak by 3 standard errors of the pixel noise
-/// `noise`; `None` otherwise, or when the profile does not fall to half within `4 radius + 4`.
+/// `noise` and the core stands at half the peak or more, and the profile falls like a smooth spot's, not at an edge
+/// (to a quarter of its peak only beyond [`SMOOTH_FALL`] times its half-maximum radius);
+/// `None` otherwise, or when the profile does not fall to a quarter within `4 radius + 4`.
 fn half_maximum_beyond(
     signal: &[f32],
     width: usize,
@@ -212,15 +216,26 @@ fn half_maximum_beyond(
             .zip(&count)
             .map(|(&s, &n)| (n > 0).then(|| s / n as f64))
             .collect();
-        (mean, edge_sum, edge_count)
+        // The mean over the core, the rings within a quarter of `radius` (at least one pixel)
+        // of the centre: one ring there holds a few pixels, and its noise or a highlight
+        // would set the peak.
+        let core = ((0.25 * radius).max(1.0) as usize).min(bins);
+        let core_count: usize = count[..core].iter().sum();
+        let core_mean = (core_count > 0).then(|| sum[..core].iter().sum::<f64>() / core_count as f64);
+        (mean, core, core_mean, edge_sum, edge_count)
     };
     // The window's edge first (most particles end within it: nothing more to measure).
-    let (near, edge_sum, edge_count) = profile(radius + 1.5);
+    let (near, core, core_mean, edge_sum, edge_count) = profile(radius + 1.5);
     let inside = radius.floor() as usize;
-    let peak = near[..=inside.min(near.len() - 1)]
+    let centre_level = core_mean?;
+    // The peak: the core's mean, or a ring's beyond the core within `radius` (a ring's rim).
+    let peak = near
         .iter()
-        .flatten()
-        .fold(f64::NEG_INFINITY, |a, &b| a.max(b));
+        .enumerate()
+        .skip(core)
+        .take_while(|(k, _)| *k <= inside)
+        .filter_map(|(_, m)| *m)
+        .fold(centre_level, f64::max);
     if peak.is_nan() || peak <= 0.0 || edge_count == 0 {
         return None;
     }
@@ -229,21 +244,43 @@ fn half_maximum_beyond(
     if edge - half <= 3.0 * noise / (edge_count as f64).sqrt() {
         return None;
     }
-    let (mean, _, _) = profile(4.0 * radius + 4.0);
-    let mut last: Option<(f64, f64)> = None;
-    for (k, m) in mean.iter().enumerate().skip(inside) {
-        let Some(m) = *m else { continue };
-        let at = k as f64 + 0.5;
-        if m < half {
-            return Some(match last {
-                Some((r, v)) if v > m => r + (at - r) * (v - half) / (v - m),
-                _ => at,
-            });
-        }
-        last = Some((at, m));
+    // Only a spot, brightest about its centre, is cut by the window: a profile hollow there (a
+    // ring, or an estimate off its particle's centre, whose azimuthal profile rises to the
+    // far side) is not widened (a ring of 24 px estimated at 26.6 px from 8 px off its
+    // centre read 28.6-29.2 px, and was then followed 5-7 px off).
+    if centre_level < half {
+        return None;
     }
-    None
+    let (mean, ..) = profile(4.0 * radius + 4.0);
+    // Where the profile falls below `level`, interpolated between ring centres.
+    let falls_below = |level: f64| {
+        let mut last: Option<(f64, f64)> = None;
+        for (k, m) in mean.iter().enumerate().skip(inside) {
+            let Some(m) = *m else { continue };
+            let at = k as f64 + 0.5;
+            if m < level {
+                return Some(match last {
+                    Some((r, v)) if v > m => r + (at - r) * (v - level) / (v - m),
+                    _ => at,
+                });
+            }
+            last = Some((at, m));
+        }
+        None
+    };
+    let half_radius = falls_below(half)?;
+    // A smooth spot, not an edge: a Gaussian falls to a quarter of its peak at `sqrt(2)` times
+    // its half-maximum radius, a particle with an edge (a ball, a shaded sphere, a blurred
+    // disc) at about the same radius (a Lambertian sphere at 1.12 times it). Widened to its
+    // half maximum, a shaded sphere of 48 px, whose highlight lies off its centre, was
+    // followed 3.9 px off where it had been refused at 31 px.
+    let quarter_radius = falls_below(0.25 * peak)?;
+    (quarter_radius >= SMOOTH_FALL * half_radius).then_some(half_radius)
 }
+
+/// Least ratio of the quarter-maximum radius to the half-maximum radius of a smooth spot
+/// ([`half_maximum_beyond`]): half way between a Gaussian's `sqrt(2)` and an edge's 1.
+const SMOOTH_FALL: f64 = (1.0 + std::f64::consts::SQRT_2) / 2.0;
 
 /// Where the radius estimate starts, px: the scale of the particles of the first estimation
 /// frame, found in scale space (see [`crate::scale`]): with `starts`, the median over the
@@ -429,6 +466,15 @@ mod tests {
         assert_eq!(half_maximum_beyond(&spot, size, size, c, half, 5.0), None);
         let disc = image(size, c, s, Some(20.0), 100.0);
         assert_eq!(half_maximum_beyond(&disc, size, size, c, 20.0, 5.0), None);
+        // A shaded sphere (a Lambertian ball of 40 px, `sqrt(1 - d² / R²)`) seen through a
+        // window of 0.65 of its radius is cut above half its peak, but falls at its edge.
+        let sphere: Vec<f32> = (0..size * size)
+            .map(|i| {
+                let d = ((i % size) as f64 - c[0]).hypot((i / size) as f64 - c[1]);
+                (100.0 * (1.0 - (d / 40.0).powi(2)).max(0.0).sqrt()) as f32
+            })
+            .collect();
+        assert_eq!(half_maximum_beyond(&sphere, size, size, c, 26.0, 5.0), None);
         // Under noise as large as the spot's level at the window's edge the cut is not
         // significant.
         assert_eq!(half_maximum_beyond(&spot, size, size, c, 0.7 * half, 500.0), None);
