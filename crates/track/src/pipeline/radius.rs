@@ -137,8 +137,9 @@ const HALF_MAXIMUM_ROUNDS: usize = 4;
 /// 1.6 at it, 1.2 at 1.6 times it). The radius is measured from the data instead: the mean
 /// signal of the pixel ring just inside the window's edge, against half the peak of the
 /// particle's azimuthal profile; when most particles stand above that by 3 standard errors of
-/// the measured noise, the radius is where their profile falls to half its peak (the median
-/// over the particles), measured again from there until the window no longer cuts them.
+/// the measured noise, and are smooth spots centred on their estimates
+/// ([`half_maximum_beyond`]), the radius is where their profile falls to half its peak (the
+/// median over them), measured again from there until the window no longer cuts them.
 /// `cut` is the last round's [`half_maximum_beyond`] of each particle at `radius` (within
 /// 0.01 px of it).
 fn widen_to_half_maximum(
@@ -168,13 +169,16 @@ fn widen_to_half_maximum(
 }
 
 /// The radius, px, at which the azimuthal mean of `signal` about `centre` first falls below
-/// half its peak (the largest of the core's mean, the pixels within a quarter of `radius`
-/// (at least one pixel) of the centre, and the means of the one-pixel rings beyond it within
-/// `radius`), interpolated
-/// between ring centres, when the ring from `radius + 0.5` to `radius + 1.5` (the centroid
-/// window's edge) still stands above half the peak by 3 standard errors of the pixel noise
-/// `noise` and the core stands at half the peak or more, and the profile falls like a smooth spot's, not at an edge
-/// (to a quarter of its peak only beyond [`SMOOTH_FALL`] times its half-maximum radius);
+/// half its peak (the largest of the core's mean, over the pixels within a quarter of
+/// `radius`, at least one pixel, of the centre, and the means of the one-pixel rings beyond
+/// the core within `radius`), interpolated between ring centres, when
+///
+/// * the ring from `radius + 0.5` to `radius + 1.5` (the centroid window's edge) still stands
+///   above half the peak by 3 standard errors of the pixel noise `noise`,
+/// * the core stands at half the peak or more (a spot centred on the estimate), and
+/// * the profile falls like a smooth spot's, not at an edge: to a quarter of its peak only
+///   beyond [`SMOOTH_FALL`] times its half-maximum radius;
+///
 /// `None` otherwise, or when the profile does not fall to a quarter within `4 radius + 4`.
 fn half_maximum_beyond(
     signal: &[f32],
