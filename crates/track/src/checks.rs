@@ -21,6 +21,12 @@
 //!   shows as a dark ring round its track), and for one whose parts above and below the
 //!   background cancel in the mean (its mean magnitude beyond the noise's counts).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
+//! * **Lost inside the image.** A track with frames missing between two of its points (the
+//!   particle lost, bridged no farther, and found again) whose points either side lie too far
+//!   inside the image for the particle to have left it and come back in those frames, at
+//!   twice the largest step the track shows between detected points, and no other track
+//!   within `2 R + 2` of them (a neighbour it crossed or merged with may have hidden it): the
+//!   particle was there alone and was not followed.
 
 use std::collections::BTreeMap;
 
@@ -93,6 +99,16 @@ pub(crate) enum Concern {
         /// Sample frames it was measured in.
         frames: Vec<usize>,
     },
+    /// The particle was lost, and found again, where it cannot have left the image.
+    LostInside {
+        /// First and last frame without a position.
+        frames: (usize, usize),
+        /// How far inside the image its points either side of the gap lie, px (beyond the
+        /// radius).
+        inside: [f64; 2],
+        /// The largest step between its detected points, px per frame.
+        step: f64,
+    },
     /// The particle was detected in fewer than half of its frames.
     MostlyUnseen {
         /// Frames where it was detected.
@@ -138,6 +154,17 @@ impl std::fmt::Display for TrackConcern {
                 list(frames),
                 100.0 * MAX_SKIRT,
                 100.0 * LOPSIDED_SKIRT
+            ),
+            Concern::LostInside { frames, inside, step } => write!(
+                f,
+                "{p}: lost in frames {}-{} and found again, though its positions before and after lie {:.1} and {:.1} px \
+                 inside the image, farther than it moves in those frames (at most {:.1} px a frame, twice its largest \
+                 step): it was in view and not followed (no positions written there)",
+                frames.0,
+                frames.1,
+                inside[0],
+                inside[1],
+                2.0 * step
             ),
             Concern::MostlyUnseen { detected, frames } => write!(
                 f,
@@ -207,6 +234,67 @@ pub(crate) fn check_tracks(
                     frames: measured.iter().map(|m| m.0).collect(),
                 },
             });
+        }
+    }
+    out
+}
+
+/// The tracks of `table` (particles of radius `radius` px in frames of `size` px) that were
+/// lost inside the image: each run of frames missing between two of a track's points
+/// where the distances of those points from the image border, less the radius, add up to
+/// more than the particle can travel in the run's frames and one more at twice the largest
+/// step between consecutive detected points of the track (a particle that leaves the image
+/// and comes back travels to the border and back), and no other track's point lies within
+/// `2 radius + 2` px of either point in its frame (the crossing distance: two particles that
+/// met may hide each other). Tracks of fewer than two such steps are left alone.
+pub(crate) fn lost_inside(table: &TrackTable, radius: f64, size: (usize, usize)) -> Vec<TrackConcern> {
+    let (w, h) = (size.0 as f64, size.1 as f64);
+    let mut by_frame: BTreeMap<usize, Vec<&crate::track_table::TrackPoint>> = BTreeMap::new();
+    for p in &table.points {
+        by_frame.entry(p.frame).or_default().push(p);
+    }
+    let crowded = |p: &crate::track_table::TrackPoint| {
+        by_frame.get(&p.frame).is_some_and(|others| {
+            others
+                .iter()
+                .any(|o| o.particle != p.particle && (o.x - p.x).hypot(o.y - p.y) < 2.0 * radius + 2.0)
+        })
+    };
+    let inside = |p: &crate::track_table::TrackPoint| {
+        (p.x.min(w - 1.0 - p.x).min(p.y).min(h - 1.0 - p.y) - radius).max(0.0)
+    };
+    let mut out = Vec::new();
+    for (particle, points) in table.by_particle() {
+        let steps: Vec<f64> = points
+            .windows(2)
+            .filter(|p| {
+                p[1].frame == p[0].frame + 1
+                    && p[0].flag == PointFlag::Detected
+                    && p[1].flag == PointFlag::Detected
+            })
+            .map(|p| (p[1].x - p[0].x).hypot(p[1].y - p[0].y))
+            .collect();
+        if steps.len() < 2 {
+            continue;
+        }
+        let step = steps.iter().copied().fold(0.0, f64::max);
+        for p in points.windows(2) {
+            let gap = p[1].frame - p[0].frame;
+            if gap < 2 {
+                continue;
+            }
+            let (a, b) = (inside(p[0]), inside(p[1]));
+            if a + b > 2.0 * step * gap as f64 && !crowded(p[0]) && !crowded(p[1]) {
+                out.push(TrackConcern {
+                    particle: particle.to_string(),
+                    concern: Concern::LostInside {
+                        frames: (p[0].frame + 1, p[1].frame - 1),
+                        inside: [a, b],
+                        step,
+                    },
+                });
+                break;
+            }
         }
     }
     out
@@ -495,5 +583,38 @@ mod tests {
         );
         t.points[9].flag = PointFlag::Detected;
         assert!(check_tracks(&t, 4.0, &skirts).is_empty());
+    }
+
+    /// A track walking 1 px a frame across the middle of a 100 px frame with frames 5-7
+    /// missing is lost inside the image; the same track near the border (it may have left
+    /// and come back), one with no gap, and one with its gap bridged are not.
+    #[test]
+    fn a_particle_lost_in_the_middle_of_the_image_is_reported() {
+        let track = |y: f64, missing: &[usize], bridged: bool| TrackTable {
+            points: (0..12)
+                .filter(|k| bridged || !missing.contains(k))
+                .map(|k| {
+                    let mut p = TrackPoint::new(k, "a", 40.0 + k as f64, y);
+                    if missing.contains(&k) {
+                        p.flag = PointFlag::Interpolated;
+                    }
+                    p
+                })
+                .collect(),
+        };
+        let lost = lost_inside(&track(50.0, &[5, 6, 7], false), 4.0, (100, 100));
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert!(
+            matches!(lost[0].concern, Concern::LostInside { frames: (5, 7), .. }),
+            "{lost:?}"
+        );
+        assert!(lost[0].to_string().contains("lost in frames 5-7"), "{}", lost[0]);
+        assert!(lost_inside(&track(6.0, &[5, 6, 7], false), 4.0, (100, 100)).is_empty());
+        assert!(lost_inside(&track(50.0, &[], false), 4.0, (100, 100)).is_empty());
+        assert!(lost_inside(&track(50.0, &[5, 6, 7], true), 4.0, (100, 100)).is_empty());
+        // Beside a neighbour (within 2 R + 2 before the gap) it may have been hidden by it.
+        let mut beside = track(50.0, &[5, 6, 7], false);
+        beside.points.push(TrackPoint::new(4, "b", 44.0, 56.0));
+        assert!(lost_inside(&beside, 4.0, (100, 100)).is_empty());
     }
 }

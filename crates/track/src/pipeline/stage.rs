@@ -6,7 +6,7 @@ use super::size_class::SizeClass;
 use super::skirts::sample_skirts;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
-use crate::checks::check_tracks;
+use crate::checks::{check_tracks, lost_inside};
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -167,9 +167,16 @@ impl Stage<'_> {
             // Tracks that contradict themselves: named particles not followed are an error (their
             // tracks would be wrong); unnamed ones are warned of.
             let skirts = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            // Unnamed tracks end once lost (a particle found again starts a new one): only named
+            // tracks can be lost and found again.
+            let lost = match named {
+                Some(_) => lost_inside(&class_table, class.sizes.radius, size),
+                None => Vec::new(),
+            };
             concerns.extend(
                 check_tracks(&class_table, class.sizes.radius, &skirts)
                     .iter()
+                    .chain(&lost)
                     .map(|c| (c.to_string(), class.sizes.radius)),
             );
             table.points.extend(class_table.points);

@@ -216,6 +216,9 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
 /// (`PHYSFIT_SWEEP_DEBUG`): a bias tells a systematic error from noise.
 fn debug_errors(style: &Style, outcome: &physfit_track::TrackOutcome, truth: &physfit_synth::Truth) {
     eprintln!("style {}: {}", style.seed, outcome.stats);
+    for w in &outcome.warnings {
+        eprintln!("  warning: {w}");
+    }
     for (i, name) in truth.names.iter().enumerate() {
         let mut e: Vec<[f64; 2]> = Vec::new();
         for p in outcome.table.points.iter().filter(|p| &p.particle == name) {
@@ -318,14 +321,16 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (36 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (38 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
 /// a ring, textured balls, under uneven light or exposure drift) are followed since each
 /// particle is located again on the signal with the plane fitted just beyond it taken out
-/// (`pipeline/plane.rs`).
+/// (`pipeline/plane.rs`); 1008 and 1030 (Gaussian spots of 46-53 px) since the radius is
+/// widened to the half-maximum radius measured where the window `R + 1` cut a smooth spot
+/// above half its peak (`pipeline/radius.rs`).
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1020, 1021, 1022,
-    1023, 1024, 1027, 1028, 1029, 1032, 1034, 1035, 1036, 1037, 1039,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1020, 1021,
+    1022, 1023, 1024, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -347,11 +352,13 @@ fn styles_followed_today_stay_followed() {
 }
 
 /// The synth styles the tracker refuses today with an error (rings 1002, 1011 and 1031; a
-/// saturating exposure 1009, 1033, 1038; noise a third of the contrast 1025): each must be
-/// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
-/// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
-/// 0.51 / 1.18) was written wrong until the skirt's magnitude counted.
-const REFUSED_SYNTH: &[u64] = &[1002, 1009, 1011, 1025, 1031, 1033, 1038];
+/// saturating exposure 1009, 1033, 1038; noise a third of the contrast 1025 and 1026): each
+/// must be refused or followed, never tracked wrong without a word. Style 1038 (shaded
+/// spheres of 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS
+/// against 0.51 / 1.18) was written wrong until the skirt's magnitude counted; 1026 (discs of
+/// 3.4 px under noise 28.6, every particle unseen in frames 3-9, 61 of 72 points, 0.36 / 0.41
+/// px against 0.35 / 0.34) until a particle lost and found again far inside the image was.
+const REFUSED_SYNTH: &[u64] = &[1002, 1009, 1011, 1025, 1026, 1031, 1033, 1038];
 
 #[test]
 fn styles_refused_today_are_refused_or_followed() {
@@ -365,7 +372,7 @@ fn styles_refused_today_are_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 12 of 48 styles fail (rings, saturating exposure, large Gaussian spots and textured balls under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 10 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
