@@ -496,7 +496,20 @@ fn diagnose_inner(
                 );
             }
         }
-        let mut verified: Vec<search::Verified> = to_verify.iter().map(|p| ctx.verify(&current, p)).collect();
+        // Proposals from geometry or rings (no screen score), and tethers' stiffer starts, are
+        // passed over once a candidate verified before them fits to the noise level: they are
+        // there for what the weak form cannot see, and each costs several multi-step fits.
+        let mut verified: Vec<search::Verified> = Vec::with_capacity(to_verify.len());
+        for p in &to_verify {
+            let geometric = p.iter().all(|q| q.screen.is_none() && q.effect.is_smooth());
+            let fitted = verified
+                .iter()
+                .any(|v| v.current.as_ref().is_some_and(|c| ctx.at_noise_level(c)));
+            if geometric && fitted {
+                continue;
+            }
+            verified.push(ctx.verify_with(&current, p, !fitted));
+        }
         // Swaps: when no addition earns its place and the fit is still far from the noise, an
         // accepted smooth effect may be a poor stand-in for a better explanation (a far
         // tether imitating a pendulum's field and tether): each is taken out, the best single

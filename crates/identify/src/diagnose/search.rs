@@ -956,7 +956,8 @@ impl Context<'_> {
     }
 
     /// The stiffness `μ ω² / 2` of `structure`'s spring `k` from the strongest oscillation
-    /// of its length over the recording (module `oscillation`; `μ` the ends' reduced mass,
+    /// of its length over the recording faster than the weak form's test window resolves
+    /// (module `oscillation`; `μ` the ends' reduced mass,
     /// the free end's mass when the other is fixed), up to what the integration keeps
     /// stable; `None` when no oscillation is heard.
     fn heard_spring_stiffness(&self, structure: &Scene, k: usize) -> Option<f64> {
@@ -979,7 +980,9 @@ impl Context<'_> {
             .unzip();
         let span = times.last()? - times.first()?;
         let nyquist = std::f64::consts::PI * fps;
-        let low = 4.0 * std::f64::consts::TAU / span.max(f64::MIN_POSITIVE);
+        // Only rings faster than the weak form's test window resolves: slower ones it tells.
+        let low = (4.0 * std::f64::consts::TAU / span.max(f64::MIN_POSITIVE))
+            .max(std::f64::consts::TAU * fps / self.weak.window.max(1) as f64);
         let w = *oscillation::strongest_frequencies(&times, &lengths, low, 0.95 * nyquist, 1).first()?;
         let substep = structure.integration_parameters().dt();
         let stable = 0.25 * mu / (substep * substep);
@@ -988,7 +991,8 @@ impl Context<'_> {
 
     /// Effect `k` of `with`, a tether, refitted from stiffer starts: the stiffness
     /// `m ω² / 2` of each of the three strongest oscillations of its particle's distance
-    /// from the anchor (module `oscillation`) faster than the fitted tether's, up to what the
+    /// from the anchor (module `oscillation`) faster than the fitted tether's and than the
+    /// weak form's test window resolves, up to what the
     /// integration keeps stable, the rest length changed to keep the pull at the particle's
     /// mean position. A stiff tether's radial oscillation is a narrow basin in the
     /// stiffness: started a few times too soft or too stiff, the fit stops in another
@@ -1025,7 +1029,15 @@ impl Context<'_> {
             .unzip();
         let now = (2.0 * stiffness / mass).sqrt();
         let nyquist = std::f64::consts::PI * fps;
-        let heard = oscillation::strongest_frequencies(&times, &distances, 1.2 * now, 0.95 * nyquist, 3);
+        // Only rings faster than the weak form's test window resolves: slower ones it tells.
+        let resolved = std::f64::consts::TAU * fps / self.weak.window.max(1) as f64;
+        let heard = oscillation::strongest_frequencies(
+            &times,
+            &distances,
+            (1.2 * now).max(resolved),
+            0.95 * nyquist,
+            3,
+        );
         let mut best: Option<Current> = None;
         for w in heard {
             let stiffer = mass * w * w / 2.0;
@@ -1415,6 +1427,13 @@ impl Context<'_> {
     /// that needs it) against `current`: fitted from the current fit plus the proposals'
     /// starting values and from the weak-form joint estimate, keeping the better fit.
     pub fn verify(&self, current: &Current, proposals: &[Proposal]) -> Verified {
+        self.verify_with(current, proposals, true)
+    }
+
+    /// [`Context::verify`], with a tether's stiffer starts (see
+    /// [`Context::stiffer_tether`]) only when `stiffen`: they cost six multi-step fits, and
+    /// are passed over once another candidate fits to the noise level.
+    pub fn verify_with(&self, current: &Current, proposals: &[Proposal], stiffen: bool) -> Verified {
         let effects: Vec<Effect> = current
             .family
             .effects
@@ -1449,7 +1468,7 @@ impl Context<'_> {
         }
         // A stiff tether oscillates faster than the weak form's test functions see: its
         // stiffness is also started from the oscillation it makes.
-        for k in current.family.effects.len()..family.effects.len() {
+        for k in (current.family.effects.len()..family.effects.len()).filter(|_| stiffen) {
             let Some(b) = best.as_ref() else { break };
             if self.at_noise_level(b) {
                 break;
