@@ -96,33 +96,45 @@ fn tethered_pair(seed: u64) -> (Scene, Scene) {
     (truth, structure)
 }
 
+/// Diagnoses `truth`'s tracks (noise 0.01 px, `pivot` untracked) against `structure` and
+/// checks that it names exactly the finding `label`, whose stiffness is within 1 % of
+/// `truth`'s spring `spring`, and that the verdict says explained.
+fn check_stiff(name: &str, truth: &Scene, structure: &Scene, label: &str, spring: usize, seed: u64) {
+    let mut t = crate::testutil::tracks(truth, 0.01, seed);
+    t.points.retain(|p| p.particle != "pivot");
+    let options = DiagnoseOptions {
+        seed,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let c = Case {
+        name: name.into(),
+        truth: truth.clone(),
+        tracks: t,
+        d,
+    };
+    eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
+    c.names_exactly(&[label]);
+    assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
+    let want = truth.springs[spring].stiffness.unwrap_or(f64::NAN);
+    let got = c.value(label, "stiffness");
+    assert!(
+        (got - want).abs() <= 0.01 * want,
+        "{name}: stiffness {got:.1}, truth {want:.1}"
+    );
+}
+
 #[test]
 fn stiff_tethers_take_the_stiffness_of_their_oscillation() {
     for seed in 0..4u64 {
         let (truth, structure) = tethered_pair(seed);
-        let sigma = 0.01;
-        let mut t = crate::testutil::tracks(&truth, sigma, seed);
-        t.points.retain(|p| p.particle != "pivot");
-        let options = DiagnoseOptions {
+        check_stiff(
+            &format!("tethered pair {seed}"),
+            &truth,
+            &structure,
+            TETHER,
+            1,
             seed,
-            ..DiagnoseOptions::default()
-        };
-        let name = format!("tethered pair {seed}");
-        let d = diagnose(&structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let c = Case {
-            name: name.clone(),
-            truth: truth.clone(),
-            tracks: t,
-            d,
-        };
-        eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
-        c.names_exactly(&[TETHER]);
-        assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
-        let want = truth.springs[1].stiffness.unwrap_or(f64::NAN);
-        let got = c.value(TETHER, "stiffness");
-        assert!(
-            (got - want).abs() <= 0.01 * want,
-            "{name}: stiffness {got:.1}, truth {want:.1}"
         );
     }
 }
@@ -212,30 +224,9 @@ fn ringing_triple(seed: u64) -> (Scene, Scene) {
 
 #[test]
 fn stiff_missing_springs_take_the_stiffness_of_their_oscillation() {
-    const SPRING: &str = "missing spring p0-p2";
     for seed in 0..4u64 {
         let (truth, structure) = ringing_triple(seed);
-        let t = crate::testutil::tracks(&truth, 0.01, seed);
-        let options = DiagnoseOptions {
-            seed,
-            ..DiagnoseOptions::default()
-        };
         let name = format!("ringing triple {seed}");
-        let d = diagnose(&structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let c = Case {
-            name: name.clone(),
-            truth: truth.clone(),
-            tracks: t,
-            d,
-        };
-        eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
-        c.names_exactly(&[SPRING]);
-        assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
-        let want = truth.springs[2].stiffness.unwrap_or(f64::NAN);
-        let got = c.value(SPRING, "stiffness");
-        assert!(
-            (got - want).abs() <= 0.01 * want,
-            "{name}: stiffness {got:.1}, truth {want:.1}"
-        );
+        check_stiff(&name, &truth, &structure, "missing spring p0-p2", 2, seed);
     }
 }
