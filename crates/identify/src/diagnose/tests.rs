@@ -97,7 +97,12 @@ struct Case {
 }
 
 fn diagnose_case(name: &str, truth: Scene, structure: &Scene, seed: u64) -> Case {
-    let mut t = tracks(&truth, SIGMA, seed);
+    diagnose_case_at(name, truth, structure, SIGMA, seed)
+}
+
+/// [`diagnose_case`] with track noise `sigma` (px).
+fn diagnose_case_at(name: &str, truth: Scene, structure: &Scene, sigma: f64, seed: u64) -> Case {
+    let mut t = tracks(&truth, sigma, seed);
     // Only the structure's particles are tracked (a concealed anchor is not).
     t.points.retain(|p| structure.particle_id(&p.particle).is_some());
     let options = DiagnoseOptions {

@@ -121,31 +121,8 @@ fn pendulum_scene(
 /// and checks the pendulum: exactly a field and a tether, the swing rate within 3 % and the
 /// anchor within 2 % of the length of the truth, and a verdict of "explained".
 fn check_pendulum(name: &str, truth: Scene, structure: &Scene, sigma: f64, seed: u64) {
-    let mut t = crate::testutil::tracks(&truth, sigma, seed);
-    t.points.retain(|p| p.particle == "bob");
-    let options = DiagnoseOptions {
-        seed,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let c = Case {
-        name: name.into(),
-        truth: truth.clone(),
-        tracks: t,
-        d,
-    };
-    eprintln!(
-        "{name}: {:.2} s, {:?}; {}",
-        c.d.seconds,
-        c.d.findings
-            .iter()
-            .map(|f| (
-                f.label.as_str(),
-                f.parameters.iter().map(|p| p.value).collect::<Vec<_>>()
-            ))
-            .collect::<Vec<_>>(),
-        c.d.verdict.text
-    );
+    let c = diagnose_case_at(name, truth.clone(), structure, sigma, seed);
+    eprintln!("{name}: {}", c.d.verdict.text);
     c.names_exactly(&[FIELD, TETHER]).explained();
     let spring = &truth.springs[0];
     let (length, stiffness) = (

@@ -86,34 +86,27 @@ fn tethered_pair(seed: u64) -> (Scene, Scene) {
             ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2)).sqrt() * 0.9,
         )
     };
-    let parse = |t: String| Scene::from_toml_str(&t, "tethered-pair").unwrap_or_else(|e| panic!("{e}"));
-    let truth = parse(text(false));
-    let mut structure = parse(text(true));
+    truth_and_structure(&text(false), &text(true))
+}
+
+/// The truth scene from `truth`'s text, and the structure from `hidden`'s (the truth without
+/// its concealed bond) with every bond's values unknown.
+fn truth_and_structure(truth: &str, hidden: &str) -> (Scene, Scene) {
+    let parse = |t: &str| Scene::from_toml_str(t, "stiff").unwrap_or_else(|e| panic!("{e}"));
+    let mut structure = parse(hidden);
     for s in &mut structure.springs {
         s.rest_length = None;
         s.stiffness = None;
     }
-    (truth, structure)
+    (parse(truth), structure)
 }
 
 /// Diagnoses `truth`'s tracks (noise 0.01 px, `pivot` untracked) against `structure` and
 /// checks that it names exactly the finding `label`, whose stiffness is within 1 % of
 /// `truth`'s spring `spring`, and that the verdict says explained.
 fn check_stiff(name: &str, truth: &Scene, structure: &Scene, label: &str, spring: usize, seed: u64) {
-    let mut t = crate::testutil::tracks(truth, 0.01, seed);
-    t.points.retain(|p| p.particle != "pivot");
-    let options = DiagnoseOptions {
-        seed,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(structure, &t, &options, &()).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let c = Case {
-        name: name.into(),
-        truth: truth.clone(),
-        tracks: t,
-        d,
-    };
-    eprintln!("{name}: {:.2} s; {}", c.d.seconds, c.d.verdict.text);
+    let c = diagnose_case_at(name, truth.clone(), structure, 0.01, seed);
+    eprintln!("{name}: {}", c.d.verdict.text);
     c.names_exactly(&[label]);
     assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
     let want = truth.springs[spring].stiffness.unwrap_or(f64::NAN);
@@ -212,14 +205,7 @@ fn ringing_triple(seed: u64) -> (Scene, Scene) {
             gap * 1.1,
         )
     };
-    let parse = |t: String| Scene::from_toml_str(&t, "ringing-triple").unwrap_or_else(|e| panic!("{e}"));
-    let truth = parse(text(false));
-    let mut structure = parse(text(true));
-    for s in &mut structure.springs {
-        s.rest_length = None;
-        s.stiffness = None;
-    }
-    (truth, structure)
+    truth_and_structure(&text(false), &text(true))
 }
 
 #[test]
