@@ -188,7 +188,8 @@ pub fn settle(particles: &ParticleSet, ropes: &[Rope], rails: &[Rail], state: &m
     moved
 }
 
-/// Coulomb friction along a rail: the speed along it loses `min(mu dv_n, |v_t|)`, `dv_n`
+/// Coulomb friction along a rail (the wall's law, `physics::coulomb_friction`, across the
+/// rail's normal): the speed along it loses `min(mu dv_n, |v_t|)`, `dv_n`
 /// (px/s) the normal velocity change the rail imposed over the substep; the position moves
 /// back by the change times `tau` (s), the time since the particle left the line, as at a
 /// wall's resting contact ([`crate::Wall::apply_friction`]: `dt / 2` for Verlet, `dt` for
@@ -198,13 +199,8 @@ fn apply_rail_friction(particles: &ParticleSet, rail: &Rail, state: &mut State, 
     if rail.friction == 0.0 || particles.particles[k].fixed {
         return;
     }
-    let vt = state.velocities[k].dot(&rail.direction);
-    let loss = (rail.friction * dv_n).min(vt.abs());
-    if loss > 0.0 {
-        let change = rail.direction * (-loss * vt.signum());
-        state.velocities[k] += change;
-        state.positions[k] += change * tau;
-    }
+    let (x, v) = (&mut state.positions[k], &mut state.velocities[k]);
+    crate::physics::coulomb_friction(rail.normal(), rail.friction, x, v, dv_n, tau);
 }
 
 /// Moves a rope's ends so that their distance is `L` (or at most `L` when slack) along its

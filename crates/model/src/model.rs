@@ -20,12 +20,7 @@ impl Potential for Model {
     fn energy(&self, x: &[Vec2]) -> f64 {
         let bonds: f64 = self.springs.iter().map(|s| s.energy(x)).sum::<f64>()
             + self.torsions.iter().map(|t| t.energy(x)).sum::<f64>();
-        let total = bonds + self.field_energy(x);
-        if self.has_bumpers() {
-            total + self.bumper_energy(x)
-        } else {
-            total
-        }
+        bonds + self.field_energy(x) + self.bumper_energy(x)
     }
 
     fn add_gradient(&self, x: &[Vec2], grad: &mut [Vec2]) {
@@ -73,12 +68,8 @@ impl Model {
             .sum()
     }
 
-    /// Returns true if and only if some wall is a spring bumper.
-    fn has_bumpers(&self) -> bool {
-        self.physics.walls.iter().any(|w| w.is_bumper())
-    }
-
-    /// Energy of the bumper springs, `sum S s^2` over bumpers and penetrating free particles.
+    /// Energy of the bumper springs, `sum S s^2` over bumpers and penetrating free particles
+    /// (0 without bumpers).
     fn bumper_energy(&self, x: &[Vec2]) -> f64 {
         let walls = self.physics.walls.iter().filter(|w| w.is_bumper());
         walls

@@ -191,13 +191,22 @@ impl Wall {
     /// resting contact `tau = dt / 2`: the trapezoidal rule of a constant deceleration).
     #[inline]
     pub fn apply_friction(&self, x: &mut Vec2, v: &mut Vec2, dv_n: f64, tau: f64) {
-        let vt = *v - self.normal * v.dot(&self.normal);
-        let speed = vt.norm();
-        if speed > 0.0 && dv_n > 0.0 {
-            let change = vt * -((self.friction * dv_n).min(speed) / speed);
-            *v += change;
-            *x += change * tau;
-        }
+        coulomb_friction(self.normal, self.friction, x, v, dv_n, tau);
+    }
+}
+
+/// Coulomb friction of a contact with unit `normal` and coefficient `mu`: the velocity `v`'s
+/// part across the normal (px/s) loses `min(mu * dv_n, |v_t|)`, `dv_n` (px/s, >= 0) the
+/// contact's normal velocity change; the position `x` moves by the change times `tau` (s),
+/// the time since the contact. The one law of walls ([`Wall::apply_friction`]) and rails.
+#[inline]
+pub(crate) fn coulomb_friction(normal: Vec2, mu: f64, x: &mut Vec2, v: &mut Vec2, dv_n: f64, tau: f64) {
+    let vt = *v - normal * v.dot(&normal);
+    let speed = vt.norm();
+    if speed > 0.0 && dv_n > 0.0 {
+        let change = vt * -((mu * dv_n).min(speed) / speed);
+        *v += change;
+        *x += change * tau;
     }
 }
 
