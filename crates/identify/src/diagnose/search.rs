@@ -521,8 +521,7 @@ impl Context<'_> {
             return None;
         }
         let mass = family.structure.particles.get(particle).map_or(1.0, |p| p.mass);
-        let substep = family.structure.integration_parameters().dt();
-        let stable = 0.25 * mass / (substep * substep);
+        let stable = stable_stiffness(&family.structure, mass);
         let sigma = super::search::noise_floor(obs.noise, self.scales.length);
         let stiffness = (mass * field.norm() / (2.0 * sigma))
             .min(stable)
@@ -654,8 +653,7 @@ impl Context<'_> {
             .collect();
         let mean_square_speed = speeds.iter().sum::<f64>() / speeds.len().max(1) as f64;
         let mass = family.structure.particles.get(particle).map_or(1.0, |p| p.mass);
-        let substep = family.structure.integration_parameters().dt();
-        let stable = 0.25 * mass / (substep * substep);
+        let stable = stable_stiffness(&family.structure, mass);
         let centripetal = (mass * mean_square_speed / arc.radius / (2.0 * sigma))
             .min(stable)
             .max(self.scales.stiffness * 1e-3);
@@ -711,8 +709,7 @@ impl Context<'_> {
         let o = family.effect_offset(k);
         let p: Vec<f64> = with.fit.params[o..o + 4].to_vec();
         let mass = family.structure.particles.get(particle).map_or(1.0, |q| q.mass);
-        let substep = family.structure.integration_parameters().dt();
-        let stable = 0.25 * mass / (substep * substep);
+        let stable = stable_stiffness(&family.structure, mass);
         let sigma = noise_floor(self.obs.noise, self.scales.length);
         let rigid = (mass * field / (2.0 * 0.1 * sigma)).min(stable);
         if !(rigid > p[3] && p[3] > 0.0 && field > 0.0) {
@@ -804,8 +801,7 @@ impl Context<'_> {
             return Vec::new();
         };
         let fps = self.obs.fps;
-        let low = std::f64::consts::TAU * fps / self.weak.window.max(1) as f64;
-        let high = 0.95 * std::f64::consts::PI * fps;
+        let (low, high) = self.ring_band();
         let mut out = Vec::new();
         for &particle in &family.free {
             let mut times = Vec::new();
@@ -868,7 +864,7 @@ impl Context<'_> {
             .particles
             .get(ring.particle)
             .map_or(1.0, |p| p.mass);
-        let stiffness = (mass * ring.omega * ring.omega / 2.0).min(self.stable_stiffness(family, mass));
+        let stiffness = (mass * ring.omega * ring.omega / 2.0).min(stable_stiffness(&family.structure, mass));
         let proposals = RING_ANCHOR_SCALES
             .iter()
             .flat_map(|&scale| [scale, -scale])
@@ -917,13 +913,7 @@ impl Context<'_> {
                     continue;
                 }
                 let omega = 0.5 * (ra.omega + rb.omega);
-                let (times, distances): (Vec<f64>, Vec<f64>) = self
-                    .obs
-                    .positions
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(k, x)| Some((k as f64 / fps, (x[b]? - x[a]?).norm())))
-                    .unzip();
+                let (times, distances) = self.series(|x| Some((x[b]? - x[a]?).norm()));
                 let (c, s) = oscillation::amplitudes(&times, &distances, omega);
                 let amplitude = c.hypot(s);
                 if amplitude < 0.5 * ra.amplitude.max(rb.amplitude) {
@@ -931,7 +921,7 @@ impl Context<'_> {
                 }
                 let inverse = |p: usize| structure.particles.get(p).map_or(1.0, |q| 1.0 / q.mass);
                 let mu = 1.0 / (inverse(a) + inverse(b));
-                let stiffness = (mu * omega * omega / 2.0).min(self.stable_stiffness(family, mu));
+                let stiffness = (mu * omega * omega / 2.0).min(stable_stiffness(&family.structure, mu));
                 let length = distances.iter().sum::<f64>() / distances.len().max(1) as f64;
                 if best.as_ref().map_or(true, |(_, x)| amplitude > *x) {
                     let proposal = Proposal {
@@ -948,11 +938,30 @@ impl Context<'_> {
         best
     }
 
-    /// The stiffest spring on a mass `mass` the integration keeps stable, `m / (4 dt²)` with
-    /// `dt` the substep (s).
-    fn stable_stiffness(&self, family: &Family, mass: f64) -> f64 {
-        let substep = family.structure.integration_parameters().dt();
-        0.25 * mass / (substep * substep)
+    /// The band of angular frequencies (rad/s) in which a ring is listened for: from the
+    /// fastest the weak form's test window resolves (it tells slower ones) to just under the
+    /// Nyquist rate `π fps`.
+    fn ring_band(&self) -> (f64, f64) {
+        let fps = self.obs.fps;
+        let resolved = std::f64::consts::TAU * fps / self.weak.window.max(1) as f64;
+        (resolved, 0.95 * std::f64::consts::PI * fps)
+    }
+
+    /// Times (s) and values of `value` at each frame where it has one.
+    fn series(&self, value: impl Fn(&[Option<Vec2>]) -> Option<f64>) -> (Vec<f64>, Vec<f64>) {
+        let fps = self.obs.fps;
+        self.obs
+            .positions
+            .iter()
+            .enumerate()
+            .filter_map(|(k, x)| Some((k as f64 / fps, value(x)?)))
+            .unzip()
+    }
+
+    /// Mean observed position of `particle`, px; `None` when it is never tracked.
+    fn mean_position(&self, particle: usize) -> Option<Vec2> {
+        let xs: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[particle]).collect();
+        (!xs.is_empty()).then(|| xs.iter().sum::<Vec2>() / xs.len() as f64)
     }
 
     /// The stiffness `μ ω² / 2` of `structure`'s spring `k` from the strongest oscillation
@@ -966,27 +975,16 @@ impl Context<'_> {
         let (pa, pb) = (structure.particles.get(a)?, structure.particles.get(b)?);
         let inverse = |p: &physfit_model::scene::ParticleSpec| if p.fixed { 0.0 } else { 1.0 / p.mass };
         let mu = 1.0 / (inverse(pa) + inverse(pb));
-        let fps = self.obs.fps;
-        let (times, lengths): (Vec<f64>, Vec<f64>) = self
-            .obs
-            .positions
-            .iter()
-            .enumerate()
-            .filter_map(|(f, x)| {
-                let xa = x[a].or(pa.fixed.then_some(pa.position))?;
-                let xb = x[b].or(pb.fixed.then_some(pb.position))?;
-                Some((f as f64 / fps, (xb - xa).norm()))
-            })
-            .unzip();
+        let (times, lengths) = self.series(|x| {
+            let xa = x[a].or(pa.fixed.then_some(pa.position))?;
+            let xb = x[b].or(pb.fixed.then_some(pb.position))?;
+            Some((xb - xa).norm())
+        });
         let span = times.last()? - times.first()?;
-        let nyquist = std::f64::consts::PI * fps;
-        // Only rings faster than the weak form's test window resolves: slower ones it tells.
-        let low = (4.0 * std::f64::consts::TAU / span.max(f64::MIN_POSITIVE))
-            .max(std::f64::consts::TAU * fps / self.weak.window.max(1) as f64);
-        let w = *oscillation::strongest_frequencies(&times, &lengths, low, 0.95 * nyquist, 1).first()?;
-        let substep = structure.integration_parameters().dt();
-        let stable = 0.25 * mu / (substep * substep);
-        (mu.is_finite() && mu > 0.0).then(|| (mu * w * w / 2.0).min(stable))
+        let (resolved, high) = self.ring_band();
+        let low = (4.0 * std::f64::consts::TAU / span.max(f64::MIN_POSITIVE)).max(resolved);
+        let w = *oscillation::strongest_frequencies(&times, &lengths, low, high, 1).first()?;
+        (mu.is_finite() && mu > 0.0).then(|| (mu * w * w / 2.0).min(stable_stiffness(structure, mu)))
     }
 
     /// Effect `k` of `with`, a tether, refitted from stiffer starts: the stiffness
@@ -1010,34 +1008,18 @@ impl Context<'_> {
         let o = family.effect_offset(k);
         let p = &with.fit.params;
         let (anchor, length, stiffness) = (Vec2::new(p[o], p[o + 1]), p[o + 2], p[o + 3]);
-        let xs: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[particle]).collect();
-        if xs.is_empty() || stiffness.is_nan() || stiffness <= 0.0 {
+        let mean = self.mean_position(particle)?;
+        if stiffness.is_nan() || stiffness <= 0.0 {
             return None;
         }
-        let mean = xs.iter().sum::<Vec2>() / xs.len() as f64;
         let distance = (anchor - mean).norm();
         let mass = family.structure.particles.get(particle).map_or(1.0, |q| q.mass);
-        let substep = family.structure.integration_parameters().dt();
-        let stable = 0.25 * mass / (substep * substep);
-        let fps = self.obs.fps;
-        let (times, distances): (Vec<f64>, Vec<f64>) = self
-            .obs
-            .positions
-            .iter()
-            .enumerate()
-            .filter_map(|(f, x)| x[particle].map(|x| (f as f64 / fps, (x - anchor).norm())))
-            .unzip();
+        let stable = stable_stiffness(&family.structure, mass);
+        let (times, distances) = self.series(|x| Some((x[particle]? - anchor).norm()));
         let now = (2.0 * stiffness / mass).sqrt();
-        let nyquist = std::f64::consts::PI * fps;
-        // Only rings faster than the weak form's test window resolves: slower ones it tells.
-        let resolved = std::f64::consts::TAU * fps / self.weak.window.max(1) as f64;
-        let heard = oscillation::strongest_frequencies(
-            &times,
-            &distances,
-            (1.2 * now).max(resolved),
-            0.95 * nyquist,
-            3,
-        );
+        let (resolved, high) = self.ring_band();
+        let heard =
+            oscillation::strongest_frequencies(&times, &distances, (1.2 * now).max(resolved), high, 3);
         let mut best: Option<Current> = None;
         for w in heard {
             let stiffer = mass * w * w / 2.0;
@@ -1090,11 +1072,7 @@ impl Context<'_> {
             return None;
         };
         let o = family.effect_offset(k);
-        let xs: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[particle]).collect();
-        if xs.is_empty() {
-            return None;
-        }
-        let mean = xs.iter().sum::<Vec2>() / xs.len() as f64;
+        let mean = self.mean_position(particle)?;
         let p = &with.fit.params;
         let anchor = Vec2::new(p[o], p[o + 1]);
         let distance = (anchor - mean).norm();
@@ -1525,6 +1503,13 @@ impl Context<'_> {
 }
 
 /// Replaces `best` by `b` when `b` fits the fitted frames better (or `best` is `None`).
+/// The stiffest spring on a mass `mass` that `structure`'s integration keeps stable,
+/// `m / (4 dt²)` with `dt` its substep (s).
+fn stable_stiffness(structure: &Scene, mass: f64) -> f64 {
+    let substep = structure.integration_parameters().dt();
+    0.25 * mass / (substep * substep)
+}
+
 fn keep_better(best: &mut Option<Current>, b: Option<Current>) {
     if let Some(b) = b {
         if best
