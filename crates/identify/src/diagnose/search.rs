@@ -828,9 +828,8 @@ impl Context<'_> {
                         .copied()
                 })
                 .filter_map(|omega| {
-                    let [(ax, bx), (ay, by)] = residual
-                        .clone()
-                        .map(|r| oscillation::amplitudes(&times, &r, omega));
+                    let [(ax, bx), (ay, by)] =
+                        [&residual[0], &residual[1]].map(|r| oscillation::amplitudes(&times, r, omega));
                     // The ellipse's axes: the singular values of [[ax, bx], [ay, by]].
                     let svd = nalgebra::Matrix2::new(ax, bx, ay, by).svd(true, false);
                     let u = svd.u?;
