@@ -112,6 +112,38 @@ pub struct WallGuess {
 /// `acc[k][p]`, when given, is the model's acceleration of particle `p` at frame offset `k`
 /// (px/s²), removed from the impulses so that smooth forces are not mistaken for jolts.
 pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<Jolt>, f64) {
+    let (jolts, scale) = scan(obs, acc);
+    (
+        jolts
+            .into_iter()
+            .filter(|(_, strict)| *strict)
+            .map(|(j, _)| j)
+            .collect(),
+        scale,
+    )
+}
+
+/// The faint jolts in `obs`: gaps that pass every test of [`find_jolts`] against the track
+/// noise alone, but not against the robust spread of all impulses, while their local jump
+/// along the impulse exceeds [`JOLT_THRESHOLD`] times the larger of its noise and the robust
+/// spread of every gap's local jump. A poor smooth model (a short recording whose springs the
+/// weak form cannot tell) raises the means' spread over a bounce's impulse and partly absorbs
+/// it, while the local jump, blind to any acceleration linear in time, still holds the whole
+/// impulse. Their walls are only proposals, which the multi-step fit confirms or refuses.
+/// Their impulse is the local jump, and their significance its size over that scale.
+pub fn find_faint_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Vec<Jolt> {
+    scan(obs, acc)
+        .0
+        .into_iter()
+        .filter(|(_, strict)| !*strict)
+        .map(|(j, _)| j)
+        .collect()
+}
+
+/// Every gap that passes the jolt tests, flagged `true` where it passes them against the
+/// robust spread of all impulses and `false` where it is only faint (see
+/// [`find_faint_jolts`]); and that robust scale (px/s).
+fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bool)>, f64) {
     let m = JOLT_FIT_POINTS;
     let fps = obs.fps;
     let dt = obs.frame_dt();
@@ -131,6 +163,7 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     // Per particle and gap: the local jump (see the module doc), px/s.
     let mut local: Vec<Vec<Option<Vec<Vec2>>>> = vec![vec![None; frames]; obs.particle_count()];
     let mut magnitudes = Vec::new();
+    let mut local_magnitudes = Vec::new();
     for (p, (out, out_local)) in series.iter_mut().zip(local.iter_mut()).enumerate() {
         if obs.fixed[p] {
             continue;
@@ -181,6 +214,10 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                     .iter()
                     .map(|&g| jump(g))
                     .collect::<Option<Vec<Vec2>>>();
+                if let Some(j) = jump(k) {
+                    local_magnitudes.push(j.x.abs());
+                    local_magnitudes.push(j.y.abs());
+                }
             }
         }
     }
@@ -189,6 +226,10 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
     }
     magnitudes.sort_by(|a, b| a.total_cmp(b));
     let robust = 1.4826 * magnitudes[magnitudes.len() / 2];
+    local_magnitudes.sort_by(|a, b| a.total_cmp(b));
+    let local_scale = local_magnitudes
+        .get(local_magnitudes.len() / 2)
+        .map_or(local_noise, |&m| local_noise.max(1.4826 * m));
     // A gap's scale: fewer differences averaged near an end leave more noise (the misfit's
     // part, which grows with the frames averaged, is kept at the interior's).
     // Exact tracks leave every impulse but the bounces' at zero: the scale's floor is relative
@@ -200,7 +241,8 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
         .map(|g| g.impulse.norm())
         .fold(0.0, f64::max);
     let floor = (1e-12 * largest).max(f64::MIN_POSITIVE);
-    let scale_of = |mk: usize| (noise_scale * m as f64 / mk as f64).max(robust).max(floor);
+    let noise_of = |mk: usize| (noise_scale * m as f64 / mk as f64).max(floor);
+    let scale_of = |mk: usize| noise_of(mk).max(robust);
     let significance = |g: &Gap| g.impulse.norm() / scale_of(g.points);
     let mut out = Vec::new();
     for (p, series) in series.iter().enumerate() {
@@ -213,10 +255,12 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
                 points: mk,
             } = gap;
             let size = imp.norm();
-            let scale = scale_of(mk);
+            let scale = noise_of(mk);
             if size < JOLT_THRESHOLD * scale {
                 continue;
             }
+            let full = scale_of(mk);
+            let strict = size >= JOLT_THRESHOLD * full;
             let lo = k.saturating_sub(m);
             let hi = (k + m).min(frames - 1);
             let own = significance(&gap);
@@ -226,34 +270,45 @@ pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec
             }
             // A bounce reverses the velocity along its impulse: approaching, then leaving.
             let n = imp / size;
-            if !reverses(vb, va, n, scale / size) {
+            if !reverses(vb, va, n, full / size) {
                 continue;
             }
             // Near an end, where the means see fewer frames and a contact that starts or ends
             // there (a ball leaving a shelf) also changes them: a wall's impulse is `1 + e`
             // times the approach speed along it (`0 <= e <= 1`), so the particle must approach
             // at least half the impulse, within one scale.
-            if mk < m && -vb.dot(&n) < 0.5 * size - scale {
-                continue;
-            }
+            let approaches = mk == m || -vb.dot(&n) >= 0.5 * size - full;
             // Spread over the gaps rather than concentrated in one: smooth motion.
-            let concentrated = local[p][k].as_ref().map_or(true, |l| {
-                let best = l.iter().map(|g| g.dot(&n)).fold(f64::NEG_INFINITY, f64::max);
-                best + JOLT_THRESHOLD * local_noise >= 0.5 * size
+            let local_jumps = local[p][k].as_deref().unwrap_or(&[]);
+            let best_local = local_jumps
+                .iter()
+                .copied()
+                .max_by(|a, b| a.dot(&n).total_cmp(&b.dot(&n)));
+            let concentrated = best_local.map_or(true, |best| {
+                best.dot(&n) + JOLT_THRESHOLD * local_noise >= 0.5 * size
             });
-            if !concentrated {
+            let strict = strict && approaches && concentrated;
+            // A faint one's local jump stands out of every gap's (see `find_faint_jolts`); it is
+            // then the impulse, the means' being partly absorbed by the poor model.
+            let faint = best_local.filter(|best| !strict && best.dot(&n) >= JOLT_THRESHOLD * local_scale);
+            if !strict && faint.is_none() {
                 continue;
             }
+            let imp = faint.unwrap_or(imp);
+            let own = faint.map_or(own, |best| best.norm() / local_scale);
             let x = obs.positions[k][p].unwrap_or_else(Vec2::zeros);
-            out.push(Jolt {
-                particle: p,
-                frame: obs.first_frame + k,
-                position: [x.x, x.y],
-                before: [vb.x, vb.y],
-                after: [va.x, va.y],
-                impulse: [imp.x, imp.y],
-                significance: own,
-            });
+            out.push((
+                Jolt {
+                    particle: p,
+                    frame: obs.first_frame + k,
+                    position: [x.x, x.y],
+                    before: [vb.x, vb.y],
+                    after: [va.x, va.y],
+                    impulse: [imp.x, imp.y],
+                    significance: own,
+                },
+                strict,
+            ));
         }
     }
     (out, scale_of(m))
@@ -336,20 +391,7 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
         };
         (offset, e)
     };
-    // How far the deepest tracked centre lies beyond the line `n . x = offset`, px (negative
-    // when beyond it).
-    let deepest = |n: Vec2, offset: f64| {
-        obs.positions
-            .iter()
-            .flat_map(|f| {
-                f.iter()
-                    .zip(&obs.fixed)
-                    .filter(|(_, &fixed)| !fixed)
-                    .filter_map(|(x, _)| *x)
-            })
-            .map(|x| n.dot(&x) - offset)
-            .fold(f64::INFINITY, f64::min)
-    };
+    let deepest = |n: Vec2, offset: f64| deepest_beyond(obs, n, offset);
     groups
         .into_iter()
         // A wall is never crossed: a line that some tracked centre goes beyond by more than a
@@ -398,4 +440,33 @@ pub fn propose_walls(jolts: &[Jolt], obs: &Observations) -> Vec<WallGuess> {
             })
         })
         .collect()
+}
+
+/// How far the deepest tracked centre of a free particle in `obs` lies beyond the line
+/// `n . x = offset` (px; negative when beyond it, infinite without positions).
+pub fn deepest_beyond(obs: &Observations, n: Vec2, offset: f64) -> f64 {
+    obs.positions
+        .iter()
+        .flat_map(|f| {
+            f.iter()
+                .zip(&obs.fixed)
+                .filter(|(_, &fixed)| !fixed)
+                .filter_map(|(x, _)| *x)
+        })
+        .map(|x| n.dot(&x) - offset)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// `jolts` and those of `more` that are not already there (the same particle within one
+/// frame).
+pub fn merge_jolts(mut jolts: Vec<Jolt>, more: &[Jolt]) -> Vec<Jolt> {
+    for j in more {
+        if !jolts
+            .iter()
+            .any(|i| i.particle == j.particle && i.frame.abs_diff(j.frame) <= 1)
+        {
+            jolts.push(j.clone());
+        }
+    }
+    jolts
 }

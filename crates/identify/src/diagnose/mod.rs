@@ -27,6 +27,7 @@ mod family;
 mod flights;
 mod inclusion;
 mod jolts;
+mod landings;
 mod localise;
 mod oscillation;
 mod outcome;
@@ -115,6 +116,13 @@ pub fn diagnose(
 /// Most rounds repeated because a better fit of the current model was found on the way.
 const MAX_RESTARTS: usize = 3;
 
+/// Walls from clear jolts verified per round.
+const MAX_WALLS_PER_ROUND: usize = 3;
+
+/// Walls from faint jolts (see [`jolts::find_faint_jolts`]) verified per round, after the clear
+/// ones.
+const MAX_FAINT_WALLS_PER_ROUND: usize = 2;
+
 /// The smallest number of analysed frames the diagnosis accepts.
 pub const MIN_DIAGNOSIS_FRAMES: usize = 10;
 
@@ -182,12 +190,16 @@ fn diagnose_inner(
     let mut jolt_list = Vec::new();
     let mut supports = Vec::new();
     let mut rough_field = physfit_model::Vec2::zeros();
+    // Faint jolts also without a model: a rough model whose field absorbs a bounce smears it.
+    let faint_free = jolts::find_faint_jolts(&obs, None);
+    let mut faint = Vec::new();
     for _ in 0..2 {
         let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
         let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales, &excluded);
         rough_field = field;
         let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
         jolt_list = found;
+        faint = jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&model_acc)), &faint_free);
         excluded = exclusion(&jolt_list);
         supports = support::find_supports(&obs, &model_acc, field, &excluded);
         for s in &supports {
@@ -203,6 +215,9 @@ fn diagnose_inner(
             );
             for j in &jolt_list {
                 eprintln!("   {j:?}");
+            }
+            for j in &faint {
+                eprintln!("   faint {j:?}");
             }
         }
     }
@@ -256,6 +271,9 @@ fn diagnose_inner(
         }
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
+    let faint_guesses = jolts::propose_walls(&faint, &obs);
+    // Landings (a particle stopped on a line, not turned round) depend on the positions alone.
+    let landing_guesses = landings::landing_walls(&obs, MAX_FAINT_WALLS_PER_ROUND);
     // Transfer segments: a few typical periods each (twice the test window), within half the
     // analysed frames.
     let segments = transfer::Segments::new(&shot, &excluded, (2 * w).min(frames / 2), scales.length);
@@ -288,6 +306,7 @@ fn diagnose_inner(
     let mut rejected: Vec<report::RejectedCandidate> = Vec::new();
     let mut replaced: Vec<report::Replaced> = Vec::new();
     let mut guesses = guesses;
+    let mut faint_guesses = faint_guesses;
     let mut round = 0;
     let mut restarts = 0;
     let stop: String;
@@ -371,6 +390,10 @@ fn diagnose_inner(
                 .collect();
             jolt_list = jolts::find_jolts(&obs, Some(&acc)).0;
             guesses = jolts::propose_walls(&jolt_list, &obs);
+            faint_guesses = jolts::propose_walls(
+                &jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&acc)), &faint_free),
+                &obs,
+            );
         }
         let accepted_walls: Vec<[f64; 3]> = accepted
             .iter()
@@ -381,10 +404,34 @@ fn diagnose_inner(
                 current.fit.params.get(o..o + 3).map(|v| [v[0], v[1], v[2]])
             })
             .collect();
-        let walls_left: Vec<Proposal> = wall_proposals(&guesses)
+        let mut walls_left: Vec<Proposal> = wall_proposals(&guesses)
             .into_iter()
             .filter(|g| !accepted_walls.iter().any(|w| same_wall(w, &g.init, &scales)))
+            .take(MAX_WALLS_PER_ROUND)
             .collect();
+        // Faint bounces' walls (a poor smooth model's misfit hides them) and landings' after
+        // the clear ones.
+        let mut known: Vec<[f64; 3]> = accepted_walls
+            .iter()
+            .copied()
+            .chain(walls_left.iter().filter_map(|w| w.init.get(..3)?.try_into().ok()))
+            .collect();
+        let mut faint_left: Vec<Proposal> = Vec::new();
+        for g in wall_proposals(&faint_guesses)
+            .into_iter()
+            .chain(wall_proposals(&landing_guesses))
+        {
+            if faint_left.len() < MAX_FAINT_WALLS_PER_ROUND
+                && !known.iter().any(|w| same_wall(w, &g.init, &scales))
+            {
+                if debug {
+                    eprintln!("   faint wall {:?}", g.init);
+                }
+                known.extend(g.init.get(..3).and_then(|w| <[f64; 3]>::try_from(w).ok()));
+                faint_left.push(g);
+            }
+        }
+        walls_left.extend(faint_left);
         // The field's proposal for walls: a floor and a field are each useless to a
         // multi-step fit without the other; the rough model's field starts it (the free
         // flights' where bounces spoil or empty the weak form).
@@ -398,7 +445,7 @@ fn diagnose_inner(
                 jolts: Vec::new(),
             }
         });
-        for wall in walls_left.iter().take(3) {
+        for wall in &walls_left {
             to_verify.push(vec![wall.clone()]);
             for p in by_screen.iter().take(1) {
                 to_verify.push(vec![wall.clone(), (*p).clone()]);
@@ -684,9 +731,45 @@ fn diagnose_inner(
             seed: options.seed,
         })
     };
-    // 6. Findings the tracks cannot decide leave the model (see `undecided`).
+    // 6. Findings the tracks cannot decide leave the model (see `undecided`). First, one not
+    // identified gives way to a simpler candidate that fits every frame as well, on the
+    // information criterion (a far, soft tether on one particle standing in for a field).
     let mut undecided_list = Vec::new();
     let mut outcome = assemble(&current.family, &final_fit, &accepted);
+    while let Some((k, simpler)) = simpler_equivalent(
+        &ctx,
+        &current,
+        &final_fit,
+        &outcome,
+        &candidates,
+        rough_field,
+        &refit,
+    ) {
+        let (old, _, added) = accepted.remove(k);
+        let (proposal, evidence, fit, family) = simpler;
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            eprintln!(" simpler equivalent: {:?} -> {:?}", old.effect, proposal.effect);
+        }
+        replaced.push(report::Replaced {
+            effect: old.effect.name().into(),
+            label: old.effect.label(&family0.structure),
+            added_round: added,
+            round: round + 1,
+            by: vec![proposal.effect.label(&family0.structure)],
+            reason: Some(format!(
+                "not identified by the tracks, and {} fits every frame as well with fewer parameters",
+                proposal.effect.label(&family0.structure)
+            )),
+        });
+        accepted.push((proposal, evidence, round + 1));
+        current = Current {
+            family,
+            fit: fit.clone(),
+            held_cost: current.held_cost,
+        };
+        final_fit = fit;
+        outcome = assemble(&current.family, &final_fit, &accepted);
+    }
     loop {
         if outcome.findings.len() != current.family.effects.len() {
             break;
@@ -961,6 +1044,90 @@ fn prune(
         });
         *current = fit;
     }
+}
+
+/// A swap for a finding of `current` that the tracks do not identify: the simpler candidate
+/// (fewer parameters, screened best on the model without it) whose refit on every frame
+/// (`refit`) is no worse than `final_fit` by more than the parameters it saves are worth on
+/// the information criterion. Returns the finding's index, and the candidate with its
+/// evidence, refit and family.
+#[allow(clippy::type_complexity)]
+fn simpler_equivalent(
+    ctx: &Context<'_>,
+    current: &Current,
+    final_fit: &ShotFit,
+    outcome: &outcome::Outcome,
+    candidates: &[Effect],
+    rough_field: physfit_model::Vec2,
+    refit: &dyn Fn(&Current) -> Option<ShotFit>,
+) -> Option<(usize, (Proposal, report::Evidence, ShotFit, Family))> {
+    if outcome.findings.len() != current.family.effects.len() {
+        return None;
+    }
+    let variance = final_variance(&current.family, final_fit, ctx.obs.noise);
+    if !variance.is_finite() {
+        return None;
+    }
+    let ln_n = (final_fit.residual_count.max(2) as f64).ln();
+    let held = Current {
+        family: current.family.clone(),
+        fit: final_fit.clone(),
+        held_cost: 0.0,
+    };
+    for (k, f) in outcome.findings.iter().enumerate() {
+        let effect = current.family.effects[k];
+        if f.identified || !effect.is_smooth() {
+            continue;
+        }
+        let width = effect.parameter_count();
+        let reduced = ctx.without(&held, k);
+        let Some(p) = ctx
+            .screen(&reduced, candidates)
+            .into_iter()
+            .filter(|p| p.effect.parameter_count() < width && p.effect != effect)
+            .filter(|p| !reduced.family.effects.contains(&p.effect))
+            .filter(|p| p.screen.is_some_and(|s| s > 0.0))
+            .max_by(|a, b| a.screen.unwrap_or(0.0).total_cmp(&b.screen.unwrap_or(0.0)))
+        else {
+            continue;
+        };
+        // A field also starts from the rough model's and from none (the screen's is taken
+        // beside the finding it would replace, and both take in bounces that are only faint).
+        let mut starts = vec![p.clone()];
+        if p.effect == Effect::Gravity {
+            for init in [rough_field, physfit_model::Vec2::zeros()] {
+                starts.push(Proposal {
+                    init: vec![init.x, init.y],
+                    ..p.clone()
+                });
+            }
+        }
+        let Some((p, v, with, fit)) = starts
+            .into_iter()
+            .filter_map(|p| {
+                let v = ctx.verify(&reduced, std::slice::from_ref(&p));
+                let with = v.current.clone()?;
+                let fit = refit(&with)?;
+
+                Some((p, v, with, fit))
+            })
+            .min_by(|a, b| a.3.sum_squares.total_cmp(&b.3.sum_squares))
+        else {
+            continue;
+        };
+        let saved = (width - p.effect.parameter_count()) as f64;
+        let worth = (fit.sum_squares - final_fit.sum_squares) / variance - saved * ln_n;
+        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+            eprintln!(
+                " simpler than {effect:?}: {:?} leaves {:.4} px² against {:.4} (worth {worth:.2})",
+                p.effect, fit.sum_squares, final_fit.sum_squares
+            );
+        }
+        if worth <= 0.0 {
+            return Some((k, (p, v.evidence, fit, with.family)));
+        }
+    }
+    None
 }
 
 /// Residual variance of a fit on every frame (px²): its sum of squares over the residuals

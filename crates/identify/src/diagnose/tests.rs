@@ -609,6 +609,7 @@ fn a_short_toss_of_eleven_frames_gets_its_field() {
     c.names_exactly(&["uniform field (gravity)"]).gravity();
 }
 
+mod faint;
 mod issue_21;
 mod stiff;
 
