@@ -146,18 +146,11 @@ pub fn find_faint_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -
 fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bool)>, f64) {
     let m = JOLT_FIT_POINTS;
     let fps = obs.fps;
-    let dt = obs.frame_dt();
     // mean(x[k+1+m] - x[k+1]) / m - mean(x[k] - x[k-m]) / m: noise 2 sigma / m per coordinate.
     let noise_scale = 2.0 * obs.noise * fps / m as f64;
     // The local jump's noise per coordinate, px/s (see the module doc).
     let local_noise = 28f64.sqrt() * obs.noise * fps;
     let frames = obs.frame_count();
-    let model_acc = |k: usize, p: usize| {
-        acc.and_then(|a| a.get(k)?.as_ref()?.get(p).copied())
-            .unwrap_or_else(Vec2::zeros)
-    };
-    // Per particle: corrected differences e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2 (None
-    // where a frame is missing), and the cumulative model term.
     // Per particle and gap: the means' impulse.
     let mut series: Vec<Vec<Option<Gap>>> = vec![vec![None; frames]; obs.particle_count()];
     // Per particle and gap: the local jump (see the module doc), px/s.
@@ -168,16 +161,7 @@ fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bo
         if obs.fixed[p] {
             continue;
         }
-        let mut e = vec![None; frames];
-        let mut cum = vec![Vec2::zeros(); frames];
-        let mut total = Vec2::zeros();
-        for j in 0..frames.saturating_sub(1) {
-            total += model_acc(j, p) * (dt * dt);
-            cum[j] = total;
-            if let (Some(a), Some(b)) = (obs.positions[j][p], obs.positions[j + 1][p]) {
-                e[j] = Some(b - a - total);
-            }
-        }
+        let (e, cum) = corrected_differences(obs, acc, p);
         // Within `m` frames of an end, as many differences as there are on the short side
         // (at least MIN_EDGE_POINTS): a bounce near an end of a short recording.
         for k in MIN_EDGE_POINTS..frames.saturating_sub(MIN_EDGE_POINTS + 1) {
@@ -312,6 +296,122 @@ fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bo
         }
     }
     (out, scale_of(m))
+}
+
+/// A particle's corrected frame differences and cumulative model term (see
+/// [`corrected_differences`]), px.
+type Differences = (Vec<Option<Vec2>>, Vec<Vec2>);
+
+/// Particle `p`'s frame differences with the model's accelerations `acc` integrated out,
+/// `e[j] = x[j+1] - x[j] - sum_{i<=j} a[i] dt^2` (None where a frame is missing), and the
+/// cumulative model term `sum_{i<=j} a[i] dt^2` (px).
+fn corrected_differences(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>, p: usize) -> Differences {
+    let frames = obs.frame_count();
+    let dt = obs.frame_dt();
+    let mut e = vec![None; frames];
+    let mut cum = vec![Vec2::zeros(); frames];
+    let mut total = Vec2::zeros();
+    for j in 0..frames.saturating_sub(1) {
+        let a = acc
+            .and_then(|a| a.get(j)?.as_ref()?.get(p).copied())
+            .unwrap_or_else(Vec2::zeros);
+        total += a * (dt * dt);
+        cum[j] = total;
+        if let (Some(a), Some(b)) = (obs.positions[j][p], obs.positions[j + 1][p]) {
+            e[j] = Some(b - a - total);
+        }
+    }
+    (e, cum)
+}
+
+/// Bounces in the gaps the means of [`find_jolts`] cannot reach (fewer than
+/// [`MIN_EDGE_POINTS`] differences on one side): the first two and the last two. There the
+/// jump is the one-step one, `e[k+1] - e[k-1]` (the difference straddling the gap left out;
+/// in the last gap, which has none after it, `e[k] - e[k-1]`, the part of the impulse the last
+/// frame shows; in the first, `e[1] - e[0]`), with noise `2 sigma` per coordinate. One above
+/// [`JOLT_THRESHOLD`] times the larger of that and the robust spread of every gap's one-step
+/// jump, that reverses the velocity along it and approaches at half its size or more (within
+/// one scale; in the last gap only the approach is asked, in the first only a departure), is
+/// an end jolt: a wall proposal only, like a faint one (a bounce in the last
+/// frame of a 66-frame recording moved that frame 4.8 px against a track noise of 0.009 px).
+pub fn end_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Vec<Jolt> {
+    let frames = obs.frame_count();
+    if frames < 2 * MIN_EDGE_POINTS + 2 {
+        return Vec::new();
+    }
+    let fps = obs.fps;
+    let noise = 2.0 * obs.noise * fps;
+    let differences: Vec<Option<Differences>> = (0..obs.particle_count())
+        .map(|p| (!obs.fixed[p]).then(|| corrected_differences(obs, acc, p)))
+        .collect();
+    // The one-step jump across gap k: (before, after) differences, px/frame.
+    let sides = |k: usize| -> (usize, usize) {
+        if k == 0 {
+            (0, 1)
+        } else if k + 2 == frames {
+            (k - 1, k)
+        } else {
+            (k - 1, k + 1)
+        }
+    };
+    let mut magnitudes = Vec::new();
+    for (e, _) in differences.iter().flatten() {
+        for k in 1..frames - 2 {
+            if let (Some(b), Some(a)) = (e[k - 1], e[k + 1]) {
+                magnitudes.push(((a - b) * fps).x.abs());
+                magnitudes.push(((a - b) * fps).y.abs());
+            }
+        }
+    }
+    magnitudes.sort_by(|a, b| a.total_cmp(b));
+    let robust = magnitudes.get(magnitudes.len() / 2).map_or(0.0, |m| 1.4826 * m);
+    let scale = noise.max(robust).max(f64::MIN_POSITIVE);
+    let mut out = Vec::new();
+    for (p, d) in differences.iter().enumerate() {
+        let Some((e, cum)) = d else { continue };
+        let ends = [0, 1, frames - 3, frames - 2];
+        for &k in ends
+            .iter()
+            .filter(|&&k| k < MIN_EDGE_POINTS || k + MIN_EDGE_POINTS + 1 > frames - 1)
+        {
+            let (i, j) = sides(k);
+            let (Some(b), Some(a)) = (e[i], e[j]) else {
+                continue;
+            };
+            let impulse = (a - b) * fps;
+            let size = impulse.norm();
+            if size < JOLT_THRESHOLD * scale {
+                continue;
+            }
+            let vb = (b + cum[i]) * fps;
+            let va = (a + cum[j]) * fps;
+            let n = impulse / size;
+            // The difference straddling the bounce mixes approach and departure: in the last
+            // gap only the approach is seen, in the first only the departure.
+            let approaches = -vb.dot(&n) >= 0.5 * size - scale;
+            let bounce = if k + 2 == frames {
+                approaches
+            } else if k == 0 {
+                va.dot(&n) > 0.0
+            } else {
+                approaches && reverses(vb, va, n, scale / size)
+            };
+            if !bounce {
+                continue;
+            }
+            let Some(x) = obs.positions[k][p] else { continue };
+            out.push(Jolt {
+                particle: p,
+                frame: obs.first_frame + k,
+                position: [x.x, x.y],
+                before: [vb.x, vb.y],
+                after: [va.x, va.y],
+                impulse: [impulse.x, impulse.y],
+                significance: size / scale,
+            });
+        }
+    }
+    out
 }
 
 /// Returns true if and only if the velocity turns from approaching to leaving along some

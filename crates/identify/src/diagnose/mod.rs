@@ -123,6 +123,9 @@ const MAX_WALLS_PER_ROUND: usize = 3;
 /// ones.
 const MAX_FAINT_WALLS_PER_ROUND: usize = 2;
 
+/// Walls from end jolts (see [`jolts::end_jolts`]) verified per round, after the faint ones.
+const MAX_END_WALLS_PER_ROUND: usize = 1;
+
 /// The smallest number of analysed frames the diagnosis accepts.
 pub const MIN_DIAGNOSIS_FRAMES: usize = 10;
 
@@ -190,9 +193,12 @@ fn diagnose_inner(
     let mut jolt_list = Vec::new();
     let mut supports = Vec::new();
     let mut rough_field = physfit_model::Vec2::zeros();
-    // Faint jolts also without a model: a rough model whose field absorbs a bounce smears it.
+    // Faint and end jolts (in the gaps the means cannot reach) also without a model: a rough
+    // model whose field absorbs a bounce smears it.
     let faint_free = jolts::find_faint_jolts(&obs, None);
+    let ends_free = jolts::end_jolts(&obs, None);
     let mut faint = Vec::new();
+    let mut ends = Vec::new();
     for _ in 0..2 {
         let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
         let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales, &excluded);
@@ -200,6 +206,7 @@ fn diagnose_inner(
         let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
         jolt_list = found;
         faint = jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&model_acc)), &faint_free);
+        ends = jolts::merge_jolts(jolts::end_jolts(&obs, Some(&model_acc)), &ends_free);
         excluded = exclusion(&jolt_list);
         supports = support::find_supports(&obs, &model_acc, field, &excluded);
         for s in &supports {
@@ -272,6 +279,7 @@ fn diagnose_inner(
     }
     let guesses = jolts::propose_walls(&jolt_list, &obs);
     let faint_guesses = jolts::propose_walls(&faint, &obs);
+    let end_guesses = jolts::propose_walls(&ends, &obs);
     // Landings (a particle stopped on a line, not turned round) depend on the positions alone.
     let landing_guesses = landings::landing_walls(&obs, MAX_FAINT_WALLS_PER_ROUND);
     // Transfer segments: a few typical periods each (twice the test window), within half the
@@ -307,6 +315,7 @@ fn diagnose_inner(
     let mut replaced: Vec<report::Replaced> = Vec::new();
     let mut guesses = guesses;
     let mut faint_guesses = faint_guesses;
+    let mut end_guesses = end_guesses;
     let mut round = 0;
     let mut restarts = 0;
     let stop: String;
@@ -394,6 +403,10 @@ fn diagnose_inner(
                 &jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&acc)), &faint_free),
                 &obs,
             );
+            end_guesses = jolts::propose_walls(
+                &jolts::merge_jolts(jolts::end_jolts(&obs, Some(&acc)), &ends_free),
+                &obs,
+            );
         }
         let accepted_walls: Vec<[f64; 3]> = accepted
             .iter()
@@ -416,22 +429,26 @@ fn diagnose_inner(
             .copied()
             .chain(walls_left.iter().filter_map(|w| w.init.get(..3)?.try_into().ok()))
             .collect();
-        let mut faint_left: Vec<Proposal> = Vec::new();
-        for g in wall_proposals(&faint_guesses)
-            .into_iter()
-            .chain(wall_proposals(&landing_guesses))
-        {
-            if faint_left.len() < MAX_FAINT_WALLS_PER_ROUND
-                && !known.iter().any(|w| same_wall(w, &g.init, &scales))
-            {
-                if debug {
-                    eprintln!("   faint wall {:?}", g.init);
+        // Then one from a bounce at an end of the recording.
+        for (guesses, cap) in [
+            (
+                [&faint_guesses[..], &landing_guesses[..]].concat(),
+                MAX_FAINT_WALLS_PER_ROUND,
+            ),
+            (end_guesses.clone(), MAX_END_WALLS_PER_ROUND),
+        ] {
+            let mut taken = 0;
+            for g in wall_proposals(&guesses) {
+                if taken < cap && !known.iter().any(|w| same_wall(w, &g.init, &scales)) {
+                    if debug {
+                        eprintln!("   faint wall {:?}", g.init);
+                    }
+                    known.extend(g.init.get(..3).and_then(|w| <[f64; 3]>::try_from(w).ok()));
+                    walls_left.push(g);
+                    taken += 1;
                 }
-                known.extend(g.init.get(..3).and_then(|w| <[f64; 3]>::try_from(w).ok()));
-                faint_left.push(g);
             }
         }
-        walls_left.extend(faint_left);
         // The field's proposal for walls: a floor and a field are each useless to a
         // multi-step fit without the other; the rough model's field starts it (the free
         // flights' where bounces spoil or empty the weak form).

@@ -135,3 +135,54 @@ fn a_faint_bounce_of_a_ringing_body_finds_its_wall() {
     // Now 7: seed 6 finds the wall alone and says "not explained" (2.8 noises).
     assert!(right >= 7, "{right} of 8 exactly right");
 }
+
+/// A lone ball thrown under a field onto a floor, recorded so that its one bounce falls in
+/// the last frame gap (even seeds) or the first (odd seeds), where the jolt test's means
+/// cannot reach: drawn from `seed` over frame rates, fields, speeds and restitutions.
+fn bounce_at_an_end(seed: u64) -> Scene {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let fps: f64 = rng.gen_range(30.0..120.0);
+    let gravity: f64 = rng.gen_range(500.0..3000.0);
+    let restitution: f64 = rng.gen_range(0.5..0.9);
+    let vx: f64 = rng.gen_range(-80.0..80.0);
+    let floor = 400.0;
+    let dt = 1.0 / fps;
+    let frames: usize = rng.gen_range(20..40);
+    // Where in its gap the ball meets the floor, as a fraction of the frame.
+    let phase: f64 = rng.gen_range(0.2..0.8);
+    let (position, velocity, frames) = if seed % 2 == 0 {
+        // Dropped from rest so that it lands `phase` into gap `frames - 2`.
+        let t = (frames as f64 - 2.0 + phase) * dt;
+        ([100.0, floor - 0.5 * gravity * t * t], [vx, 0.0], frames)
+    } else {
+        // Falling at the speed of a drop from rest over `frames` frames, `phase` of a frame
+        // before the floor.
+        let v = gravity * frames as f64 * dt;
+        let gap = v * phase * dt + 0.5 * gravity * (phase * dt).powi(2);
+        ([100.0, floor - gap], [vx, v], frames)
+    };
+    ball_over_a_floor(
+        "end bounce",
+        fps,
+        frames,
+        position,
+        velocity,
+        gravity,
+        floor,
+        restitution,
+    )
+}
+
+#[test]
+fn a_bounce_in_the_first_or_last_frame_gap_finds_its_floor() {
+    for seed in 0..4u64 {
+        let truth = bounce_at_an_end(seed);
+        let name = format!("end bounce {seed}");
+        let c = diagnose_case_at(&name, truth.clone(), &truth.structure(), 0.02, seed);
+        eprintln!("{name}: {}", c.d.verdict.text);
+        c.names_exactly(&["uniform field (gravity)", "wall"]).gravity();
+        let (_, ny) = c.parameter("wall", "normal_y");
+        assert!(ny.value < -0.99, "{name}: floor normal_y {}", ny.value);
+        assert!(c.d.verdict.explained, "{name}: {}", c.d.verdict.text);
+    }
+}
