@@ -354,7 +354,7 @@ pub(super) fn correct_for_planes(
     found: &mut [Detection],
     window: f64,
     most: f64,
-    noise_sigma: f64,
+    noise: Noise,
 ) {
     let points: Vec<[f64; 2]> = found.iter().map(|d| [d.x, d.y]).collect();
     for (i, d) in found.iter_mut().enumerate() {
@@ -363,9 +363,30 @@ pub(super) fn correct_for_planes(
             width,
             height,
         };
-        if let Some(p) = corrected_position(&image, &points, i, window, most, noise_sigma) {
+        if let Some(p) = corrected_position(&image, &points, i, window, most, noise) {
             d.x = p[0];
             d.y = p[1];
+        }
+    }
+}
+
+/// The noise a particle's surroundings are judged against, grey levels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Noise {
+    /// The signal's pixel noise ([`Background::noise_sigma`]): what a ring's mean must stand
+    /// above to hold part of the particle.
+    pub(super) pixel: f64,
+    /// The spread of a frame's signal about the background ([`Background::frame_noise`]):
+    /// what a ring's pixels about its plane may spread to be background.
+    pub(super) frame: f64,
+}
+
+impl Noise {
+    /// The noise of `background`.
+    pub(super) fn of(background: &Background) -> Noise {
+        Noise {
+            pixel: background.noise_sigma,
+            frame: background.frame_noise(),
         }
     }
 }
@@ -389,8 +410,9 @@ pub(super) fn corrected_position(
     i: usize,
     window: f64,
     most: f64,
-    noise_sigma: f64,
+    noise: Noise,
 ) -> Option<[f64; 2]> {
+    let noise_sigma = noise.pixel;
     let Signal {
         signal,
         width,
@@ -438,12 +460,12 @@ pub(super) fn corrected_position(
     }
     let plane = fit_ring_plane(signal, width, height, c, reach, &others, keep_out)?;
     // The ring must look like background: its pixels about the plane no more spread than
-    // the measured noise, within 3 standard errors of a robust spread estimate
+    // a frame's noise about the background, within 3 standard errors of a robust spread estimate
     // (1.16 / sqrt(n) of it, the median absolute deviation's efficiency being 37 %). Clutter
     // or structure in the ring (a wall, a grid, a dial on real video) is not a background a
     // plane describes, and the estimate stays: the bouncing ball's and the pendulum's rings
     // read 1.3-3 times their noise.
-    let spread_limit = noise_sigma * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
+    let spread_limit = noise.frame * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
     if plane.sigma > spread_limit {
         return None;
     }
@@ -452,15 +474,34 @@ pub(super) fn corrected_position(
         return None;
     }
     let moved = centroid_on_plane(signal, width, height, c, reach, &plane)?;
-    // A background as high and as steep as the ring's, wholly on one side of the window,
-    // moves the centroid by at most (level + slope x reach) x window area x reach / mass: a
-    // move beyond that is not the background's (clutter in the ring, a smear of the
-    // particle itself), and the estimate stays.
-    let (mass, _) = ring_mean(signal, width, height, c, (0.0, reach), &others, keep_out);
+    // The move has two parts: the window's reach over the particle's signal beyond `window`
+    // (a window cut short of a blurred or textured ball's edge integrates a lopsided part of
+    // it), and the plane taken out. Each is bounded by what it could cause at most, all on
+    // one side: the signal between `window` and `reach` (sweep style 1018, a ball of 38 px
+    // whose window of 37.5 px moved 0.5 px out to 44.5 px), and a background as high and as
+    // steep as the ring's, (level + slope x reach) x window area x reach / mass. A move
+    // beyond those is neither (clutter in the ring, a smear of the particle), and the
+    // estimate stays.
+    let flat = Plane {
+        a: 0.0,
+        b: [0.0; 2],
+        ..plane
+    };
+    let wide = if reach > window {
+        centroid_on_plane(signal, width, height, c, reach, &flat)?
+    } else {
+        c
+    };
+    let (mean, _) = ring_mean(signal, width, height, c, (0.0, reach), &others, keep_out);
+    let mass = mean * std::f64::consts::PI * reach * reach;
+    let (beyond, beyond_count) = ring_mean(signal, width, height, c, (window, reach), &others, keep_out);
+    let widening_most = beyond.max(0.0) * beyond_count as f64 * reach / mass.max(f64::MIN_POSITIVE);
     let area = std::f64::consts::PI * reach * reach;
     let level = plane.a.abs() + plane.b[0].hypot(plane.b[1]) * reach;
-    let most_move = level * area * reach / (mass * area).max(f64::MIN_POSITIVE);
-    ((moved[0] - c[0]).hypot(moved[1] - c[1]) <= most_move).then_some(moved)
+    let plane_most = level * area * reach / mass.max(f64::MIN_POSITIVE);
+    ((wide[0] - c[0]).hypot(wide[1] - c[1]) <= widening_most
+        && (moved[0] - wide[0]).hypot(moved[1] - wide[1]) <= plane_most)
+        .then_some(moved)
 }
 
 /// Sample frames [`planes_move_points`] reads at most (spread evenly over the samples).
@@ -527,7 +568,7 @@ pub(super) fn planes_move_points(
                     height,
                 };
                 let at: Vec<[f64; 2]> = f.detections.iter().map(|d| [d.x, d.y]).collect();
-                let (window, most) = (class.window(), most_reach(&class.sizes.params, class.window()));
+                let (window, most) = (class.window(), class.plane_reach());
                 for &(name, p) in points {
                     let Some(k) = f
                         .detections
@@ -542,7 +583,7 @@ pub(super) fn planes_move_points(
                         continue;
                     }
                     let d = &f.detections[k];
-                    let moved = corrected_position(&image, &at, k, window, most, background.noise_sigma)
+                    let moved = corrected_position(&image, &at, k, window, most, Noise::of(background))
                         .is_some_and(|c| (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
                     count[0] += 1;
                     count[1] += usize::from(moved);
@@ -569,6 +610,12 @@ pub(super) fn most_reach(params: &crate::DetectParameters, window: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pixel noise of one grey level.
+    const UNIT: Noise = Noise {
+        pixel: 1.0,
+        frame: 1.0,
+    };
 
     /// A disc of radius `r` and amplitude `amp` at `c` on `width x height`, exact area
     /// coverage (the project's renderer), plus `background(x, y)`.
@@ -601,7 +648,7 @@ mod tests {
             width: w,
             height: h,
         };
-        let p = corrected_position(&image, &[[plain[0].x, plain[0].y]], 0, window, 30.0, 1.0)
+        let p = corrected_position(&image, &[[plain[0].x, plain[0].y]], 0, window, 30.0, UNIT)
             .expect("a slope to take out");
         assert!(
             (p[0] - c[0]).abs() < 0.01 && (p[1] - c[1]).abs() < 0.01,
@@ -619,7 +666,7 @@ mod tests {
             width: w,
             height: h,
         };
-        assert_eq!(corrected_position(&image, &[c], 0, 13.0, 20.0, 1.0), None);
+        assert_eq!(corrected_position(&image, &[c], 0, 13.0, 20.0, UNIT), None);
     }
 
     /// A window cut by the image border, or one that a neighbour's reaches, is left alone.
@@ -633,11 +680,11 @@ mod tests {
             height: h,
         };
         assert_eq!(
-            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, 1.0),
+            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, UNIT),
             None
         );
         let points = [[48.0, 48.0], [70.0, 48.0]];
-        assert_eq!(corrected_position(&image, &points, 0, 13.0, 20.0, 1.0), None);
+        assert_eq!(corrected_position(&image, &points, 0, 13.0, 20.0, UNIT), None);
     }
 
     /// The plane fitted on a ring of a noise-free plane is that plane, with one pixel of

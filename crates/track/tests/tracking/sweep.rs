@@ -321,16 +321,19 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (38 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (39 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
 /// a ring, textured balls, under uneven light or exposure drift) are followed since each
 /// particle is located again on the signal with the plane fitted just beyond it taken out
 /// (`pipeline/plane.rs`); 1008 and 1030 (Gaussian spots of 46-53 px) since the radius is
 /// widened to the half-maximum radius measured where the window `R + 1` cut a smooth spot
-/// above half its peak (`pipeline/radius.rs`).
+/// above half its peak (`pipeline/radius.rs`); 1018 (a textured ball of 38 px hovering
+/// under vignetting, 0.37 / 0.52 px against 0.22 / 0.45 before) since the gap it leaves in the
+/// per-pixel median is filled along the light's curvature (`inpaint.rs`) and its window's
+/// reach past its cut edge is bounded by its own signal there, apart from the plane's.
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1020, 1021,
-    1022, 1023, 1024, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1018, 1020,
+    1021, 1022, 1023, 1024, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -372,7 +375,7 @@ fn styles_refused_today_are_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 10 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 9 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
