@@ -391,6 +391,16 @@ impl Noise {
     }
 }
 
+/// Whether [`assess`] holds the ring's spread about its plane to the noise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Spread {
+    /// An estimate whose ring spreads more than the noise allows stays.
+    Checked,
+    /// The spread is not looked at: where the plane would move the estimate, whatever the
+    /// ring holds (what an uneven surrounding may do to it).
+    Ignored,
+}
+
 /// A frame's signal image, row-major, grey levels.
 pub(super) struct Signal<'a> {
     pub(super) signal: &'a [f32],
@@ -412,6 +422,26 @@ pub(super) fn corrected_position(
     most: f64,
     noise: Noise,
 ) -> Option<[f64; 2]> {
+    assess(image, points, i, window, most, noise, Spread::Checked)?.ok()
+}
+
+/// A ring round an estimate that spreads about its plane more than the noise allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct UnevenRing;
+
+/// [`corrected_position`], with the ring's spread held to the noise as `spread` says:
+/// `None` where the estimate stays for any other reason, `Some(Err(UnevenRing))` where
+/// only its ring's spread keeps it.
+#[allow(clippy::too_many_arguments)]
+fn assess(
+    image: &Signal<'_>,
+    points: &[[f64; 2]],
+    i: usize,
+    window: f64,
+    most: f64,
+    noise: Noise,
+    spread: Spread,
+) -> Option<Result<[f64; 2], UnevenRing>> {
     let noise_sigma = noise.pixel;
     let Signal {
         signal,
@@ -466,8 +496,8 @@ pub(super) fn corrected_position(
     // plane describes, and the estimate stays: the bouncing ball's and the pendulum's rings
     // read 1.3-3 times their noise.
     let spread_limit = noise.frame * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
-    if plane.sigma > spread_limit {
-        return None;
+    if plane.sigma > spread_limit && spread == Spread::Checked {
+        return Some(Err(UnevenRing));
     }
     let sloped = plane.b.iter().any(|b| b.abs() > SIGNIFICANT * plane.b_sigma);
     if reach <= window && !sloped {
@@ -501,7 +531,7 @@ pub(super) fn corrected_position(
     let plane_most = level * area * reach / mass.max(f64::MIN_POSITIVE);
     ((wide[0] - c[0]).hypot(wide[1] - c[1]) <= widening_most
         && (moved[0] - wide[0]).hypot(moved[1] - wide[1]) <= plane_most)
-        .then_some(moved)
+        .then_some(Ok(moved))
 }
 
 /// Sample frames [`planes_move_points`] reads at most (spread evenly over the samples).
@@ -511,13 +541,36 @@ const GATE_SAMPLES: usize = 8;
 /// moved in two by chance.
 const GATE_SAMPLES_MOVED: usize = 3;
 
-/// Returns true if and only if correcting for the local background ([`corrected_position`])
-/// moves some track of `pass`, in most of the sample frames where it has a detection and in
+/// What the samples say of the background left around the tracks of a pass.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct SurroundReading {
+    /// Returns true if and only if correcting for the local background moves some track
+    /// (see [`planes_move_points`]).
+    pub(super) moves: bool,
+    /// One warning per track whose surroundings are uneven where it matters (see
+    /// [`planes_move_points`]).
+    pub(super) uneven: Vec<String>,
+}
+
+/// Standard errors (`ep`) by which the plane around a point whose ring is too uneven to be
+/// taken out must move it for the unevenness to matter.
+const UNEVEN_MOVE: f64 = 3.0;
+
+/// Whether correcting for the local background ([`corrected_position`]) moves some track of
+/// `pass`, in most of the sample frames where it has a detection and in
 /// [`GATE_SAMPLES_MOVED`] at least, by more than half its standard error (`ep`): then the
 /// frames are worth locating again with the correction. A slope that noise alone shows
 /// beyond 3 standard errors around one point does not repeat on the same track. Read on up
 /// to [`GATE_SAMPLES`] samples (each point's detection within a pixel of it, at its class's
 /// window).
+///
+/// Also a warning for each track whose ring spreads about its plane more than the noise
+/// allows (so the correction is not made) where the plane would move it by more than
+/// [`UNEVEN_MOVE`] standard errors, in most samples and [`GATE_SAMPLES_MOVED`] at least:
+/// the background left around it is uneven, and the centroid integrates it. Sweep style
+/// 1019 (a dark textured ball of 30 px hovering under a saturating exposure drift, the
+/// median over differently exposed samples leaving arcs round it; ring spread 1.4-2.3 times
+/// the noise) was written 0.10 / 0.24 px off (tolerance 0.12 / 0.13) without a word.
 pub(super) fn planes_move_points(
     background: &Background,
     samples: &[FrameView<'_>],
@@ -525,7 +578,7 @@ pub(super) fn planes_move_points(
     pass: &Pass,
     classes: &[SizeClass],
     workers: &Workers,
-) -> bool {
+) -> SurroundReading {
     let mut tracked: BTreeMap<usize, Vec<(&str, [f64; 2])>> = BTreeMap::new();
     for p in &pass.table.points {
         if p.ep.is_finite() {
@@ -535,8 +588,10 @@ pub(super) fn planes_move_points(
                 .push((p.particle.as_str(), [p.x, p.y]));
         }
     }
-    // Per track: samples where its detection was measured, and where it moved.
-    let mut counts: BTreeMap<&str, [usize; 2]> = BTreeMap::new();
+    // Per track: samples where its detection was measured, where it moved, and where its
+    // uneven ring would have moved it; the frames and moves of the latter.
+    let mut counts: BTreeMap<&str, [usize; 3]> = BTreeMap::new();
+    let mut uneven_at: BTreeMap<&str, Vec<(usize, [f64; 2])>> = BTreeMap::new();
     let read: Vec<(usize, usize)> = sample_of
         .iter()
         .enumerate()
@@ -577,23 +632,78 @@ pub(super) fn planes_move_points(
                     else {
                         continue;
                     };
-                    // A track that stayed in half the samples read cannot move in most.
+                    // A track that stayed, with an even ring, in half the samples read
+                    // can neither move nor be uneven in most.
                     let count = counts.entry(name).or_default();
-                    if 2 * (count[0] - count[1]) >= read_count {
+                    if 2 * (count[0] - count[1]) >= read_count && 2 * (count[0] - count[2]) >= read_count {
                         continue;
                     }
                     let d = &f.detections[k];
-                    let moved = corrected_position(&image, &at, k, window, most, Noise::of(background))
-                        .is_some_and(|c| (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
+                    let noise = Noise::of(background);
+                    let assessed = assess(&image, &at, k, window, most, noise, Spread::Checked);
+                    let moved =
+                        matches!(assessed, Some(Ok(c)) if (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
                     count[0] += 1;
                     count[1] += usize::from(moved);
+                    if assessed == Some(Err(UnevenRing)) {
+                        let shift = assess(&image, &at, k, window, most, noise, Spread::Ignored)
+                            .and_then(Result::ok)
+                            .map(|c| [c[0] - d.x, c[1] - d.y]);
+                        if let Some(shift) = shift.filter(|m| m[0].hypot(m[1]) > UNEVEN_MOVE * d.ep) {
+                            count[2] += 1;
+                            uneven_at.entry(name).or_default().push((f.frame, shift));
+                        }
+                    }
                 }
             }
         }
     });
-    counts
-        .values()
-        .any(|&[seen, moved]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen)
+    let uneven = counts
+        .iter()
+        .filter(|(name, &[seen, _, uneven])| {
+            uneven >= GATE_SAMPLES_MOVED && 2 * uneven > seen && one_way(&uneven_at[*name])
+        })
+        .map(|(name, _)| {
+            let at = &uneven_at[name];
+            let frames: Vec<String> = at.iter().map(|(k, _)| k.to_string()).collect();
+            let (least, most) = at.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &(_, m)| {
+                let m = m[0].hypot(m[1]);
+                (a.min(m), b.max(m))
+            });
+            format!(
+                "{name}: the background left around it is uneven in frames {} (more than a plane \
+                 and the noise), and it would move {least:.2}-{most:.2} px, over {UNEVEN_MOVE} standard \
+                 errors, with the plane fitted around it taken out: its positions may be off by as \
+                 much",
+                frames.join(", ")
+            )
+        })
+        .collect();
+    SurroundReading {
+        moves: counts
+            .values()
+            .any(|&[seen, moved, _]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen),
+        uneven,
+    }
+}
+
+/// Returns true if and only if the `shifts` (px, one per sample frame) lean one way: their
+/// mean stands beyond [`UNEVEN_MOVE`] standard errors (from their spread about it) of
+/// zero. An uneven background fixed in the scene moves a track the same way from frame to
+/// frame (style 1019's ball, 0.33-0.51 px); noise in a ring that only just fails the spread
+/// test moves it every which way (style 1012's spots, 0.11-0.27 px, tracked 0.08 px RMS).
+fn one_way(shifts: &[(usize, [f64; 2])]) -> bool {
+    let n = shifts.len() as f64;
+    if shifts.len() < 2 {
+        return false;
+    }
+    let mean = [0, 1].map(|a| shifts.iter().map(|(_, s)| s[a]).sum::<f64>() / n);
+    let var: f64 = shifts
+        .iter()
+        .map(|(_, s)| (s[0] - mean[0]).powi(2) + (s[1] - mean[1]).powi(2))
+        .sum::<f64>()
+        / (n - 1.0);
+    mean[0].hypot(mean[1]) > UNEVEN_MOVE * (var / n).sqrt()
 }
 
 /// The farthest a particle's window may reach when located with the local background taken

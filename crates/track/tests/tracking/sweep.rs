@@ -48,6 +48,9 @@ struct Row {
     tolerance: [f64; 2],
     tracker_radius: f64,
     failure: Option<String>,
+    /// Particles whose own RMS error lies beyond the tolerance on an axis and that no
+    /// warning of the tracker names (`"{particle}: ..."`): tracks wrong without a word.
+    unwarned: Vec<String>,
 }
 
 impl Row {
@@ -62,6 +65,12 @@ impl Row {
                 .failure
                 .as_deref()
                 .is_some_and(|f| f.starts_with("tracking failed"))
+    }
+
+    /// Followed, refused, or every particle out of its tolerance named in a warning, every
+    /// point found and under its own name (never tracks wrong without a word).
+    fn followed_refused_or_warned(&self) -> bool {
+        self.followed_or_refused() || (self.recall >= 1.0 && self.switches == 0 && self.unwarned.is_empty())
     }
 
     fn line(&self) -> String {
@@ -110,6 +119,9 @@ impl Row {
             self.tracker_radius,
             match &self.failure {
                 None => "pass".to_string(),
+                Some(why) if !self.followed_or_refused() && self.followed_refused_or_warned() => {
+                    format!("FAIL: {why} (warned)")
+                }
                 Some(why) => format!("FAIL: {why}"),
             }
         )
@@ -161,6 +173,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         tolerance,
         tracker_radius: f64::NAN,
         failure: None,
+        unwarned: Vec::new(),
     };
     let options = TrackOptions {
         named_start: Some(start),
@@ -209,6 +222,28 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     if !why.is_empty() {
         row.failure = Some(why.join(", "));
     }
+    row.unwarned = seq
+        .truth
+        .names
+        .iter()
+        .filter(|name| {
+            let own = |t: &TrackTable| TrackTable {
+                points: t
+                    .points
+                    .iter()
+                    .filter(|p| &p.particle == *name)
+                    .cloned()
+                    .collect(),
+            };
+            let s = score_tracks(&own(&outcome.table), &own(&truth), style.radius);
+            !(s.rms_x <= tolerance[0] && s.rms_y <= tolerance[1])
+                && !outcome
+                    .warnings
+                    .iter()
+                    .any(|w| w.starts_with(&format!("{name}:")))
+        })
+        .cloned()
+        .collect();
     row
 }
 
@@ -370,6 +405,24 @@ fn styles_refused_today_are_refused_or_followed() {
         .map(|&seed| synth_row(seed))
         .filter(|row| !row.followed_or_refused())
         .map(|row| row.line())
+        .collect();
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
+
+/// The synth styles the tracker follows today but for some particles it names in a
+/// warning: 1019 (dark textured balls of 12 and 30 px under vignetting and a saturating
+/// exposure drift; the large one hovers, and the median over differently exposed samples
+/// leaves uneven arcs round it, 0.10 / 0.24 px RMS against 0.12 / 0.13). Each must be
+/// followed, refused, or have every particle beyond its tolerance named in a warning.
+const WARNED_SYNTH: &[u64] = &[1019];
+
+#[test]
+fn styles_warned_today_are_warned_refused_or_followed() {
+    let bad: Vec<String> = WARNED_SYNTH
+        .iter()
+        .map(|&seed| synth_row(seed))
+        .filter(|row| !row.followed_refused_or_warned())
+        .map(|row| format!("{} (unwarned: {})", row.line(), row.unwarned.join(", ")))
         .collect();
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
