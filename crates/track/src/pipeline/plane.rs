@@ -41,6 +41,7 @@
 use super::finder::Workers;
 use super::size_class::SizeClass;
 use super::stage::Pass;
+use crate::distance::{closer_than, nearest_distance};
 use crate::{Background, Detection, FrameView};
 use std::collections::BTreeMap;
 
@@ -453,19 +454,15 @@ fn assess(
     }
     let c = points[i];
     let keep_out = window + 1.0;
-    let mut nearest = f64::INFINITY;
-    let mut others: Vec<[f64; 2]> = Vec::new();
-    for (j, p) in points.iter().enumerate() {
-        if j == i {
-            continue;
-        }
-        let dist = (p[0] - c[0]).hypot(p[1] - c[1]);
-        nearest = nearest.min(dist);
-        // Only points whose keep-out disc can reach the widest ring matter.
-        if dist < 1.5 * most.max(window) + 3.0 + 2.0 * keep_out {
-            others.push(*p);
-        }
-    }
+    let nearest = nearest_distance(points, c, i);
+    // Only points whose keep-out disc can reach the widest ring matter.
+    let matters = 1.5 * most.max(window) + 3.0 + 2.0 * keep_out;
+    let others: Vec<[f64; 2]> = points
+        .iter()
+        .enumerate()
+        .filter(|&(j, p)| j != i && closer_than(p[0] - c[0], p[1] - c[1], matters))
+        .map(|(_, p)| *p)
+        .collect();
     if nearest < 2.0 * window + 2.0 {
         return None;
     }
@@ -628,7 +625,7 @@ pub(super) fn planes_move_points(
                     let Some(k) = f
                         .detections
                         .iter()
-                        .position(|d| (p[0] - d.x).hypot(p[1] - d.y) < 1.0)
+                        .position(|d| closer_than(p[0] - d.x, p[1] - d.y, 1.0))
                     else {
                         continue;
                     };
