@@ -37,7 +37,11 @@ pub(crate) fn nearest_distance(points: &[[f64; 2]], c: [f64; 2], skip: usize) ->
     points
         .iter()
         .enumerate()
-        .filter(|&(j, p)| j != skip && !(squared(p) > least * (1.0 + MARGIN)))
+        .filter(|&(j, p)| {
+            // Not beyond the margin (a NaN distance stays in, as it does for `hypot`).
+            j != skip
+                && squared(p).partial_cmp(&(least * (1.0 + MARGIN))) != Some(std::cmp::Ordering::Greater)
+        })
         .map(|(_, p)| (p[0] - c[0]).hypot(p[1] - c[1]))
         .fold(f64::INFINITY, f64::min)
 }
@@ -93,6 +97,6 @@ mod tests {
                 );
             }
         }
-        assert_eq!(nearest_distance(&[[1.0, 1.0]], [0.0, 0.0], 0), f64::INFINITY);
+        assert!(nearest_distance(&[[1.0, 1.0]], [0.0, 0.0], 0).is_infinite());
     }
 }

@@ -364,7 +364,7 @@ pub(super) fn correct_for_planes(
             width,
             height,
         };
-        if let Some(p) = corrected_position(&image, &points, i, window, most, noise) {
+        if let Some(Ok(p)) = corrected_position(&image, &points, i, window, most, noise, Spread::Checked) {
             d.x = p[0];
             d.y = p[1];
         }
@@ -392,15 +392,19 @@ impl Noise {
     }
 }
 
-/// Whether [`assess`] holds the ring's spread about its plane to the noise.
+/// Whether [`corrected_position`] holds the ring's spread about its plane to the noise.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Spread {
+pub(super) enum Spread {
     /// An estimate whose ring spreads more than the noise allows stays.
     Checked,
     /// The spread is not looked at: where the plane would move the estimate, whatever the
     /// ring holds (what an uneven surrounding may do to it).
     Ignored,
 }
+
+/// A ring round an estimate that spreads about its plane more than the noise allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct UnevenRing;
 
 /// A frame's signal image, row-major, grey levels.
 pub(super) struct Signal<'a> {
@@ -414,27 +418,11 @@ pub(super) struct Signal<'a> {
 /// ring just beyond taken out; `None` where it stays: an estimate whose window another's
 /// reaches (their pixels are split between them by [`crate::refine_centroids`]), one whose
 /// particle ends within `window` and whose ring shows no slope beyond [`SIGNIFICANT`]
-/// standard errors, or one whose corrected centroid has no positive mass.
-pub(super) fn corrected_position(
-    image: &Signal<'_>,
-    points: &[[f64; 2]],
-    i: usize,
-    window: f64,
-    most: f64,
-    noise: Noise,
-) -> Option<[f64; 2]> {
-    assess(image, points, i, window, most, noise, Spread::Checked)?.ok()
-}
-
-/// A ring round an estimate that spreads about its plane more than the noise allows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct UnevenRing;
-
-/// [`corrected_position`], with the ring's spread held to the noise as `spread` says:
-/// `None` where the estimate stays for any other reason, `Some(Err(UnevenRing))` where
-/// only its ring's spread keeps it.
+/// standard errors, or one whose corrected centroid has no positive mass; `Some(Err(UnevenRing))`
+/// where it stays only because its ring spreads about the plane more than the noise allows
+/// (with [`Spread::Checked`]).
 #[allow(clippy::too_many_arguments)]
-fn assess(
+pub(super) fn corrected_position(
     image: &Signal<'_>,
     points: &[[f64; 2]],
     i: usize,
@@ -637,13 +625,13 @@ pub(super) fn planes_move_points(
                     }
                     let d = &f.detections[k];
                     let noise = Noise::of(background);
-                    let assessed = assess(&image, &at, k, window, most, noise, Spread::Checked);
+                    let assessed = corrected_position(&image, &at, k, window, most, noise, Spread::Checked);
                     let moved =
                         matches!(assessed, Some(Ok(c)) if (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
                     count[0] += 1;
                     count[1] += usize::from(moved);
                     if assessed == Some(Err(UnevenRing)) {
-                        let shift = assess(&image, &at, k, window, most, noise, Spread::Ignored)
+                        let shift = corrected_position(&image, &at, k, window, most, noise, Spread::Ignored)
                             .and_then(Result::ok)
                             .map(|c| [c[0] - d.x, c[1] - d.y]);
                         if let Some(shift) = shift.filter(|m| m[0].hypot(m[1]) > UNEVEN_MOVE * d.ep) {
@@ -755,8 +743,17 @@ mod tests {
             width: w,
             height: h,
         };
-        let p = corrected_position(&image, &[[plain[0].x, plain[0].y]], 0, window, 30.0, UNIT)
-            .expect("a slope to take out");
+        let p = corrected_position(
+            &image,
+            &[[plain[0].x, plain[0].y]],
+            0,
+            window,
+            30.0,
+            UNIT,
+            Spread::Checked,
+        )
+        .and_then(Result::ok)
+        .expect("a slope to take out");
         assert!(
             (p[0] - c[0]).abs() < 0.01 && (p[1] - c[1]).abs() < 0.01,
             "{p:?} vs {c:?}"
@@ -773,7 +770,10 @@ mod tests {
             width: w,
             height: h,
         };
-        assert_eq!(corrected_position(&image, &[c], 0, 13.0, 20.0, UNIT), None);
+        assert_eq!(
+            corrected_position(&image, &[c], 0, 13.0, 20.0, UNIT, Spread::Checked),
+            None
+        );
     }
 
     /// A window cut by the image border, or one that a neighbour's reaches, is left alone.
@@ -787,11 +787,14 @@ mod tests {
             height: h,
         };
         assert_eq!(
-            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, UNIT),
+            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, UNIT, Spread::Checked),
             None
         );
         let points = [[48.0, 48.0], [70.0, 48.0]];
-        assert_eq!(corrected_position(&image, &points, 0, 13.0, 20.0, UNIT), None);
+        assert_eq!(
+            corrected_position(&image, &points, 0, 13.0, 20.0, UNIT, Spread::Checked),
+            None
+        );
     }
 
     /// The plane fitted on a ring of a noise-free plane is that plane, with one pixel of
