@@ -10,6 +10,7 @@ mod cpu;
 mod crossing;
 mod detect;
 mod disjoint_sets;
+mod distance;
 mod error;
 mod frames;
 mod group_by_key;

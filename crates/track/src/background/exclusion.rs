@@ -20,7 +20,7 @@ impl Background {
     /// Pixels within `reach` of a `named` particle's start (px) that no sample shows clear of
     /// a particle are the particle's own (a large ball that barely moves covers them in every
     /// frame): they are filled from the clear pixels around them
-    /// (`inpaint::harmonic_fill`). Elsewhere such pixels keep the median of the
+    /// (`inpaint::fill_from_surroundings`). Elsewhere such pixels keep the median of the
     /// farthest samples: unnamed, a speck always found may be the scene's own texture.
     ///
     /// With [`SampleExposure::Matched`] each sample is first divided by its
@@ -112,7 +112,7 @@ impl Background {
             unknown[i] = true;
         }
         if covered.iter().any(|c| !c.is_empty()) {
-            crate::inpaint::harmonic_fill(&mut self.image, w, h, c, &unknown);
+            crate::inpaint::fill_from_surroundings(&mut self.image, w, h, c, &unknown, self.noise_sigma);
             // A particle in the median made its colour ambiguous (dark where it arrives,
             // light where it left) and the noise look larger: both are measured again.
             self.measure_signal(samples);

@@ -134,6 +134,20 @@ impl Background {
     pub fn is_dark_on_light(&self) -> bool {
         self.direction.iter().sum::<f32>() < 0.0
     }
+
+    /// The spread of a frame's signal about this background where nothing but background
+    /// is seen, grey levels: [`Background::noise_sigma`] with a per-pixel median's own error
+    /// added (`1.2533 sigma / sqrt(k)` over `k` samples). The noise is measured on the
+    /// samples against their own median, which each of them pulls towards itself; a frame
+    /// not among them sees the median's error as well (sweep style 1018, noise 4.9 measured
+    /// 4.64 over 16 samples: rings round its ball spread 4.85-4.99 about a plane).
+    pub fn frame_noise(&self) -> f64 {
+        let median_share = match self.model {
+            super::BackgroundModel::PerPixel => std::f64::consts::FRAC_PI_2 / self.sample_count.max(1) as f64,
+            super::BackgroundModel::Constant => 0.0,
+        };
+        self.noise_sigma * (1.0 + median_share).sqrt()
+    }
 }
 /// The signal of a colour pixel `p` against background `b`: the difference projected on the
 /// particles' colour direction `u`, grey levels.

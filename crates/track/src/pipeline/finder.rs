@@ -83,8 +83,9 @@ impl Finder {
 
     /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
     /// window of radius `window` (px) of the gain-corrected signal, estimates that end within
-    /// a radius of each other joined as `parts` says, then corrected for the local background
-    /// as `surround` says (after joining; not with [`Parts::Keep`]).
+    /// a radius of each other joined as `parts` says, then, with a `plane_reach` (px), each
+    /// located again with the local background taken out, its window reaching at most that
+    /// far (`super::plane`; after joining, not with [`Parts::Keep`]).
     pub(super) fn locate(
         &mut self,
         background: &Background,
@@ -92,7 +93,7 @@ impl Finder {
         params: &DetectParameters,
         window: f64,
         parts: Parts,
-        surround: Surround,
+        plane_reach: Option<f64>,
     ) -> Vec<Detection> {
         let blobs = self.find(background, frame, params, true).blobs;
         let seeds: Vec<[f64; 2]> = blobs.iter().map(|b| [b.x as f64, b.y as f64]).collect();
@@ -128,8 +129,8 @@ impl Finder {
             };
             found = locate(&seeds, &areas);
         }
-        if surround == Surround::Plane {
-            let most = super::plane::most_reach(params, window);
+        if let Some(most) = plane_reach {
+            let noise = super::plane::Noise::of(background);
             super::plane::correct_for_planes(&self.signal, width, height, &mut found, window, most, noise);
         }
         found

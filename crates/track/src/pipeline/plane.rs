@@ -41,6 +41,7 @@
 use super::finder::Workers;
 use super::size_class::SizeClass;
 use super::stage::Pass;
+use crate::distance::{closer_than, nearest_distance};
 use crate::{Background, Detection, FrameView};
 use std::collections::BTreeMap;
 
@@ -354,7 +355,7 @@ pub(super) fn correct_for_planes(
     found: &mut [Detection],
     window: f64,
     most: f64,
-    noise_sigma: f64,
+    noise: Noise,
 ) {
     let points: Vec<[f64; 2]> = found.iter().map(|d| [d.x, d.y]).collect();
     for (i, d) in found.iter_mut().enumerate() {
@@ -363,12 +364,47 @@ pub(super) fn correct_for_planes(
             width,
             height,
         };
-        if let Some(p) = corrected_position(&image, &points, i, window, most, noise_sigma) {
+        if let Some(Ok(p)) = corrected_position(&image, &points, i, window, most, noise, Spread::Checked) {
             d.x = p[0];
             d.y = p[1];
         }
     }
 }
+
+/// The noise a particle's surroundings are judged against, grey levels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Noise {
+    /// The signal's pixel noise ([`Background::noise_sigma`]): what a ring's mean must stand
+    /// above to hold part of the particle.
+    pub(super) pixel: f64,
+    /// The spread of a frame's signal about the background ([`Background::frame_noise`]):
+    /// what a ring's pixels about its plane may spread to be background.
+    pub(super) frame: f64,
+}
+
+impl Noise {
+    /// The noise of `background`.
+    pub(super) fn of(background: &Background) -> Noise {
+        Noise {
+            pixel: background.noise_sigma,
+            frame: background.frame_noise(),
+        }
+    }
+}
+
+/// Whether [`corrected_position`] holds the ring's spread about its plane to the noise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Spread {
+    /// An estimate whose ring spreads more than the noise allows stays.
+    Checked,
+    /// The spread is not looked at: where the plane would move the estimate, whatever the
+    /// ring holds (what an uneven surrounding may do to it).
+    Ignored,
+}
+
+/// A ring round an estimate that spreads about its plane more than the noise allows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct UnevenRing;
 
 /// A frame's signal image, row-major, grey levels.
 pub(super) struct Signal<'a> {
@@ -382,15 +418,20 @@ pub(super) struct Signal<'a> {
 /// ring just beyond taken out; `None` where it stays: an estimate whose window another's
 /// reaches (their pixels are split between them by [`crate::refine_centroids`]), one whose
 /// particle ends within `window` and whose ring shows no slope beyond [`SIGNIFICANT`]
-/// standard errors, or one whose corrected centroid has no positive mass.
+/// standard errors, or one whose corrected centroid has no positive mass; `Some(Err(UnevenRing))`
+/// where it stays only because its ring spreads about the plane more than the noise allows
+/// (with [`Spread::Checked`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn corrected_position(
     image: &Signal<'_>,
     points: &[[f64; 2]],
     i: usize,
     window: f64,
     most: f64,
-    noise_sigma: f64,
-) -> Option<[f64; 2]> {
+    noise: Noise,
+    spread: Spread,
+) -> Option<Result<[f64; 2], UnevenRing>> {
+    let noise_sigma = noise.pixel;
     let Signal {
         signal,
         width,
@@ -401,19 +442,15 @@ pub(super) fn corrected_position(
     }
     let c = points[i];
     let keep_out = window + 1.0;
-    let mut nearest = f64::INFINITY;
-    let mut others: Vec<[f64; 2]> = Vec::new();
-    for (j, p) in points.iter().enumerate() {
-        if j == i {
-            continue;
-        }
-        let dist = (p[0] - c[0]).hypot(p[1] - c[1]);
-        nearest = nearest.min(dist);
-        // Only points whose keep-out disc can reach the widest ring matter.
-        if dist < 1.5 * most.max(window) + 3.0 + 2.0 * keep_out {
-            others.push(*p);
-        }
-    }
+    let nearest = nearest_distance(points, c, i);
+    // Only points whose keep-out disc can reach the widest ring matter.
+    let matters = 1.5 * most.max(window) + 3.0 + 2.0 * keep_out;
+    let others: Vec<[f64; 2]> = points
+        .iter()
+        .enumerate()
+        .filter(|&(j, p)| j != i && closer_than(p[0] - c[0], p[1] - c[1], matters))
+        .map(|(_, p)| *p)
+        .collect();
     if nearest < 2.0 * window + 2.0 {
         return None;
     }
@@ -438,29 +475,48 @@ pub(super) fn corrected_position(
     }
     let plane = fit_ring_plane(signal, width, height, c, reach, &others, keep_out)?;
     // The ring must look like background: its pixels about the plane no more spread than
-    // the measured noise, within 3 standard errors of a robust spread estimate
+    // a frame's noise about the background, within 3 standard errors of a robust spread estimate
     // (1.16 / sqrt(n) of it, the median absolute deviation's efficiency being 37 %). Clutter
     // or structure in the ring (a wall, a grid, a dial on real video) is not a background a
     // plane describes, and the estimate stays: the bouncing ball's and the pendulum's rings
     // read 1.3-3 times their noise.
-    let spread_limit = noise_sigma * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
-    if plane.sigma > spread_limit {
-        return None;
+    let spread_limit = noise.frame * (1.0 + SIGNIFICANT * 1.16 / (plane.count.max(1) as f64).sqrt());
+    if plane.sigma > spread_limit && spread == Spread::Checked {
+        return Some(Err(UnevenRing));
     }
     let sloped = plane.b.iter().any(|b| b.abs() > SIGNIFICANT * plane.b_sigma);
     if reach <= window && !sloped {
         return None;
     }
     let moved = centroid_on_plane(signal, width, height, c, reach, &plane)?;
-    // A background as high and as steep as the ring's, wholly on one side of the window,
-    // moves the centroid by at most (level + slope x reach) x window area x reach / mass: a
-    // move beyond that is not the background's (clutter in the ring, a smear of the
-    // particle itself), and the estimate stays.
-    let (mass, _) = ring_mean(signal, width, height, c, (0.0, reach), &others, keep_out);
+    // The move has two parts: the window's reach over the particle's signal beyond `window`
+    // (a window cut short of a blurred or textured ball's edge integrates a lopsided part of
+    // it), and the plane taken out. Each is bounded by what it could cause at most, all on
+    // one side: the signal between `window` and `reach` (sweep style 1018, a ball of 38 px
+    // whose window of 37.5 px moved 0.5 px out to 44.5 px), and a background as high and as
+    // steep as the ring's, (level + slope x reach) x window area x reach / mass. A move
+    // beyond those is neither (clutter in the ring, a smear of the particle), and the
+    // estimate stays.
+    let flat = Plane {
+        a: 0.0,
+        b: [0.0; 2],
+        ..plane
+    };
+    let wide = if reach > window {
+        centroid_on_plane(signal, width, height, c, reach, &flat)?
+    } else {
+        c
+    };
+    let (mean, _) = ring_mean(signal, width, height, c, (0.0, reach), &others, keep_out);
+    let mass = mean * std::f64::consts::PI * reach * reach;
+    let (beyond, beyond_count) = ring_mean(signal, width, height, c, (window, reach), &others, keep_out);
+    let widening_most = beyond.max(0.0) * beyond_count as f64 * reach / mass.max(f64::MIN_POSITIVE);
     let area = std::f64::consts::PI * reach * reach;
     let level = plane.a.abs() + plane.b[0].hypot(plane.b[1]) * reach;
-    let most_move = level * area * reach / (mass * area).max(f64::MIN_POSITIVE);
-    ((moved[0] - c[0]).hypot(moved[1] - c[1]) <= most_move).then_some(moved)
+    let plane_most = level * area * reach / mass.max(f64::MIN_POSITIVE);
+    ((wide[0] - c[0]).hypot(wide[1] - c[1]) <= widening_most
+        && (moved[0] - wide[0]).hypot(moved[1] - wide[1]) <= plane_most)
+        .then_some(Ok(moved))
 }
 
 /// Sample frames [`planes_move_points`] reads at most (spread evenly over the samples).
@@ -470,13 +526,36 @@ const GATE_SAMPLES: usize = 8;
 /// moved in two by chance.
 const GATE_SAMPLES_MOVED: usize = 3;
 
-/// Returns true if and only if correcting for the local background ([`corrected_position`])
-/// moves some track of `pass`, in most of the sample frames where it has a detection and in
+/// What the samples say of the background left around the tracks of a pass.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(super) struct SurroundReading {
+    /// Returns true if and only if correcting for the local background moves some track
+    /// (see [`planes_move_points`]).
+    pub(super) moves: bool,
+    /// One warning per track whose surroundings are uneven where it matters (see
+    /// [`planes_move_points`]).
+    pub(super) uneven: Vec<String>,
+}
+
+/// Standard errors (`ep`) by which the plane around a point whose ring is too uneven to be
+/// taken out must move it for the unevenness to matter.
+const UNEVEN_MOVE: f64 = 3.0;
+
+/// Whether correcting for the local background ([`corrected_position`]) moves some track of
+/// `pass`, in most of the sample frames where it has a detection and in
 /// [`GATE_SAMPLES_MOVED`] at least, by more than half its standard error (`ep`): then the
 /// frames are worth locating again with the correction. A slope that noise alone shows
 /// beyond 3 standard errors around one point does not repeat on the same track. Read on up
 /// to [`GATE_SAMPLES`] samples (each point's detection within a pixel of it, at its class's
 /// window).
+///
+/// Also a warning for each track whose ring spreads about its plane more than the noise
+/// allows (so the correction is not made) where the plane would move it by more than
+/// [`UNEVEN_MOVE`] standard errors, in most samples and [`GATE_SAMPLES_MOVED`] at least:
+/// the background left around it is uneven, and the centroid integrates it. Sweep style
+/// 1019 (a dark textured ball of 30 px hovering under a saturating exposure drift, the
+/// median over differently exposed samples leaving arcs round it; ring spread 1.4-2.3 times
+/// the noise) was written 0.10 / 0.24 px off (tolerance 0.12 / 0.13) without a word.
 pub(super) fn planes_move_points(
     background: &Background,
     samples: &[FrameView<'_>],
@@ -484,7 +563,7 @@ pub(super) fn planes_move_points(
     pass: &Pass,
     classes: &[SizeClass],
     workers: &Workers,
-) -> bool {
+) -> SurroundReading {
     let mut tracked: BTreeMap<usize, Vec<(&str, [f64; 2])>> = BTreeMap::new();
     for p in &pass.table.points {
         if p.ep.is_finite() {
@@ -494,8 +573,10 @@ pub(super) fn planes_move_points(
                 .push((p.particle.as_str(), [p.x, p.y]));
         }
     }
-    // Per track: samples where its detection was measured, and where it moved.
-    let mut counts: BTreeMap<&str, [usize; 2]> = BTreeMap::new();
+    // Per track: samples where its detection was measured, where it moved, and where its
+    // uneven ring would have moved it; the frames and moves of the latter.
+    let mut counts: BTreeMap<&str, [usize; 3]> = BTreeMap::new();
+    let mut uneven_at: BTreeMap<&str, Vec<(usize, [f64; 2])>> = BTreeMap::new();
     let read: Vec<(usize, usize)> = sample_of
         .iter()
         .enumerate()
@@ -527,32 +608,87 @@ pub(super) fn planes_move_points(
                     height,
                 };
                 let at: Vec<[f64; 2]> = f.detections.iter().map(|d| [d.x, d.y]).collect();
-                let (window, most) = (class.window(), most_reach(&class.sizes.params, class.window()));
+                let (window, most) = (class.window(), class.plane_reach());
                 for &(name, p) in points {
                     let Some(k) = f
                         .detections
                         .iter()
-                        .position(|d| (p[0] - d.x).hypot(p[1] - d.y) < 1.0)
+                        .position(|d| closer_than(p[0] - d.x, p[1] - d.y, 1.0))
                     else {
                         continue;
                     };
-                    // A track that stayed in half the samples read cannot move in most.
+                    // A track that stayed, with an even ring, in half the samples read
+                    // can neither move nor be uneven in most.
                     let count = counts.entry(name).or_default();
-                    if 2 * (count[0] - count[1]) >= read_count {
+                    if 2 * (count[0] - count[1]) >= read_count && 2 * (count[0] - count[2]) >= read_count {
                         continue;
                     }
                     let d = &f.detections[k];
-                    let moved = corrected_position(&image, &at, k, window, most, background.noise_sigma)
-                        .is_some_and(|c| (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
+                    let noise = Noise::of(background);
+                    let assessed = corrected_position(&image, &at, k, window, most, noise, Spread::Checked);
+                    let moved =
+                        matches!(assessed, Some(Ok(c)) if (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
                     count[0] += 1;
                     count[1] += usize::from(moved);
+                    if assessed == Some(Err(UnevenRing)) {
+                        let shift = corrected_position(&image, &at, k, window, most, noise, Spread::Ignored)
+                            .and_then(Result::ok)
+                            .map(|c| [c[0] - d.x, c[1] - d.y]);
+                        if let Some(shift) = shift.filter(|m| m[0].hypot(m[1]) > UNEVEN_MOVE * d.ep) {
+                            count[2] += 1;
+                            uneven_at.entry(name).or_default().push((f.frame, shift));
+                        }
+                    }
                 }
             }
         }
     });
-    counts
-        .values()
-        .any(|&[seen, moved]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen)
+    let uneven = counts
+        .iter()
+        .filter(|(name, &[seen, _, uneven])| {
+            uneven >= GATE_SAMPLES_MOVED && 2 * uneven > seen && one_way(&uneven_at[*name])
+        })
+        .map(|(name, _)| {
+            let at = &uneven_at[name];
+            let frames: Vec<String> = at.iter().map(|(k, _)| k.to_string()).collect();
+            let (least, most) = at.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &(_, m)| {
+                let m = m[0].hypot(m[1]);
+                (a.min(m), b.max(m))
+            });
+            format!(
+                "{name}: the background left around it is uneven in frames {} (more than a plane \
+                 and the noise), and it would move {least:.2}-{most:.2} px, over {UNEVEN_MOVE} standard \
+                 errors, with the plane fitted around it taken out: its positions may be off by as \
+                 much",
+                frames.join(", ")
+            )
+        })
+        .collect();
+    SurroundReading {
+        moves: counts
+            .values()
+            .any(|&[seen, moved, _]| moved >= GATE_SAMPLES_MOVED && 2 * moved > seen),
+        uneven,
+    }
+}
+
+/// Returns true if and only if the `shifts` (px, one per sample frame) lean one way: their
+/// mean stands beyond [`UNEVEN_MOVE`] standard errors (from their spread about it) of
+/// zero. An uneven background fixed in the scene moves a track the same way from frame to
+/// frame (style 1019's ball, 0.33-0.51 px); noise in a ring that only just fails the spread
+/// test moves it every which way (style 1012's spots, 0.11-0.27 px, tracked 0.08 px RMS).
+fn one_way(shifts: &[(usize, [f64; 2])]) -> bool {
+    let n = shifts.len() as f64;
+    if shifts.len() < 2 {
+        return false;
+    }
+    let mean = [0, 1].map(|a| shifts.iter().map(|(_, s)| s[a]).sum::<f64>() / n);
+    let var: f64 = shifts
+        .iter()
+        .map(|(_, s)| (s[0] - mean[0]).powi(2) + (s[1] - mean[1]).powi(2))
+        .sum::<f64>()
+        / (n - 1.0);
+    mean[0].hypot(mean[1]) > UNEVEN_MOVE * (var / n).sqrt()
 }
 
 /// The farthest a particle's window may reach when located with the local background taken
@@ -569,6 +705,12 @@ pub(super) fn most_reach(params: &crate::DetectParameters, window: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pixel noise of one grey level.
+    const UNIT: Noise = Noise {
+        pixel: 1.0,
+        frame: 1.0,
+    };
 
     /// A disc of radius `r` and amplitude `amp` at `c` on `width x height`, exact area
     /// coverage (the project's renderer), plus `background(x, y)`.
@@ -601,8 +743,17 @@ mod tests {
             width: w,
             height: h,
         };
-        let p = corrected_position(&image, &[[plain[0].x, plain[0].y]], 0, window, 30.0, 1.0)
-            .expect("a slope to take out");
+        let p = corrected_position(
+            &image,
+            &[[plain[0].x, plain[0].y]],
+            0,
+            window,
+            30.0,
+            UNIT,
+            Spread::Checked,
+        )
+        .and_then(Result::ok)
+        .expect("a slope to take out");
         assert!(
             (p[0] - c[0]).abs() < 0.01 && (p[1] - c[1]).abs() < 0.01,
             "{p:?} vs {c:?}"
@@ -619,7 +770,10 @@ mod tests {
             width: w,
             height: h,
         };
-        assert_eq!(corrected_position(&image, &[c], 0, 13.0, 20.0, 1.0), None);
+        assert_eq!(
+            corrected_position(&image, &[c], 0, 13.0, 20.0, UNIT, Spread::Checked),
+            None
+        );
     }
 
     /// A window cut by the image border, or one that a neighbour's reaches, is left alone.
@@ -633,11 +787,14 @@ mod tests {
             height: h,
         };
         assert_eq!(
-            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, 1.0),
+            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, UNIT, Spread::Checked),
             None
         );
         let points = [[48.0, 48.0], [70.0, 48.0]];
-        assert_eq!(corrected_position(&image, &points, 0, 13.0, 20.0, 1.0), None);
+        assert_eq!(
+            corrected_position(&image, &points, 0, 13.0, 20.0, UNIT, Spread::Checked),
+            None
+        );
     }
 
     /// The plane fitted on a ring of a noise-free plane is that plane, with one pixel of

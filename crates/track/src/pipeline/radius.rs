@@ -61,7 +61,7 @@ pub(super) fn estimate_radius(
     estimation: &Estimation,
     starts: Option<&[[f64; 2]]>,
     scale: Option<f64>,
-) -> f64 {
+) -> (f64, bool) {
     let mut radius = scale
         .or_else(|| scale_start(estimation, starts))
         .unwrap_or(START_RADIUS);
@@ -81,7 +81,8 @@ pub(super) fn estimate_radius(
         }
         radius = next;
     }
-    widen_to_half_maximum(estimation, starts, radius, cut)
+    let widened = widen_to_half_maximum(estimation, starts, radius, cut);
+    (widened, widened > radius)
 }
 
 /// One round of the radius estimate at `radius`: for each particle measured (the blob

@@ -1,6 +1,6 @@
 //! The skirt self-check's samples: signal around each tracked particle, located unfiltered.
 
-use super::finder::{locate_window, Finder, Parts, Surround, Workers};
+use super::finder::{locate_window, Finder, Parts, Workers};
 use super::radius::nearest_each;
 use super::size_class::Sizes;
 use super::window_frames::WindowFrames;
@@ -87,7 +87,7 @@ pub(super) fn particle_contrast(
             &sizes.params,
             locate_window(sizes.radius),
             Parts::Join,
-            Surround::Ignore,
+            None,
         );
         let particles: Vec<&Detection> = match starts {
             Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),
@@ -131,7 +131,7 @@ pub(super) fn locate_unfiltered(
         &unfiltered(background, radius),
         locate_window(radius),
         Parts::Keep,
-        Surround::Ignore,
+        None,
     )
 }
 

@@ -78,7 +78,7 @@ impl Stage<'_> {
                                 &c.sizes.params,
                                 c.window(),
                                 Parts::Join,
-                                surround,
+                                (surround == Surround::Plane).then(|| c.plane_reach()),
                             ),
                         })
                         .collect();

@@ -364,19 +364,21 @@ fn track_frames(
     // uneven light) is left in each centroid window: where taking out the plane around each
     // particle moves a tracked point by half its standard error, the frames are located
     // again with it, unless that raises concerns the first pass did not.
-    if planes_move_points(
+    let surround = planes_move_points(
         &background,
         &views(&sample_frames),
         &sample_of,
         &pass,
         &classes,
         &workers,
-    ) {
+    );
+    if surround.moves {
         let corrected = stage.locate_and_link(&background, &classes, Surround::Plane, progress)?;
         if corrected.concerns.len() <= pass.concerns.len() {
             pass = corrected;
         }
     }
+    pass.warnings.extend(surround.uneven);
     let Pass {
         located: by_class,
         table,

@@ -48,6 +48,9 @@ struct Row {
     tolerance: [f64; 2],
     tracker_radius: f64,
     failure: Option<String>,
+    /// Particles whose own RMS error lies beyond the tolerance on an axis and that no
+    /// warning of the tracker names (`"{particle}: ..."`): tracks wrong without a word.
+    unwarned: Vec<String>,
 }
 
 impl Row {
@@ -62,6 +65,12 @@ impl Row {
                 .failure
                 .as_deref()
                 .is_some_and(|f| f.starts_with("tracking failed"))
+    }
+
+    /// Followed, refused, or every particle out of its tolerance named in a warning, every
+    /// point found and under its own name (never tracks wrong without a word).
+    fn followed_refused_or_warned(&self) -> bool {
+        self.followed_or_refused() || (self.recall >= 1.0 && self.switches == 0 && self.unwarned.is_empty())
     }
 
     fn line(&self) -> String {
@@ -110,6 +119,9 @@ impl Row {
             self.tracker_radius,
             match &self.failure {
                 None => "pass".to_string(),
+                Some(why) if !self.followed_or_refused() && self.followed_refused_or_warned() => {
+                    format!("FAIL: {why} (warned)")
+                }
                 Some(why) => format!("FAIL: {why}"),
             }
         )
@@ -161,6 +173,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         tolerance,
         tracker_radius: f64::NAN,
         failure: None,
+        unwarned: Vec::new(),
     };
     let options = TrackOptions {
         named_start: Some(start),
@@ -209,6 +222,30 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     if !why.is_empty() {
         row.failure = Some(why.join(", "));
     }
+    row.unwarned = seq
+        .truth
+        .names
+        .iter()
+        .filter(|name| {
+            let own = |t: &TrackTable| TrackTable {
+                points: t
+                    .points
+                    .iter()
+                    .filter(|p| &p.particle == *name)
+                    .cloned()
+                    .collect(),
+            };
+            let s = score_tracks(&own(&outcome.table), &own(&truth), style.radius);
+            // NaN (no point matched) counts as beyond the tolerance.
+            let within = s.rms_x <= tolerance[0] && s.rms_y <= tolerance[1];
+            let named = outcome
+                .warnings
+                .iter()
+                .any(|w| w.starts_with(&format!("{name}:")));
+            !(within || named)
+        })
+        .cloned()
+        .collect();
     row
 }
 
@@ -321,16 +358,19 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (38 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (39 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
 /// a ring, textured balls, under uneven light or exposure drift) are followed since each
 /// particle is located again on the signal with the plane fitted just beyond it taken out
 /// (`pipeline/plane.rs`); 1008 and 1030 (Gaussian spots of 46-53 px) since the radius is
 /// widened to the half-maximum radius measured where the window `R + 1` cut a smooth spot
-/// above half its peak (`pipeline/radius.rs`).
+/// above half its peak (`pipeline/radius.rs`); 1018 (a textured ball of 38 px hovering
+/// under vignetting, 0.37 / 0.52 px against 0.22 / 0.45 before) since the gap it leaves in the
+/// per-pixel median is filled along the light's curvature (`inpaint.rs`) and its window's
+/// reach past its cut edge is bounded by its own signal there, apart from the plane's.
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1020, 1021,
-    1022, 1023, 1024, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
+    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1018, 1020,
+    1021, 1022, 1023, 1024, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -360,19 +400,38 @@ fn styles_followed_today_stay_followed() {
 /// px against 0.35 / 0.34) until a particle lost and found again far inside the image was.
 const REFUSED_SYNTH: &[u64] = &[1002, 1009, 1011, 1025, 1026, 1031, 1033, 1038];
 
-#[test]
-fn styles_refused_today_are_refused_or_followed() {
-    let bad: Vec<String> = REFUSED_SYNTH
+/// The table lines of the synth styles `seeds` whose rows are not `ok`, each with the
+/// particles off their tolerance that no warning names.
+fn rows_not(seeds: &[u64], ok: impl Fn(&Row) -> bool) -> Vec<String> {
+    seeds
         .iter()
         .map(|&seed| synth_row(seed))
-        .filter(|row| !row.followed_or_refused())
-        .map(|row| row.line())
-        .collect();
+        .filter(|row| !ok(row))
+        .map(|row| format!("{} (unwarned: {})", row.line(), row.unwarned.join(", ")))
+        .collect()
+}
+
+#[test]
+fn styles_refused_today_are_refused_or_followed() {
+    let bad = rows_not(REFUSED_SYNTH, Row::followed_or_refused);
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
+
+/// The synth styles the tracker follows today but for some particles it names in a
+/// warning: 1019 (dark textured balls of 12 and 30 px under vignetting and a saturating
+/// exposure drift; the large one hovers, and the median over differently exposed samples
+/// leaves uneven arcs round it, 0.10 / 0.24 px RMS against 0.12 / 0.13). Each must be
+/// followed, refused, or have every particle beyond its tolerance named in a warning.
+const WARNED_SYNTH: &[u64] = &[1019];
+
+#[test]
+fn styles_warned_today_are_warned_refused_or_followed() {
+    let bad = rows_not(WARNED_SYNTH, Row::followed_refused_or_warned);
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
 
 #[test]
-#[ignore = "tracker issue 20: 10 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 9 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
