@@ -84,6 +84,30 @@ pub struct Jolt {
     pub significance: f64,
 }
 
+impl Jolt {
+    /// A jolt of `particle` across the gap after absolute frame `frame`, at `position` (px),
+    /// with velocities `before` and `after` (px/s), `impulse` (px/s) and `significance`.
+    pub fn new(
+        particle: usize,
+        frame: usize,
+        position: Vec2,
+        before: Vec2,
+        after: Vec2,
+        impulse: Vec2,
+        significance: f64,
+    ) -> Self {
+        Jolt {
+            particle,
+            frame,
+            position: [position.x, position.y],
+            before: [before.x, before.y],
+            after: [after.x, after.y],
+            impulse: [impulse.x, impulse.y],
+            significance,
+        }
+    }
+}
+
 /// The means' impulse across one gap of one particle's series.
 #[derive(Clone, Copy, Debug)]
 struct Gap {
@@ -281,18 +305,7 @@ fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bo
             let imp = faint.unwrap_or(imp);
             let own = faint.map_or(own, |best| best.norm() / local_scale);
             let x = obs.positions[k][p].unwrap_or_else(Vec2::zeros);
-            out.push((
-                Jolt {
-                    particle: p,
-                    frame: obs.first_frame + k,
-                    position: [x.x, x.y],
-                    before: [vb.x, vb.y],
-                    after: [va.x, va.y],
-                    impulse: [imp.x, imp.y],
-                    significance: own,
-                },
-                strict,
-            ));
+            out.push((Jolt::new(p, obs.first_frame + k, x, vb, va, imp, own), strict));
         }
     }
     (out, scale_of(m))
@@ -400,15 +413,15 @@ pub fn end_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Vec<J
                 continue;
             }
             let Some(x) = obs.positions[k][p] else { continue };
-            out.push(Jolt {
-                particle: p,
-                frame: obs.first_frame + k,
-                position: [x.x, x.y],
-                before: [vb.x, vb.y],
-                after: [va.x, va.y],
-                impulse: [impulse.x, impulse.y],
-                significance: size / scale,
-            });
+            out.push(Jolt::new(
+                p,
+                obs.first_frame + k,
+                x,
+                vb,
+                va,
+                impulse,
+                size / scale,
+            ));
         }
     }
     out

@@ -94,15 +94,15 @@ fn best_landing(obs: &Observations, p: usize) -> Option<Landing> {
         best = Some(Landing {
             guess: WallGuess {
                 params: [n.y.atan2(n.x), offset, LANDING_RESTITUTION],
-                jolts: vec![Jolt {
-                    particle: p,
-                    frame: obs.first_frame + k - 1,
-                    position: [a.x, a.y],
-                    before: [before.x, before.y],
-                    after: [after.x, after.y],
-                    impulse: [after.x - before.x, after.y - before.y],
+                jolts: vec![Jolt::new(
+                    p,
+                    obs.first_frame + k - 1,
+                    a,
+                    before,
+                    after,
+                    after - before,
                     significance,
-                }],
+                )],
             },
             significance,
         });
