@@ -53,7 +53,9 @@ fn unit(effect: Effect, name: &str) -> &'static str {
         (Effect::Gravity, _) => "px/s^2",
         (Effect::Drag, _) => "1/s",
         (Effect::QuadraticDrag, _) => "1/px",
-        (Effect::SpringDamping | Effect::SpringDashpot { .. }, _) => "mass/s",
+        (Effect::SpringDamping | Effect::SpringDashpot { .. } | Effect::BodyDrag, _) => "mass/s",
+        (Effect::BodyQuadraticDrag, _) => "mass/px",
+        (Effect::WallFriction { .. }, _) => "1",
         (_, "stiffness") => "energy/px^2",
         (_, "restitution") => "1",
         (_, "normal_x" | "normal_y") => "1",
@@ -196,7 +198,11 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                     g.y.atan2(g.x).to_degrees()
                 );
             }
-            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping => {
+            Effect::Drag
+            | Effect::QuadraticDrag
+            | Effect::SpringDamping
+            | Effect::BodyDrag
+            | Effect::BodyQuadraticDrag => {
                 push(
                     effect.parameter_names()[0].trim_start_matches("spring_"),
                     values[0],
@@ -216,6 +222,27 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                     "{} acting throughout, against the motion",
                     effect.label(inp.structure)
                 );
+            }
+            Effect::WallFriction { wall } => {
+                push("friction", values[0], errs[0]);
+                let normal = fam
+                    .model(&fit.params, None)
+                    .physics
+                    .walls
+                    .get(wall)
+                    .map_or_else(Vec2::zeros, |w| w.normal);
+                let mut particles: Vec<String> = proposal.jolts.iter().map(|j| id(j.particle)).collect();
+                particles.sort();
+                particles.dedup();
+                seen.particles = particles;
+                seen.frames = proposal.jolts.iter().map(|j| [j.frame, j.frame + 1]).collect();
+                seen.region = bbox(
+                    proposal
+                        .jolts
+                        .iter()
+                        .map(|j| Vec2::new(j.position[0], j.position[1])),
+                );
+                seen.text = super::contact::friction_seen_text(wall, values[0], normal, &proposal.jolts);
             }
             Effect::SpringDashpot { spring } => {
                 push("damping", values[0], errs[0]);

@@ -1,0 +1,208 @@
+//! Candidates at contacts and in a medium (issue 22): Coulomb friction at a wall that is met,
+//! and drag per body (not scaled by the mass) where bodies of different masses share a medium.
+//!
+//! **Friction at a wall.** Once a wall is in the model (given by the structure or found from
+//! the jolts), every bounce on it shows what friction does: Coulomb friction takes from the
+//! tangential speed `|v_t|` at most `mu` times the normal velocity change `dv_n`
+//! ([`physfit_model::Wall::apply_friction`], the one law in the model crate). Over the bounces
+//! met on the wall (jolts whose impulse points into the allowed side, within a frame's travel
+//! of the line), the tangential speed lost along the incoming tangential direction, summed,
+//! over the normal velocity change, summed, starts `mu`; the candidate is proposed only when
+//! that loss exceeds three times its noise (the jolt impulse's noise scale
+//! `2 sigma fps / JOLT_FIT_POINTS` per coordinate, times the square root of the bounce count):
+//! tangential kicks that *gain* speed (a spinning ball) are not friction. The multi-step fit,
+//! the held-out score and the transfer through the bounces then judge it like a wall.
+//!
+//! **Drag per body.** `F = -b v` and `F = -c |v| v` on every free particle, shared, not scaled
+//! by the mass. With every free mass equal it is the per-mass drag times that mass (the same
+//! column in every fit), so it is a candidate only when the free masses differ.
+
+use physfit_model::{Vec2, Wall};
+
+use super::effect::{wall_from_params, Effect};
+use super::family::Family;
+use super::jolts::{Jolt, JOLT_FIT_POINTS};
+use super::search::{Current, Proposal};
+use crate::Observations;
+
+/// Friction candidates: one per wall of the current model (the structure's and the accepted
+/// ones, not bumpers, none with friction yet) whose bounces among `jolts` lose tangential
+/// speed beyond noise, started from the measured ratio of tangential to normal change.
+pub fn friction_proposals(obs: &Observations, current: &Current, jolts: &[Jolt]) -> Vec<Proposal> {
+    let family = &current.family;
+    let model = family.model(&current.fit.params, None);
+    let mut out = Vec::new();
+    for (k, wall) in model.physics.walls.iter().enumerate() {
+        let has = family.effects.contains(&Effect::WallFriction { wall: k });
+        if has || wall.is_bumper() || wall.friction > 0.0 {
+            continue;
+        }
+        out.extend(friction_at(obs, wall, k, jolts));
+    }
+    out
+}
+
+/// Friction with each proposed wall not yet in the model (`walls`, at most the first three,
+/// as the search verifies them): the wall and its friction, and with `field` as well (a floor,
+/// its field and its friction are each useless to a multi-step fit without the others), for
+/// the walls whose own bounces lose tangential speed beyond noise.
+pub fn friction_with_walls(
+    obs: &Observations,
+    current: &Current,
+    walls: &[Proposal],
+    field: Option<&Proposal>,
+) -> Vec<Vec<Proposal>> {
+    let index = current
+        .family
+        .model(&current.fit.params, None)
+        .physics
+        .walls
+        .len();
+    let mut out = Vec::new();
+    for guess in walls.iter().take(3) {
+        let Some(wall) = wall_from_params(&guess.init) else {
+            continue;
+        };
+        let Some(friction) = friction_at(obs, &wall, index, &guess.jolts) else {
+            continue;
+        };
+        out.push(vec![guess.clone(), friction.clone()]);
+        if let Some(f) = field {
+            out.push(vec![guess.clone(), f.clone(), friction]);
+        }
+    }
+    out
+}
+
+/// The friction candidate at `wall` (index `k` among the model's walls) from the bounces on
+/// it among `jolts`, when their tangential loss exceeds three times its noise.
+fn friction_at(obs: &Observations, wall: &Wall, k: usize, jolts: &[Jolt]) -> Option<Proposal> {
+    let dt = 1.0 / obs.fps;
+    let impulse_noise = 2.0 * obs.noise * obs.fps / JOLT_FIT_POINTS as f64;
+    let met: Vec<Jolt> = jolts
+        .iter()
+        .filter(|j| meets(j, wall.normal, wall.signed_distance(position(j)), dt, obs.noise))
+        .cloned()
+        .collect();
+    let (loss, normal) = met.iter().fold((0.0, 0.0), |(l, n), j| {
+        let (lost, dv_n) = tangential_loss(j, wall.normal);
+        (l + lost, n + dv_n)
+    });
+    let significant = loss > 3.0 * impulse_noise * (met.len() as f64).sqrt();
+    (!met.is_empty() && significant && normal > 0.0).then(|| Proposal {
+        effect: Effect::WallFriction { wall: k },
+        init: vec![loss / normal],
+        screen: None,
+        score_test: None,
+        jolts: met,
+    })
+}
+
+/// The "where it was seen" text of friction `mu` at wall `wall` (0-based) whose bounces are
+/// `met`, with the wall's unit `normal`.
+pub fn friction_seen_text(wall: usize, mu: f64, normal: Vec2, met: &[Jolt]) -> String {
+    let (lost, dv_n) = met.iter().fold((0.0, 0.0), |(l, n), j| {
+        let (lost, dv) = tangential_loss(j, normal);
+        (l + lost, n + dv)
+    });
+    let before: f64 = met
+        .iter()
+        .map(|j| tangential(Vec2::from(j.before), normal).norm())
+        .sum();
+    format!(
+        "{} bounce(s) on wall {} lose {:.1} of {:.1} px/s of tangential speed in all, for {:.1} px/s of normal velocity change: Coulomb friction mu = {:.3}",
+        met.len(),
+        wall + 1,
+        lost,
+        before,
+        dv_n,
+        mu
+    )
+}
+
+/// Drag-per-body candidates for `family`: none when every free mass is the same (the per-mass
+/// drag is then the same force).
+pub fn body_drag_candidates(family: &Family) -> Vec<Effect> {
+    let masses: Vec<f64> = family
+        .free
+        .iter()
+        .map(|&p| family.structure.particles[p].mass)
+        .collect();
+    let differ = masses.iter().any(|m| m.to_bits() != masses[0].to_bits());
+    if differ {
+        vec![Effect::BodyDrag, Effect::BodyQuadraticDrag]
+    } else {
+        Vec::new()
+    }
+}
+
+fn position(j: &Jolt) -> Vec2 {
+    Vec2::new(j.position[0], j.position[1])
+}
+
+/// The part of `v` across `normal`.
+fn tangential(v: Vec2, normal: Vec2) -> Vec2 {
+    v - normal * v.dot(&normal)
+}
+
+/// Returns true if and only if jolt `j` is a bounce on the wall with unit `normal`: its
+/// impulse points into the allowed side, and its centre (at `distance` px from the line, the
+/// frame before the bounce) is within the frame's travel along the normal (before and after)
+/// plus five track noises of the line.
+fn meets(j: &Jolt, normal: Vec2, distance: f64, dt: f64, noise: f64) -> bool {
+    let (before, after) = (Vec2::from(j.before), Vec2::from(j.after));
+    let travel = (before.dot(&normal).abs() + after.dot(&normal).abs()) * dt;
+    Vec2::from(j.impulse).dot(&normal) > 0.0 && distance.abs() <= travel + 5.0 * noise
+}
+
+/// A bounce's tangential speed lost along its incoming tangential direction (negative for a
+/// gain) and its normal velocity change, px/s.
+fn tangential_loss(j: &Jolt, normal: Vec2) -> (f64, f64) {
+    let (before, after) = (Vec2::from(j.before), Vec2::from(j.after));
+    let vt = tangential(before, normal);
+    let dv_n = (after - before).dot(&normal);
+    let speed = vt.norm();
+    if speed > 0.0 {
+        ((before - after).dot(&(vt / speed)), dv_n)
+    } else {
+        (0.0, dv_n)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn jolt(before: [f64; 2], after: [f64; 2], y: f64) -> Jolt {
+        Jolt {
+            particle: 0,
+            frame: 10,
+            position: [0.0, y],
+            before,
+            after,
+            impulse: [after[0] - before[0], after[1] - before[1]],
+            significance: 50.0,
+        }
+    }
+
+    #[test]
+    fn a_bounce_losing_tangential_speed_reads_coulomb_mu() {
+        // A floor (normal up, y down): 100 px/s along, 200 px/s into it; e = 0.8, mu = 0.2
+        // takes 0.2 * 360 = 72 px/s of the tangential speed.
+        let up = Vec2::new(0.0, -1.0);
+        let j = jolt([100.0, 200.0], [28.0, -160.0], 298.0);
+        let (lost, dv_n) = tangential_loss(&j, up);
+        assert!((lost - 72.0).abs() < 1e-12 && (dv_n - 360.0).abs() < 1e-12);
+        assert!(meets(&j, up, 300.0 - 298.0, 0.02, 0.01));
+        // Too far from the line for one frame's travel (200 + 160 px/s over 0.02 s = 7.2 px).
+        assert!(!meets(&j, up, 8.0, 0.02, 0.01));
+        // A kick forward (a spinning ball) is a negative loss.
+        let spun = jolt([100.0, 200.0], [130.0, -160.0], 298.0);
+        assert!(tangential_loss(&spun, up).0 < 0.0);
+        let text = friction_seen_text(0, 0.2, up, &[j]);
+        assert!(
+            text.starts_with("1 bounce(s) on wall 1 lose 72.0 of 100.0 px/s"),
+            "{text}"
+        );
+    }
+}

@@ -1,0 +1,179 @@
+//! Issue 22: contacts as diagnosis candidates. A ball bounces along a floor with Coulomb
+//! friction the structure does not mention (its mass alone is given); rendered, tracked and
+//! diagnosed, physfit must name the field, the floor and the friction at it, with the friction
+//! within 5 % of the truth and nothing else added, and the fitted scene must render again.
+//! The friction, restitution and launch speed are drawn from fixed seeds; a frictionless ball
+//! gets no friction.
+
+use std::path::Path;
+
+use physfit_model::scene::compare_scenes;
+use physfit_model::Scene;
+use serde_json::Value;
+
+use crate::util::{physfit, tempdir, write};
+
+/// Deterministic draws in `[lo, hi)` (a small linear congruential sequence: seeded and
+/// dependency-free).
+fn draw(seed: &mut u64, lo: f64, hi: f64) -> f64 {
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    lo + (*seed >> 11) as f64 / (1u64 << 53) as f64 * (hi - lo)
+}
+
+/// A ball launched sideways at `vx` px/s from 80 px above a floor at y = 340 px (it meets it
+/// at 400 px/s) with restitution `e` and Coulomb friction `mu`, under a field of 1000 px/s²,
+/// 3 s at 100 frames/s.
+fn floor_scene(mu: f64, e: f64, vx: f64, seed: u64) -> String {
+    let friction = if mu > 0.0 {
+        format!("friction = {mu}\n")
+    } else {
+        String::new()
+    };
+    format!(
+        r#"name = "concealed-floor-friction"
+[recording]
+fps = 100.0
+frames = 300
+substeps = 10
+[render]
+width = 480
+height = 400
+radius = 5.0
+background = 20
+foreground = 235
+noise = 2.0
+seed = {seed}
+[[particles]]
+id = "ball"
+mass = 1.0
+position = [60.0, 260.0]
+velocity = [{vx}, 0.0]
+[physics]
+gravity = [0.0, 1000.0]
+[[physics.walls]]
+point = [0.0, 340.0]
+normal = [0.0, -1.0]
+restitution = {e}
+{friction}"#
+    )
+}
+
+/// Runs `physfit -q` with `args`, asserting success.
+fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) {
+    let mut cmd = physfit();
+    cmd.arg("-q");
+    for a in args {
+        cmd.arg(a);
+    }
+    cmd.assert().success();
+}
+
+/// Renders, tracks and diagnoses `scene` (from its structure alone) in `dir`: the truth, the
+/// structure, `report.json` and the fitted scene.
+fn diagnose_rendered(dir: &Path, scene: &str) -> (Scene, Scene, Value, Scene) {
+    let path = write(dir, "scene.toml", scene);
+    let out = dir.join("render");
+    run(&[&"render", &path, &"--out", &out]);
+    let tracks = out.join("tracks.csv");
+    let structure = out.join("structure.toml");
+    run(&[
+        &"track",
+        &out.join("frames"),
+        &"--out",
+        &tracks,
+        &"--structure",
+        &structure,
+    ]);
+    let diag = dir.join("diag");
+    run(&[&"diagnose", &tracks, &"--structure", &structure, &"--out", &diag]);
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
+    // The fitted scene renders again, its friction included.
+    run(&[&"render", &diag.join("fitted.toml"), &"--out", &dir.join("again")]);
+    (
+        Scene::load(&path).expect("scene"),
+        Scene::load(&structure).expect("structure"),
+        report,
+        Scene::load(&diag.join("fitted.toml")).expect("fitted.toml"),
+    )
+}
+
+/// The scene's friction, drawn from `seed` (0 for the frictionless control), is diagnosed
+/// back within 5 % with exactly the field, the floor and the friction found.
+fn check_friction(seed: u64, frictionless: bool) {
+    let mut s = seed;
+    let mu = if frictionless {
+        0.0
+    } else {
+        draw(&mut s, 0.05, 0.2)
+    };
+    let e = draw(&mut s, 0.6, 0.9);
+    // The ball still slides after its first bounce (which takes `mu (1 + e) 400` px/s): a
+    // friction that stops it at once is only bounded below by the tracks. Without friction
+    // it stays in view for the 3 s.
+    let vx = if frictionless {
+        draw(&mut s, 60.0, 120.0)
+    } else {
+        mu * (1.0 + e) * 400.0 * draw(&mut s, 1.3, 1.8)
+    };
+    let dir = tempdir();
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &floor_scene(mu, e, vx, seed));
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let friction = c
+        .values
+        .iter()
+        .find(|v| v.item == "wall 1" && v.name == "friction");
+    println!(
+        "seed {seed}: mu {mu:.4}, e {e:.3}, vx {vx:.1} px/s: found {:?}, friction {:?}, verdict {}",
+        c.effects_found,
+        friction.map(|v| (v.fitted, v.relative_error)),
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    let names: Vec<&str> = report["findings"]
+        .as_array()
+        .expect("findings")
+        .iter()
+        .filter_map(|f| f["effect"].as_str())
+        .collect();
+    if frictionless {
+        assert!(friction.is_none(), "{:?}", c.values);
+        assert!(!names.contains(&"wall_friction"), "{names:?}");
+        return;
+    }
+    let error = friction
+        .and_then(|v| v.relative_error)
+        .expect("a fitted friction");
+    assert!(error.abs() < 0.05, "friction {:?} against {mu}", friction);
+    // Its own "where it was seen" text names the bounces that lost tangential speed.
+    let found = report["findings"]
+        .as_array()
+        .and_then(|fs| fs.iter().find(|f| f["effect"] == "wall_friction"))
+        .expect("a wall_friction finding");
+    let text = found["seen"]["text"].as_str().unwrap_or_default();
+    assert!(text.contains("bounce(s) on wall 1 lose"), "{text}");
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_1() {
+    check_friction(1, false);
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_2() {
+    check_friction(2, false);
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_3() {
+    check_friction(3, false);
+}
+
+#[test]
+fn a_frictionless_floor_gets_no_friction() {
+    check_friction(4, true);
+}
