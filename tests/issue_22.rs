@@ -1,9 +1,13 @@
-//! Issue 22: contacts as diagnosis candidates. A ball bounces along a floor with Coulomb
-//! friction the structure does not mention (its mass alone is given); rendered, tracked and
-//! diagnosed, physfit must name the field, the floor and the friction at it, with the friction
-//! within 5 % of the truth and nothing else added, and the fitted scene must render again.
-//! The friction, restitution and launch speed are drawn from fixed seeds; a frictionless ball
-//! gets no friction.
+//! Issue 22: contacts and drag per body as diagnosis candidates, each concealed in a rendered
+//! scene, tracked and diagnosed from the structure alone, found back within 5 % with nothing
+//! else added, and the fitted scene rendered again.
+//!
+//! * A ball bounces along a floor with Coulomb friction: physfit must name the field, the
+//!   floor and the friction at it. The friction, restitution and launch speed are drawn from
+//!   fixed seeds; a frictionless ball gets no friction.
+//! * Two bodies of masses 1 and 3 fly through one medium (`body_drag` or
+//!   `body_quadratic_drag`, not scaled by the mass): physfit must name the field and that drag
+//!   per body; the same pair under a drag per unit mass gets the per-mass drag.
 
 use std::path::Path;
 
@@ -176,4 +180,80 @@ fn friction_at_a_floor_is_found_within_5_percent_seed_3() {
 #[test]
 fn a_frictionless_floor_gets_no_friction() {
     check_friction(4, true);
+}
+
+/// Two bodies of masses 1 and 3 thrown towards each other under a field of 300 px/s² through
+/// a medium given by `medium` (a `[physics]` line), 2 s at 100 frames/s.
+fn medium_scene(medium: &str, seed: u64) -> String {
+    format!(
+        r#"name = "concealed-body-drag"
+[recording]
+fps = 100.0
+frames = 200
+substeps = 10
+[render]
+width = 480
+height = 480
+radius = 5.0
+background = 20
+foreground = 235
+noise = 2.0
+seed = {seed}
+[[particles]]
+id = "light"
+mass = 1.0
+position = [100.0, 80.0]
+velocity = [120.0, -100.0]
+[[particles]]
+id = "heavy"
+mass = 3.0
+position = [300.0, 80.0]
+velocity = [-120.0, -100.0]
+[physics]
+gravity = [0.0, 300.0]
+{medium}
+"#
+    )
+}
+
+/// The medium `key = value` (drawn from `seed` in `[lo, hi)`) is diagnosed back within 5 %
+/// on every body, with exactly the field and it found.
+fn check_medium(seed: u64, key: &str, lo: f64, hi: f64) {
+    let mut s = seed;
+    let value = draw(&mut s, lo, hi);
+    let dir = tempdir();
+    let (truth, structure, report, fitted) =
+        diagnose_rendered(dir.path(), &medium_scene(&format!("{key} = {value}"), seed));
+    let c = compare_scenes(&fitted, &truth, &structure);
+    println!(
+        "seed {seed}: {key} {value:.6}: found {:?}, verdict {}",
+        c.effects_found, report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    let name = if key == "drag" { "drag" } else { key };
+    let errors: Vec<f64> = c
+        .values
+        .iter()
+        .filter(|v| v.name == name)
+        .filter_map(|v| v.relative_error)
+        .collect();
+    println!("  {name} relative errors {errors:?}");
+    assert!(!errors.is_empty(), "{:?}", c.values);
+    assert!(errors.iter().all(|e| e.abs() < 0.05), "{errors:?}");
+}
+
+#[test]
+fn linear_drag_per_body_is_found_within_5_percent() {
+    check_medium(5, "body_drag", 0.3, 1.2);
+}
+
+#[test]
+fn quadratic_drag_per_body_is_found_within_5_percent() {
+    check_medium(6, "body_quadratic_drag", 0.001, 0.005);
+}
+
+#[test]
+fn drag_per_unit_mass_on_bodies_of_different_masses_stays_per_mass() {
+    check_medium(7, "drag", 0.2, 0.8);
 }

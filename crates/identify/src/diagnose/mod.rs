@@ -532,6 +532,8 @@ fn diagnose_inner(
         if swapped {
             verified.extend(ctx.verify_swaps(&current, &candidates));
         }
+        // Drag per body in place of an accepted per-mass drag (see `contact`).
+        verified.extend(contact::body_drag_swaps(&ctx, &current));
         if debug {
             for v in &verified {
                 let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();

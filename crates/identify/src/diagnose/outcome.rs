@@ -218,10 +218,19 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                         .map(|s| [id(s.ends[0].index()), id(s.ends[1].index())])
                         .collect();
                 }
-                seen.text = format!(
-                    "{} acting throughout, against the motion",
-                    effect.label(inp.structure)
-                );
+                seen.text = if matches!(effect, Effect::BodyDrag | Effect::BodyQuadraticDrag) {
+                    let masses: Vec<f64> = fam
+                        .free
+                        .iter()
+                        .map(|&p| inp.structure.particles[p].mass)
+                        .collect();
+                    super::contact::body_drag_seen_text(&effect.label(inp.structure), &masses)
+                } else {
+                    format!(
+                        "{} acting throughout, against the motion",
+                        effect.label(inp.structure)
+                    )
+                };
             }
             Effect::WallFriction { wall } => {
                 push("friction", values[0], errs[0]);

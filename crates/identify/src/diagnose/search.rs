@@ -1557,7 +1557,6 @@ pub fn noise_floor(noise: f64, length: f64) -> f64 {
 pub fn smooth_candidates(family: &Family, obs: &Observations) -> Vec<Effect> {
     let s = &family.structure;
     let mut out = vec![Effect::Gravity, Effect::Drag, Effect::QuadraticDrag];
-    out.extend(super::contact::body_drag_candidates(family));
     if !s.springs.is_empty() {
         out.push(Effect::SpringDamping);
     }
