@@ -257,3 +257,70 @@ fn quadratic_drag_per_body_is_found_within_5_percent() {
 fn drag_per_unit_mass_on_bodies_of_different_masses_stays_per_mass() {
     check_medium(7, "drag", 0.2, 0.8);
 }
+
+/// A pendulum on a rope of length `length` px from a fixed pivot, released at 30 degrees,
+/// under a field `g` px/s², 3 s at 100 frames/s.
+fn rope_scene(g: f64, length: f64, seed: u64) -> String {
+    let (s, c) = 30f64.to_radians().sin_cos();
+    format!(
+        r#"name = "rope-pendulum"
+[recording]
+fps = 100.0
+frames = 300
+substeps = 10
+[render]
+width = 400
+height = 400
+radius = 5.0
+background = 20
+foreground = 235
+noise = 2.0
+seed = {seed}
+[[particles]]
+id = "pivot"
+mass = 1.0
+position = [200.0, 60.0]
+fixed = true
+[[particles]]
+id = "bob"
+mass = 1.0
+position = [{x}, {y}]
+[physics]
+gravity = [0.0, {g}]
+[[physics.ropes]]
+between = ["pivot", "bob"]
+length = {length}
+"#,
+        x = 200.0 + length * s,
+        y = 60.0 + length * c,
+    )
+}
+
+#[test]
+fn a_rope_in_the_structure_is_held_and_the_pendulum_gives_g_over_l_within_1_percent() {
+    let seed = 8;
+    let mut s = seed;
+    let g = draw(&mut s, 300.0, 900.0);
+    let length = draw(&mut s, 120.0, 250.0);
+    let dir = tempdir();
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &rope_scene(g, length, seed));
+    // The rendered structure keeps the rope (a constraint, like a bond), so the fit holds it.
+    assert_eq!(structure.physics.ropes, truth.physics.ropes);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let found = fitted.physics.gravity.norm();
+    println!(
+        "rope pendulum: g {g:.3}, L {length:.3}: found {:?}, g {found:.4}, g/L {:.5} against {:.5}, verdict {}",
+        c.effects_found,
+        found / length,
+        g / length,
+        report["verdict"]["text"]
+    );
+    assert_eq!(c.effects_found, ["gravity"]);
+    assert!(c.missed.is_empty() && c.spurious.is_empty(), "{c:?}");
+    assert!(
+        (found / g - 1.0).abs() < 0.01,
+        "g/L {} against {}",
+        found / length,
+        g / length
+    );
+}

@@ -649,7 +649,15 @@ friction = 0.2
     #[test]
     fn contacts_and_constraints_are_effects_with_their_values() {
         let truth = Scene::from_toml_str(CONTACTS, "truth").unwrap();
-        let structure = truth.structure();
+        // The structure keeps the constraints: given there, they are not concealed.
+        let given = truth.structure();
+        assert_eq!(given.physics.ropes, truth.physics.ropes);
+        assert_eq!(given.physics.rails, truth.physics.rails);
+        let c = compare_scenes(&truth, &truth, &given);
+        assert!(!c.effects_concealed.iter().any(|e| e == "rope" || e == "rail"));
+        let mut structure = given.clone();
+        structure.physics.ropes.clear();
+        structure.physics.rails.clear();
         let c = compare_scenes(&truth, &truth, &structure);
         assert_eq!(
             c.effects_concealed,
