@@ -26,6 +26,27 @@ fn draw(seed: &mut u64, lo: f64, hi: f64) -> f64 {
     lo + (*seed >> 11) as f64 / (1u64 << 53) as f64 * (hi - lo)
 }
 
+/// A rendered scene's head: its `name`, 100 frames/s for `frames` frames (10 substeps), a
+/// `width` x `height` picture with particles of radius 5 px and noise 2 grey levels, seeded.
+fn head(name: &str, frames: usize, width: u32, height: u32, seed: u64) -> String {
+    format!(
+        r#"name = "{name}"
+[recording]
+fps = 100.0
+frames = {frames}
+substeps = 10
+[render]
+width = {width}
+height = {height}
+radius = 5.0
+background = 20
+foreground = 235
+noise = 2.0
+seed = {seed}
+"#
+    )
+}
+
 /// A ball launched sideways at `vx` px/s from 80 px above a floor at y = 340 px (it meets it
 /// at 400 px/s) with restitution `e` and Coulomb friction `mu`, under a field of 1000 px/s²,
 /// 3 s at 100 frames/s.
@@ -35,21 +56,9 @@ fn floor_scene(mu: f64, e: f64, vx: f64, seed: u64) -> String {
     } else {
         String::new()
     };
+    let head = head("concealed-floor-friction", 300, 480, 400, seed);
     format!(
-        r#"name = "concealed-floor-friction"
-[recording]
-fps = 100.0
-frames = 300
-substeps = 10
-[render]
-width = 480
-height = 400
-radius = 5.0
-background = 20
-foreground = 235
-noise = 2.0
-seed = {seed}
-[[particles]]
+        r#"{head}[[particles]]
 id = "ball"
 mass = 1.0
 position = [60.0, 260.0]
@@ -185,21 +194,9 @@ fn a_frictionless_floor_gets_no_friction() {
 /// Two bodies of masses 1 and 3 thrown towards each other under a field of 300 px/s² through
 /// a medium given by `medium` (a `[physics]` line), 2 s at 100 frames/s.
 fn medium_scene(medium: &str, seed: u64) -> String {
+    let head = head("concealed-body-drag", 200, 480, 480, seed);
     format!(
-        r#"name = "concealed-body-drag"
-[recording]
-fps = 100.0
-frames = 200
-substeps = 10
-[render]
-width = 480
-height = 480
-radius = 5.0
-background = 20
-foreground = 235
-noise = 2.0
-seed = {seed}
-[[particles]]
+        r#"{head}[[particles]]
 id = "light"
 mass = 1.0
 position = [100.0, 80.0]
@@ -262,21 +259,9 @@ fn drag_per_unit_mass_on_bodies_of_different_masses_stays_per_mass() {
 /// under a field `g` px/s², 3 s at 100 frames/s.
 fn rope_scene(g: f64, length: f64, seed: u64) -> String {
     let (s, c) = 30f64.to_radians().sin_cos();
+    let head = head("rope-pendulum", 300, 400, 400, seed);
     format!(
-        r#"name = "rope-pendulum"
-[recording]
-fps = 100.0
-frames = 300
-substeps = 10
-[render]
-width = 400
-height = 400
-radius = 5.0
-background = 20
-foreground = 235
-noise = 2.0
-seed = {seed}
-[[particles]]
+        r#"{head}[[particles]]
 id = "pivot"
 mass = 1.0
 position = [200.0, 60.0]
