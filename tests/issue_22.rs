@@ -5,9 +5,12 @@
 //! * A ball bounces along a floor with Coulomb friction: physfit must name the field, the
 //!   floor and the friction at it. The friction, restitution and launch speed are drawn from
 //!   fixed seeds; a frictionless ball gets no friction.
+//! * A puck slides to rest on a floor the structure gives (with the field): physfit must name
+//!   the friction alone; on a frictionless floor, nothing.
 //! * Two bodies of masses 1 and 3 fly through one medium (`body_drag` or
 //!   `body_quadratic_drag`, not scaled by the mass): physfit must name the field and that drag
 //!   per body; the same pair under a drag per unit mass gets the per-mass drag.
+//! * A pendulum on a rope listed in the structure: the field alone, `g / L` within 1 %.
 
 use std::path::Path;
 
@@ -308,4 +311,91 @@ fn a_rope_in_the_structure_is_held_and_the_pendulum_gives_g_over_l_within_1_perc
         found / length,
         g / length
     );
+}
+
+/// A puck launched at `v0` px/s along a floor at y = 340 px that it rests on, under a field of
+/// 1000 px/s², with Coulomb friction `mu` (it stops after `v0^2 / (2 mu g)` px), 2 s.
+fn sliding_scene(mu: f64, v0: f64, seed: u64) -> String {
+    let head = head("sliding-puck", 200, 480, 400, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "puck"
+mass = 1.0
+position = [60.0, 340.0]
+velocity = [{v0}, 0.0]
+[physics]
+gravity = [0.0, 1000.0]
+[[physics.walls]]
+point = [0.0, 340.0]
+normal = [0.0, -1.0]
+restitution = 0.5
+friction = {mu}
+"#
+    )
+}
+
+/// The puck's friction, drawn from `seed` (0 for the control), diagnosed back within 5 % from
+/// a structure that gives the field and the floor (and nothing else added).
+fn check_sliding(seed: u64, frictionless: bool) {
+    let mut s = seed;
+    let mu = if frictionless { 0.0 } else { draw(&mut s, 0.1, 0.4) };
+    let v0 = draw(&mut s, 60.0, 200.0);
+    let dir = tempdir();
+    let d = dir.path();
+    let path = write(d, "scene.toml", &sliding_scene(mu, v0, seed));
+    let out = d.join("render");
+    run(&[&"render", &path, &"--out", &out]);
+    let truth = Scene::load(&path).expect("scene");
+    // The structure knows the field and the floor; the floor's friction is concealed.
+    let mut given = truth.structure();
+    given.physics.gravity = truth.physics.gravity;
+    given.physics.walls = truth
+        .physics
+        .walls
+        .iter()
+        .map(|w| w.clone().with_friction(0.0))
+        .collect();
+    let structure = d.join("given.toml");
+    given.save(&structure).expect("given structure");
+    let tracks = d.join("tracks.csv");
+    run(&[
+        &"track",
+        &out.join("frames"),
+        &"--out",
+        &tracks,
+        &"--structure",
+        &structure,
+    ]);
+    let diag = d.join("diag");
+    run(&[&"diagnose", &tracks, &"--structure", &structure, &"--out", &diag]);
+    run(&[&"render", &diag.join("fitted.toml"), &"--out", &d.join("again")]);
+    let fitted = Scene::load(&diag.join("fitted.toml")).expect("fitted.toml");
+    let c = compare_scenes(&fitted, &truth, &given);
+    let found = fitted.physics.walls.first().map(|w| w.friction);
+    println!(
+        "sliding seed {seed}: mu {mu:.4}, v0 {v0:.1} px/s (stops after {:.1} px): found {:?}, friction {found:?}",
+        v0 * v0 / (2.0 * mu * 1000.0),
+        c.effects_found
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    if !frictionless {
+        let found = found.expect("the floor");
+        assert!((found / mu - 1.0).abs() < 0.05, "friction {found} against {mu}");
+    }
+}
+
+#[test]
+fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent() {
+    check_sliding(9, false);
+}
+
+#[test]
+fn sliding_on_a_frictionless_given_floor_adds_nothing() {
+    check_sliding(10, true);
+}
+
+#[test]
+fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent_seed_11() {
+    check_sliding(11, false);
 }

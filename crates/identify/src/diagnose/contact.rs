@@ -23,6 +23,7 @@
 use physfit_model::{Vec2, Wall};
 
 use super::effect::{wall_from_params, Effect};
+use super::family::Family;
 use super::jolts::{Jolt, JOLT_FIT_POINTS};
 use super::search::{Context, Current, Proposal, Verified};
 use crate::Observations;
@@ -39,7 +40,53 @@ pub fn friction_proposals(obs: &Observations, current: &Current, jolts: &[Jolt])
         if has || wall.is_bumper() || wall.friction > 0.0 {
             continue;
         }
-        out.extend(friction_at(obs, wall, k, jolts));
+        let sliding = sliding_on(obs, family, &current.fit.params, wall);
+        out.extend(friction_at(obs, wall, k, jolts, &sliding));
+    }
+    out
+}
+
+/// Particles sliding on a wall: frames whose centre lies within five track noises of the
+/// line at that frame and both neighbours, and moves along it by more than five noises a
+/// frame on each side; per frame, the tracks' tangential deceleration (second difference,
+/// beyond the model's own acceleration) and the model's push into the wall `g_n`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Sliding {
+    /// `(particle, frame)` of each sliding frame (absolute frame index).
+    pub frames: Vec<(usize, usize)>,
+    /// Sum of the tangential decelerations, px/s².
+    pub deceleration: f64,
+    /// Sum of the pushes into the wall, px/s² (only frames pushed into it count).
+    pub pressed: f64,
+}
+
+/// The sliding of `family`'s free particles on `wall` under `params`' model (see [`Sliding`]).
+pub fn sliding_on(obs: &Observations, family: &Family, params: &[f64], wall: &Wall) -> Sliding {
+    let model = family.model(params, None);
+    let fps2 = obs.fps * obs.fps;
+    let near = 5.0 * obs.noise;
+    let mut out = Sliding::default();
+    for k in 1..obs.frame_count().saturating_sub(1) {
+        let Some(state) = obs.state(k) else { continue };
+        let mut full = state.clone();
+        let _ = family.model(params, Some(&mut full));
+        let mut acc = vec![Vec2::zeros(); model.particle_count()];
+        model.accelerations(&full, &mut acc);
+        for &p in &family.free {
+            let x = [k - 1, k, k + 1].map(|f| obs.positions[f][p]);
+            let [Some(a), Some(b), Some(c)] = x else { continue };
+            let on = [a, b, c].iter().all(|x| wall.signed_distance(*x).abs() <= near);
+            let (before, after) = (tangential(b - a, wall.normal), tangential(c - b, wall.normal));
+            let g_n = -acc[p].dot(&wall.normal);
+            if !on || before.norm() <= near || after.norm() <= near || g_n <= 0.0 {
+                continue;
+            }
+            let along = (before + after) / (before + after).norm();
+            let observed = (c - 2.0 * b + a) * fps2;
+            out.deceleration -= (observed - acc[p]).dot(&along);
+            out.pressed += g_n;
+            out.frames.push((p, obs.first_frame + k));
+        }
     }
     out
 }
@@ -65,7 +112,7 @@ pub fn friction_with_walls(
         let Some(wall) = wall_from_params(&guess.init) else {
             continue;
         };
-        let Some(friction) = friction_at(obs, &wall, index, &guess.jolts) else {
+        let Some(friction) = friction_at(obs, &wall, index, &guess.jolts, &Sliding::default()) else {
             continue;
         };
         out.push(vec![guess.clone(), friction.clone()]);
@@ -78,7 +125,13 @@ pub fn friction_with_walls(
 
 /// The friction candidate at `wall` (index `k` among the model's walls) from the bounces on
 /// it among `jolts`, when their tangential loss exceeds three times its noise.
-fn friction_at(obs: &Observations, wall: &Wall, k: usize, jolts: &[Jolt]) -> Option<Proposal> {
+fn friction_at(
+    obs: &Observations,
+    wall: &Wall,
+    k: usize,
+    jolts: &[Jolt],
+    sliding: &Sliding,
+) -> Option<Proposal> {
     let dt = 1.0 / obs.fps;
     let impulse_noise = 2.0 * obs.noise * obs.fps / JOLT_FIT_POINTS as f64;
     let met: Vec<Jolt> = jolts
@@ -90,10 +143,21 @@ fn friction_at(obs: &Observations, wall: &Wall, k: usize, jolts: &[Jolt]) -> Opt
         let (lost, dv_n) = tangential_loss(j, wall.normal);
         (l + lost, n + dv_n)
     });
-    let significant = loss > 3.0 * impulse_noise * (met.len() as f64).sqrt();
-    (!met.is_empty() && significant && normal > 0.0).then(|| Proposal {
+    let bounces = !met.is_empty() && normal > 0.0 && loss > 3.0 * impulse_noise * (met.len() as f64).sqrt();
+    // A second difference's noise is `sqrt(6) sigma fps^2` per coordinate.
+    let acc_noise = 6f64.sqrt() * obs.noise * obs.fps * obs.fps;
+    let slides = sliding.pressed > 0.0
+        && sliding.deceleration > 3.0 * acc_noise * (sliding.frames.len() as f64).sqrt();
+    let mu = if bounces {
+        loss / normal
+    } else if slides {
+        sliding.deceleration / sliding.pressed
+    } else {
+        return None;
+    };
+    Some(Proposal {
         effect: Effect::WallFriction { wall: k },
-        init: vec![loss / normal],
+        init: vec![mu],
         screen: None,
         score_test: None,
         jolts: met,
@@ -101,8 +165,8 @@ fn friction_at(obs: &Observations, wall: &Wall, k: usize, jolts: &[Jolt]) -> Opt
 }
 
 /// The "where it was seen" text of friction `mu` at wall `wall` (0-based) whose bounces are
-/// `met`, with the wall's unit `normal`.
-pub fn friction_seen_text(wall: usize, mu: f64, normal: Vec2, met: &[Jolt]) -> String {
+/// `met` and on which `sliding` slides, with the wall's unit `normal`.
+pub fn friction_seen_text(wall: usize, mu: f64, normal: Vec2, met: &[Jolt], sliding: &Sliding) -> String {
     let (lost, dv_n) = met.iter().fold((0.0, 0.0), |(l, n), j| {
         let (lost, dv) = tangential_loss(j, normal);
         (l + lost, n + dv)
@@ -111,15 +175,28 @@ pub fn friction_seen_text(wall: usize, mu: f64, normal: Vec2, met: &[Jolt]) -> S
         .iter()
         .map(|j| tangential(Vec2::from(j.before), normal).norm())
         .sum();
-    format!(
-        "{} bounce(s) on wall {} lose {:.1} of {:.1} px/s of tangential speed in all, for {:.1} px/s of normal velocity change: Coulomb friction mu = {:.3}",
-        met.len(),
-        wall + 1,
-        lost,
-        before,
-        dv_n,
-        mu
-    )
+    let mut parts = Vec::new();
+    if !met.is_empty() {
+        parts.push(format!(
+            "{} bounce(s) on wall {} lose {:.1} of {:.1} px/s of tangential speed in all, for {:.1} px/s of normal velocity change",
+            met.len(),
+            wall + 1,
+            lost,
+            before,
+            dv_n
+        ));
+    }
+    if !sliding.frames.is_empty() {
+        let n = sliding.frames.len() as f64;
+        parts.push(format!(
+            "{} frame(s) sliding on wall {} decelerate by {:.1} px/s^2 on average, pushed into it by {:.1} px/s^2",
+            sliding.frames.len(),
+            wall + 1,
+            sliding.deceleration / n,
+            sliding.pressed / n
+        ));
+    }
+    format!("{}: Coulomb friction mu = {mu:.3}", parts.join("; "))
 }
 
 /// Drag per body in place of an accepted drag per unit mass (linear for linear, quadratic for
@@ -237,7 +314,7 @@ mod tests {
         // A kick forward (a spinning ball) is a negative loss.
         let spun = jolt([100.0, 200.0], [130.0, -160.0], 298.0);
         assert!(tangential_loss(&spun, up).0 < 0.0);
-        let text = friction_seen_text(0, 0.2, up, &[j]);
+        let text = friction_seen_text(0, 0.2, up, &[j], &Sliding::default());
         assert!(
             text.starts_with("1 bounce(s) on wall 1 lose 72.0 of 100.0 px/s"),
             "{text}"

@@ -234,13 +234,18 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             }
             Effect::WallFriction { wall } => {
                 push("friction", values[0], errs[0]);
-                let normal = fam
-                    .model(&fit.params, None)
-                    .physics
-                    .walls
-                    .get(wall)
-                    .map_or_else(Vec2::zeros, |w| w.normal);
-                let mut particles: Vec<String> = proposal.jolts.iter().map(|j| id(j.particle)).collect();
+                let model_wall = fam.model(&fit.params, None).physics.walls.get(wall).cloned();
+                let normal = model_wall.as_ref().map_or_else(Vec2::zeros, |w| w.normal);
+                let sliding = model_wall
+                    .map(|w| super::contact::sliding_on(inp.obs, fam, &fit.params, &w))
+                    .unwrap_or_default();
+                let mut particles: Vec<String> = proposal
+                    .jolts
+                    .iter()
+                    .map(|j| j.particle)
+                    .chain(sliding.frames.iter().map(|f| f.0))
+                    .map(id)
+                    .collect();
                 particles.sort();
                 particles.dedup();
                 seen.particles = particles;
@@ -251,7 +256,11 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                         .iter()
                         .map(|j| Vec2::new(j.position[0], j.position[1])),
                 );
-                seen.text = super::contact::friction_seen_text(wall, values[0], normal, &proposal.jolts);
+                if proposal.jolts.is_empty() {
+                    seen.frames = sliding.frames.iter().map(|f| [f.1, f.1]).collect();
+                }
+                seen.text =
+                    super::contact::friction_seen_text(wall, values[0], normal, &proposal.jolts, &sliding);
             }
             Effect::SpringDashpot { spring } => {
                 push("damping", values[0], errs[0]);
