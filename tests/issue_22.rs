@@ -50,21 +50,21 @@ seed = {seed}
     )
 }
 
-/// A ball launched sideways at `vx` px/s from 80 px above a floor at y = 340 px (it meets it
-/// at 400 px/s) with restitution `e` and Coulomb friction `mu`, under a field of 1000 px/s²,
-/// 3 s at 100 frames/s.
-fn floor_scene(mu: f64, e: f64, vx: f64, seed: u64) -> String {
+/// A particle launched sideways at `vx` px/s from (60, `y`) px over a floor at y = 340 px
+/// with restitution `e` and Coulomb friction `mu`, under a field of 1000 px/s², for `frames`
+/// frames at 100 frames/s.
+fn floor_scene(name: &str, frames: usize, y: f64, vx: f64, e: f64, mu: f64, seed: u64) -> String {
     let friction = if mu > 0.0 {
         format!("friction = {mu}\n")
     } else {
         String::new()
     };
-    let head = head("concealed-floor-friction", 300, 480, 400, seed);
+    let head = head(name, frames, 480, 400, seed);
     format!(
         r#"{head}[[particles]]
 id = "ball"
 mass = 1.0
-position = [60.0, 260.0]
+position = [60.0, {y}]
 velocity = [{vx}, 0.0]
 [physics]
 gravity = [0.0, 1000.0]
@@ -89,11 +89,23 @@ fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) {
 /// Renders, tracks and diagnoses `scene` (from its structure alone) in `dir`: the truth, the
 /// structure, `report.json` and the fitted scene.
 fn diagnose_rendered(dir: &Path, scene: &str) -> (Scene, Scene, Value, Scene) {
+    diagnose_rendered_from(dir, scene, Scene::structure)
+}
+
+/// [`diagnose_rendered`] from the structure `given` makes of the truth.
+fn diagnose_rendered_from(
+    dir: &Path,
+    scene: &str,
+    given: impl Fn(&Scene) -> Scene,
+) -> (Scene, Scene, Value, Scene) {
     let path = write(dir, "scene.toml", scene);
     let out = dir.join("render");
     run(&[&"render", &path, &"--out", &out]);
     let tracks = out.join("tracks.csv");
-    let structure = out.join("structure.toml");
+    let structure = dir.join("given.toml");
+    given(&Scene::load(&path).expect("scene"))
+        .save(&structure)
+        .expect("structure");
     run(&[
         &"track",
         &out.join("frames"),
@@ -136,7 +148,9 @@ fn check_friction(seed: u64, frictionless: bool) {
         mu * (1.0 + e) * 400.0 * draw(&mut s, 1.3, 1.8)
     };
     let dir = tempdir();
-    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &floor_scene(mu, e, vx, seed));
+    // 80 px above the floor: it meets it at 400 px/s, 3 s.
+    let scene = floor_scene("concealed-floor-friction", 300, 260.0, vx, e, mu, seed);
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
     let c = compare_scenes(&fitted, &truth, &structure);
     let friction = c
         .values
@@ -292,7 +306,7 @@ fn a_rope_in_the_structure_is_held_and_the_pendulum_gives_g_over_l_within_1_perc
     let length = draw(&mut s, 120.0, 250.0);
     let dir = tempdir();
     let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &rope_scene(g, length, seed));
-    // The rendered structure keeps the rope (a constraint, like a bond), so the fit holds it.
+    // The structure keeps the rope (a constraint, like a bond), so the fit holds it.
     assert_eq!(structure.physics.ropes, truth.physics.ropes);
     let c = compare_scenes(&fitted, &truth, &structure);
     let found = fitted.physics.gravity.norm();
@@ -313,63 +327,28 @@ fn a_rope_in_the_structure_is_held_and_the_pendulum_gives_g_over_l_within_1_perc
     );
 }
 
-/// A puck launched at `v0` px/s along a floor at y = 340 px that it rests on, under a field of
-/// 1000 px/s², with Coulomb friction `mu` (it stops after `v0^2 / (2 mu g)` px), 2 s.
-fn sliding_scene(mu: f64, v0: f64, seed: u64) -> String {
-    let head = head("sliding-puck", 200, 480, 400, seed);
-    format!(
-        r#"{head}[[particles]]
-id = "puck"
-mass = 1.0
-position = [60.0, 340.0]
-velocity = [{v0}, 0.0]
-[physics]
-gravity = [0.0, 1000.0]
-[[physics.walls]]
-point = [0.0, 340.0]
-normal = [0.0, -1.0]
-restitution = 0.5
-friction = {mu}
-"#
-    )
-}
-
-/// The puck's friction, drawn from `seed` (0 for the control), diagnosed back within 5 % from
-/// a structure that gives the field and the floor (and nothing else added).
+/// A puck launched along the floor it rests on (restitution 0.5) with friction `mu` drawn
+/// from `seed` (0 for the control; it stops after `v0^2 / (2 mu g)` px), 2 s, diagnosed back
+/// within 5 % from a structure that gives the field and the floor (and nothing else added).
 fn check_sliding(seed: u64, frictionless: bool) {
     let mut s = seed;
     let mu = if frictionless { 0.0 } else { draw(&mut s, 0.1, 0.4) };
     let v0 = draw(&mut s, 60.0, 200.0);
     let dir = tempdir();
-    let d = dir.path();
-    let path = write(d, "scene.toml", &sliding_scene(mu, v0, seed));
-    let out = d.join("render");
-    run(&[&"render", &path, &"--out", &out]);
-    let truth = Scene::load(&path).expect("scene");
     // The structure knows the field and the floor; the floor's friction is concealed.
-    let mut given = truth.structure();
-    given.physics.gravity = truth.physics.gravity;
-    given.physics.walls = truth
-        .physics
-        .walls
-        .iter()
-        .map(|w| w.clone().with_friction(0.0))
-        .collect();
-    let structure = d.join("given.toml");
-    given.save(&structure).expect("given structure");
-    let tracks = d.join("tracks.csv");
-    run(&[
-        &"track",
-        &out.join("frames"),
-        &"--out",
-        &tracks,
-        &"--structure",
-        &structure,
-    ]);
-    let diag = d.join("diag");
-    run(&[&"diagnose", &tracks, &"--structure", &structure, &"--out", &diag]);
-    run(&[&"render", &diag.join("fitted.toml"), &"--out", &d.join("again")]);
-    let fitted = Scene::load(&diag.join("fitted.toml")).expect("fitted.toml");
+    let given = |truth: &Scene| {
+        let mut given = truth.structure();
+        given.physics.gravity = truth.physics.gravity;
+        given.physics.walls = truth
+            .physics
+            .walls
+            .iter()
+            .map(|w| w.clone().with_friction(0.0))
+            .collect();
+        given
+    };
+    let scene = floor_scene("sliding-puck", 200, 340.0, v0, 0.5, mu, seed);
+    let (truth, given, _, fitted) = diagnose_rendered_from(dir.path(), &scene, given);
     let c = compare_scenes(&fitted, &truth, &given);
     let found = fitted.physics.walls.first().map(|w| w.friction);
     println!(
