@@ -167,9 +167,21 @@ fn the_bouncing_ball_shows_gravity_a_floor_and_the_shelf() {
     println!("bouncing ball: multi-step RMS {base:.2} -> {last:.2} px");
     assert!(last < base / 5.0, "multi-step RMS {base:.2} -> {last:.2} px");
 
-    // The field and the floor, and nothing standing in for the friction at the bounces: a
+    // The field and the floor, and nothing standing in for what happens at the bounces: a
     // quadratic drag or a tether fitted there fails transfer to other observed start states.
-    // The remainder is stated as not explained, against the noise.
+    // Friction at the floor is a candidate (issue 22) but not proposed: Coulomb friction only
+    // takes tangential speed, and this ball, spinning from its roll off the shelf, leaves 4
+    // of its 5 bounces faster along the floor than it came (measured from the track: 62 to
+    // 81, 47 to 37, 21 to 42, 25 to 41 and 24 to 39 px/s). A point mass cannot express the
+    // spin, so the remainder is stated as not explained, against the noise.
+    let gains = lows
+        .iter()
+        .filter(|&&k| k >= 3 && k + 4 < track.len())
+        .filter(|&&k| track[k + 4].2 - track[k + 1].2 > track[k].2 - track[k - 3].2)
+        .count();
+    println!("bouncing ball: {gains} bounce(s) gain horizontal speed (lows at {lows:?})");
+    assert!(gains >= 3, "the bounces that gain speed along the floor: {gains}");
+    assert!(!names.contains(&"wall_friction"), "{names:?}");
     let mut sorted = names.clone();
     sorted.sort_unstable();
     assert_eq!(sorted, ["gravity", "wall"], "{findings:?}");

@@ -7,6 +7,7 @@ mod fit;
 mod fuzz_regressions;
 mod getting_started;
 mod issue_21;
+mod issue_22;
 mod real;
 mod reliability;
 mod render;

@@ -83,6 +83,32 @@ impl Wall {
         }
     }
 
+    /// The restitution of this bumper for a mass `mass` meeting it with no other force:
+    /// `exp(-zeta pi / sqrt(1 - zeta^2))` with `zeta = c / (2 sqrt(2 S m))` while
+    /// `zeta < 1`, and 0 from critical damping on (the mass creeps back without rebounding).
+    /// A rigid wall's is its `restitution`.
+    pub fn bumper_restitution(&self, mass: f64) -> f64 {
+        if !self.is_bumper() {
+            return self.restitution;
+        }
+        let zeta = self.damping / (2.0 * (2.0 * self.stiffness * mass).sqrt());
+        if zeta < 1.0 {
+            (-zeta * std::f64::consts::PI / (1.0 - zeta * zeta).sqrt()).exp()
+        } else {
+            0.0
+        }
+    }
+
+    /// The contact time of this bumper for a mass `mass` with no other force, s:
+    /// `pi / (w sqrt(1 - zeta^2))`, `w = sqrt(2 S / m)` (see [`Wall::bumper_restitution`]);
+    /// `None` for a rigid wall or from critical damping on.
+    pub fn bumper_contact_time(&self, mass: f64) -> Option<f64> {
+        let zeta = self.damping / (2.0 * (2.0 * self.stiffness * mass).sqrt());
+        (self.is_bumper() && zeta < 1.0).then(|| {
+            std::f64::consts::PI / ((2.0 * self.stiffness / mass).sqrt() * (1.0 - zeta * zeta).sqrt())
+        })
+    }
+
     /// Returns true if and only if the wall is a spring bumper (`stiffness > 0`): forces,
     /// not the event law.
     #[inline]

@@ -41,11 +41,25 @@ pub enum Effect {
     },
     /// A straight wall that particles' centres bounce off (position, direction, restitution).
     Wall,
+    /// Linear drag per body, not scaled by the mass: `F = -b v` on every free particle
+    /// (`b` in mass/s, shared: bodies of one shape and different masses in one medium).
+    BodyDrag,
+    /// Quadratic drag per body, not scaled by the mass: `F = -c |v| v` (`c` in mass/px).
+    BodyQuadraticDrag,
+    /// Coulomb friction at a wall (see [`physfit_model::Wall::apply_friction`]): bounces lose
+    /// tangential speed, at most `mu` times their normal velocity change, and a particle
+    /// sliding on it decelerates at `mu g_n`.
+    WallFriction {
+        /// Index of the wall among the model's walls: the structure's own first, then the
+        /// added [`Effect::Wall`]s in effect order.
+        wall: usize,
+    },
 }
 
 impl Effect {
     /// The effect's name in `report.json` (`gravity`, `drag`, `quadratic_drag`,
-    /// `spring_damping`, `missing_spring`, `wall`).
+    /// `spring_damping`, `missing_spring`, `wall`, `body_drag`, `body_quadratic_drag`,
+    /// `wall_friction`).
     pub fn name(self) -> &'static str {
         match self {
             Effect::Gravity => "gravity",
@@ -54,6 +68,9 @@ impl Effect {
             Effect::SpringDamping | Effect::SpringDashpot { .. } => "spring_damping",
             Effect::MissingSpring { .. } | Effect::Tether { .. } => "missing_spring",
             Effect::Wall => "wall",
+            Effect::BodyDrag => "body_drag",
+            Effect::BodyQuadraticDrag => "body_quadratic_drag",
+            Effect::WallFriction { .. } => "wall_friction",
         }
     }
 
@@ -77,6 +94,9 @@ impl Effect {
             Effect::MissingSpring { a, b } => format!("missing spring {}-{}", id(a), id(b)),
             Effect::Tether { particle } => format!("tether of {} to a fixed point", id(particle)),
             Effect::Wall => "wall".into(),
+            Effect::BodyDrag => "linear drag per body".into(),
+            Effect::BodyQuadraticDrag => "quadratic drag per body".into(),
+            Effect::WallFriction { wall } => format!("friction at wall {}", wall + 1),
         }
     }
 
@@ -90,6 +110,9 @@ impl Effect {
             Effect::MissingSpring { .. } => &["length", "stiffness"],
             Effect::Tether { .. } => &["anchor_x", "anchor_y", "length", "stiffness"],
             Effect::Wall => &["normal_angle", "offset", "restitution"],
+            Effect::BodyDrag => &["body_drag"],
+            Effect::BodyQuadraticDrag => &["body_quadratic_drag"],
+            Effect::WallFriction { .. } => &["friction"],
         }
     }
 
@@ -105,9 +128,13 @@ impl Effect {
         let positive = [0.0, f64::INFINITY];
         match self {
             Effect::Gravity => vec![free, free],
-            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
-                vec![positive]
-            }
+            Effect::Drag
+            | Effect::QuadraticDrag
+            | Effect::SpringDamping
+            | Effect::SpringDashpot { .. }
+            | Effect::BodyDrag
+            | Effect::BodyQuadraticDrag
+            | Effect::WallFriction { .. } => vec![positive],
             Effect::MissingSpring { .. } => vec![[1e-6, f64::INFINITY], positive],
             Effect::Tether { .. } => vec![free, free, [1e-6, f64::INFINITY], positive],
             Effect::Wall => vec![free, free, [0.0, 1.0]],
@@ -115,9 +142,15 @@ impl Effect {
     }
 
     /// Returns true if and only if the effect is a smooth force the weak form can screen
-    /// (every effect but the wall, which acts by impulses).
+    /// (every effect but the wall and its friction, which act by impulses).
     pub fn is_smooth(self) -> bool {
-        !matches!(self, Effect::Wall)
+        !self.acts_at_contacts()
+    }
+
+    /// Returns true if and only if the effect acts at contacts with a wall (the wall itself,
+    /// its friction): only where a wall is met, so its transfer is judged through the bounces.
+    pub fn acts_at_contacts(self) -> bool {
+        matches!(self, Effect::Wall | Effect::WallFriction { .. })
     }
 }
 
@@ -135,6 +168,7 @@ pub fn wall_from_params(p: &[f64]) -> Option<Wall> {
 pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut state: Option<&mut State>) {
     let mut offset = 0;
     let mut dashpots = Vec::new();
+    let mut frictions = Vec::new();
     for &e in effects {
         let p = &params[offset..offset + e.parameter_count()];
         offset += e.parameter_count();
@@ -167,6 +201,16 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
                     model.physics.walls.push(w);
                 }
             }
+            Effect::BodyDrag => model.physics.body_drag += p[0],
+            Effect::BodyQuadraticDrag => model.physics.body_quadratic_drag += p[0],
+            Effect::WallFriction { wall } => frictions.push((wall, p[0])),
+        }
+    }
+    // Friction acts on a wall however it came (the structure's or an added one); a bumper
+    // has none (its contact is a force).
+    for (k, mu) in frictions {
+        if let Some(w) = model.physics.walls.get_mut(k).filter(|w| !w.is_bumper()) {
+            w.friction += mu;
         }
     }
     // Per-spring dashpots add to whatever the spring had (its own value or the global one).

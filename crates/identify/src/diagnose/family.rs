@@ -160,6 +160,9 @@ impl Family {
                 Effect::MissingSpring { .. } => t.extend([l, scales.stiffness]),
                 Effect::Tether { .. } => t.extend([l, l, l, scales.stiffness]),
                 Effect::Wall => t.extend([1.0, l, 1.0]),
+                Effect::BodyDrag => t.push(m / s),
+                Effect::BodyQuadraticDrag => t.push(m / l),
+                Effect::WallFriction { .. } => t.push(1.0),
             }
         }
         t

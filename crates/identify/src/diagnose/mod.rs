@@ -21,6 +21,7 @@
 //!
 //! `docs/diagnosis.md` describes the thresholds and the `report.json` contract.
 
+mod contact;
 mod costs;
 mod effect;
 mod family;
@@ -473,6 +474,18 @@ fn diagnose_inner(
                 }
             }
         }
+        // Friction at every wall met so far, and with the proposed ones (see `contact`).
+        to_verify.extend(
+            contact::friction_proposals(&obs, &current, &jolt_list)
+                .into_iter()
+                .map(|p| vec![p]),
+        );
+        to_verify.extend(contact::friction_with_walls(
+            &obs,
+            &current,
+            &walls_left,
+            field_proposal.as_ref(),
+        ));
         // Pairs that work only together (a field with a tether is a pendulum; a field with
         // drag): the weak form's best pairs are verified when they pass the screen's gate
         // (the weak form often cannot tell which partner a field needs: drag or dashpots).
@@ -583,6 +596,8 @@ fn diagnose_inner(
         if swapped {
             verified.extend(ctx.verify_swaps(&current, &candidates));
         }
+        // Drag per body in place of an accepted per-mass drag (see `contact`).
+        verified.extend(contact::body_drag_swaps(&ctx, &current));
         if debug {
             for v in &verified {
                 let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();

@@ -53,7 +53,9 @@ fn unit(effect: Effect, name: &str) -> &'static str {
         (Effect::Gravity, _) => "px/s^2",
         (Effect::Drag, _) => "1/s",
         (Effect::QuadraticDrag, _) => "1/px",
-        (Effect::SpringDamping | Effect::SpringDashpot { .. }, _) => "mass/s",
+        (Effect::SpringDamping | Effect::SpringDashpot { .. } | Effect::BodyDrag, _) => "mass/s",
+        (Effect::BodyQuadraticDrag, _) => "mass/px",
+        (Effect::WallFriction { .. }, _) => "1",
         (_, "stiffness") => "energy/px^2",
         (_, "restitution") => "1",
         (_, "normal_x" | "normal_y") => "1",
@@ -196,7 +198,11 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                     g.y.atan2(g.x).to_degrees()
                 );
             }
-            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping => {
+            Effect::Drag
+            | Effect::QuadraticDrag
+            | Effect::SpringDamping
+            | Effect::BodyDrag
+            | Effect::BodyQuadraticDrag => {
                 push(
                     effect.parameter_names()[0].trim_start_matches("spring_"),
                     values[0],
@@ -212,10 +218,49 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                         .map(|s| [id(s.ends[0].index()), id(s.ends[1].index())])
                         .collect();
                 }
-                seen.text = format!(
-                    "{} acting throughout, against the motion",
-                    effect.label(inp.structure)
+                seen.text = if matches!(effect, Effect::BodyDrag | Effect::BodyQuadraticDrag) {
+                    let masses: Vec<f64> = fam
+                        .free
+                        .iter()
+                        .map(|&p| inp.structure.particles[p].mass)
+                        .collect();
+                    super::contact::body_drag_seen_text(&effect.label(inp.structure), &masses)
+                } else {
+                    format!(
+                        "{} acting throughout, against the motion",
+                        effect.label(inp.structure)
+                    )
+                };
+            }
+            Effect::WallFriction { wall } => {
+                push("friction", values[0], errs[0]);
+                let model_wall = fam.model(&fit.params, None).physics.walls.get(wall).cloned();
+                let normal = model_wall.as_ref().map_or_else(Vec2::zeros, |w| w.normal);
+                let sliding = model_wall
+                    .map(|w| super::contact::sliding_on(inp.obs, fam, &fit.params, &w))
+                    .unwrap_or_default();
+                let mut particles: Vec<String> = proposal
+                    .jolts
+                    .iter()
+                    .map(|j| j.particle)
+                    .chain(sliding.frames.iter().map(|f| f.0))
+                    .map(id)
+                    .collect();
+                particles.sort();
+                particles.dedup();
+                seen.particles = particles;
+                seen.frames = proposal.jolts.iter().map(|j| [j.frame, j.frame + 1]).collect();
+                seen.region = bbox(
+                    proposal
+                        .jolts
+                        .iter()
+                        .map(|j| Vec2::new(j.position[0], j.position[1])),
                 );
+                if proposal.jolts.is_empty() {
+                    seen.frames = sliding.frames.iter().map(|f| [f.1, f.1]).collect();
+                }
+                seen.text =
+                    super::contact::friction_seen_text(wall, values[0], normal, &proposal.jolts, &sliding);
             }
             Effect::SpringDashpot { spring } => {
                 push("damping", values[0], errs[0]);

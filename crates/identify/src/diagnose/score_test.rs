@@ -97,7 +97,12 @@ fn effect_columns(
             let h = eps[0];
             Some(vec![diff(&run(&[h, 0.0])?, r0, h), diff(&run(&[0.0, h])?, r0, h)])
         }
-        Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
+        Effect::Drag
+        | Effect::QuadraticDrag
+        | Effect::SpringDamping
+        | Effect::SpringDashpot { .. }
+        | Effect::BodyDrag
+        | Effect::BodyQuadraticDrag => {
             let h = eps[0];
             Some(vec![diff(&run(&[h])?, r0, h)])
         }
@@ -119,7 +124,7 @@ fn effect_columns(
             let r_l1 = with(1.0)?;
             Some(vec![diff(&r_l0, r0, h), diff(&r_l1, &r_l0, h)])
         }
-        Effect::Wall => None,
+        Effect::Wall | Effect::WallFriction { .. } => None,
     }
 }
 
@@ -150,7 +155,9 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                 Effect::Drag
                 | Effect::QuadraticDrag
                 | Effect::SpringDamping
-                | Effect::SpringDashpot { .. } => {
+                | Effect::SpringDashpot { .. }
+                | Effect::BodyDrag
+                | Effect::BodyQuadraticDrag => {
                     if step[0] < 0.0 {
                         score = 0.0;
                     }
@@ -167,7 +174,7 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                         v
                     }
                 }
-                Effect::Wall => return None,
+                Effect::Wall | Effect::WallFriction { .. } => return None,
             };
             let _ = k;
             Some((score, values))

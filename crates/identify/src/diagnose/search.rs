@@ -230,9 +230,12 @@ impl Context<'_> {
         };
         match effect {
             Effect::Gravity => theta.to_vec(),
-            Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
-                vec![theta[0].max(0.0)]
-            }
+            Effect::Drag
+            | Effect::QuadraticDrag
+            | Effect::SpringDamping
+            | Effect::SpringDashpot { .. }
+            | Effect::BodyDrag
+            | Effect::BodyQuadraticDrag => vec![theta[0].max(0.0)],
             Effect::MissingSpring { a, b } => spring(theta, self.mean_distance(a, b)).to_vec(),
             Effect::Tether { particle } => {
                 let a = anchor.unwrap_or_else(Vec2::zeros);
@@ -243,7 +246,7 @@ impl Context<'_> {
                 let [l, s] = spring(theta, (a - mean).norm());
                 vec![a.x, a.y, l, s]
             }
-            Effect::Wall => fallback.to_vec(),
+            Effect::Wall | Effect::WallFriction { .. } => fallback.to_vec(),
         }
     }
 
@@ -1526,12 +1529,15 @@ fn keep_better(best: &mut Option<Current>, b: Option<Current>) {
 fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
     match effect {
         Effect::Gravity => params.to_vec(),
-        Effect::Drag | Effect::QuadraticDrag | Effect::SpringDamping | Effect::SpringDashpot { .. } => {
-            params.to_vec()
-        }
+        Effect::Drag
+        | Effect::QuadraticDrag
+        | Effect::SpringDamping
+        | Effect::SpringDashpot { .. }
+        | Effect::BodyDrag
+        | Effect::BodyQuadraticDrag => params.to_vec(),
         Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
         Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
-        Effect::Wall => Vec::new(),
+        Effect::Wall | Effect::WallFriction { .. } => Vec::new(),
     }
 }
 

@@ -32,7 +32,6 @@
 
 use physfit_model::{State, Vec2};
 
-use super::effect::Effect;
 use super::family::Family;
 use super::report::{SegmentTransfer, Transfer};
 use super::search::{noise_floor, Current, Verified};
@@ -445,7 +444,7 @@ pub fn first_that_transfers(
             return None;
         }
         judged += 1;
-        let wall = v.proposals.iter().any(|p| p.effect == Effect::Wall);
+        let wall = v.proposals.iter().any(|p| p.effect.acts_at_contacts());
         v.evidence.transfer = segments.judge(shot, current, with, wall);
         if std::env::var_os("PHYSFIT_DEBUG").is_some() {
             let effects: Vec<_> = v.proposals.iter().map(|p| p.effect).collect();
@@ -466,6 +465,7 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     use super::*;
+    use crate::diagnose::effect::Effect;
     use crate::diagnose::family::DataScales;
     use crate::diagnose::shooting::fit_shot;
     use crate::testutil::tracks;

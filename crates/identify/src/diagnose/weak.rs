@@ -226,6 +226,16 @@ impl WeakForm {
             .collect()
     }
 
+    /// The per-body linear-drag column: [`WeakForm::drag_column`] over each row's mass
+    /// (`F = -b v`, so the acceleration is `-b v / m`).
+    pub fn body_drag_column(&self) -> Vec<f64> {
+        self.drag_column()
+            .into_iter()
+            .zip(&self.rows)
+            .map(|(c, r)| c / self.masses[r.particle])
+            .collect()
+    }
+
     fn needed_frames(&self) -> Vec<bool> {
         let mut needed = vec![false; self.states.len()];
         for r in &self.rows {
@@ -365,7 +375,14 @@ impl WeakForm {
                 };
                 vec![tether(false), tether(true)]
             }
-            Effect::Wall => Vec::new(),
+            Effect::BodyDrag => vec![self.body_drag_column()],
+            Effect::BodyQuadraticDrag => vec![self.column(|state, f| {
+                for (p, v) in f.iter_mut().enumerate() {
+                    let vel = state.velocities[p];
+                    *v = -vel * vel.norm();
+                }
+            })],
+            Effect::Wall | Effect::WallFriction { .. } => Vec::new(),
         }
     }
 

@@ -2,7 +2,8 @@
 //! effects beyond a structure that each of them carries.
 //!
 //! Effects are named as the diagnosis names them (`gravity`, `drag`, `quadratic_drag`,
-//! `spring_damping`, `wall`, `missing_spring`), so a run on a rendered scene can say which
+//! `spring_damping`, `wall`, `missing_spring`, and the contacts and constraints
+//! `wall_friction`, `bumper`, `body_drag`, `body_quadratic_drag`, `rope`, `rail`), so a run on a rendered scene can say which
 //! concealed effects were found, which were missed and which were added without cause.
 
 use serde::Serialize;
@@ -82,28 +83,54 @@ pub fn compare_scenes(fitted: &Scene, truth: &Scene, structure: &Scene) -> Scene
 }
 
 /// The effects `scene` carries beyond `structure`, one entry per instance (a scene with two
-/// walls lists `wall` twice), in the diagnosis's names.
+/// walls lists `wall` twice), in the diagnosis's names: `gravity`, `drag`, `quadratic_drag`,
+/// `spring_damping`, `body_drag` and `body_quadratic_drag` (once per body with a coefficient),
+/// `wall` (every wall, rigid or bumper), `wall_friction` (a wall with Coulomb friction),
+/// `bumper` (a wall with a stiffness), `rope`, `rail`, `missing_spring`.
 pub fn effects_beyond(scene: &Scene, structure: &Scene) -> Vec<String> {
-    let mut out = Vec::new();
-    let p = &scene.physics;
-    if p.gravity.norm() > 0.0 {
-        out.push("gravity".to_string());
-    }
-    if p.drag > 0.0 {
-        out.push("drag".to_string());
-    }
-    if p.quadratic_drag > 0.0 {
-        out.push("quadratic_drag".to_string());
-    }
-    if p.spring_damping > 0.0 || scene.springs.iter().any(|s| s.damping.is_some_and(|d| d > 0.0)) {
-        out.push("spring_damping".to_string());
-    }
-    out.extend(p.walls.iter().map(|_| "wall".to_string()));
+    let mut out = multiset_minus(&physics_effects(scene), &physics_effects(structure));
     let listed = spring_keys(structure);
     for key in spring_keys(scene) {
         if !listed.contains(&key) {
             out.push("missing_spring".to_string());
         }
+    }
+    out
+}
+
+/// The `[physics]` effects and per-body drags of `scene` (see [`effects_beyond`]).
+fn physics_effects(scene: &Scene) -> Vec<String> {
+    let mut out = Vec::new();
+    let p = &scene.physics;
+    let mut push = |on: bool, name: &str| {
+        if on {
+            out.push(name.to_string());
+        }
+    };
+    push(p.gravity.norm() > 0.0, "gravity");
+    push(p.drag > 0.0, "drag");
+    push(p.quadratic_drag > 0.0, "quadratic_drag");
+    push(
+        p.spring_damping > 0.0 || scene.springs.iter().any(|s| s.damping.is_some_and(|d| d > 0.0)),
+        "spring_damping",
+    );
+    for particle in scene.particles.iter().filter(|q| !q.fixed) {
+        push(particle.body_drag.unwrap_or(p.body_drag) > 0.0, "body_drag");
+        push(
+            particle.body_quadratic_drag.unwrap_or(p.body_quadratic_drag) > 0.0,
+            "body_quadratic_drag",
+        );
+    }
+    for w in &p.walls {
+        push(true, "wall");
+        push(w.friction > 0.0, "wall_friction");
+        push(w.is_bumper(), "bumper");
+    }
+    for _ in &p.ropes {
+        push(true, "rope");
+    }
+    for _ in &p.rails {
+        push(true, "rail");
     }
     out
 }
@@ -272,6 +299,14 @@ fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>)
             out.push(compared(name, name, unit, Some(fv), Some(tv), true));
         }
     }
+    // A bumper's restitution depends on the mass it meets: the scene's mean free mass.
+    let free: Vec<f64> = truth
+        .particles
+        .iter()
+        .filter(|p| !p.fixed)
+        .map(|p| p.mass)
+        .collect();
+    let mass = free.iter().sum::<f64>() / free.len().max(1) as f64;
     // Walls: each true wall against the fitted wall facing the same way (largest normal dot
     // product above cos 25 degrees); its position error is the distance from the fitted line
     // to the true wall's point, px.
@@ -306,35 +341,173 @@ fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>)
                     Some(angle(tw.normal)),
                     false,
                 ));
-                out.push(compared(
-                    &item,
-                    "restitution",
-                    "1",
-                    Some(fw.restitution),
-                    Some(tw.restitution),
-                    false,
-                ));
+                contact_values(&item, Some(fw), Some(tw), mass, out);
             }
-            None => out.push(compared(
-                &item,
-                "restitution",
-                "1",
-                None,
-                Some(tw.restitution),
-                false,
-            )),
+            None => contact_values(&item, None, Some(tw), mass, out),
         }
     }
     for (j, fw) in f.walls.iter().enumerate() {
         if !used[j] {
+            contact_values("added wall", Some(fw), None, mass, out);
+        }
+    }
+    body_values(fitted, truth, out);
+    constraint_values(fitted, truth, out);
+}
+
+/// A wall's contact values: its restitution (a bumper's for the scene's mean free mass, see
+/// [`crate::Wall::bumper_restitution`]), and where either wall has them its Coulomb
+/// `friction` and its bumper `stiffness` and `damping`.
+fn contact_values(
+    item: &str,
+    fitted: Option<&crate::Wall>,
+    truth: Option<&crate::Wall>,
+    mass: f64,
+    out: &mut Vec<ValueComparison>,
+) {
+    let restitution = |w: &crate::Wall| w.bumper_restitution(mass);
+    out.push(compared(
+        item,
+        "restitution",
+        "1",
+        fitted.map(restitution),
+        truth.map(restitution),
+        false,
+    ));
+    let either =
+        |pick: &dyn Fn(&crate::Wall) -> f64| fitted.map_or(0.0, pick) > 0.0 || truth.map_or(0.0, pick) > 0.0;
+    if either(&|w| w.friction) {
+        let mu = |w: &crate::Wall| w.friction;
+        out.push(compared(
+            item,
+            "friction",
+            "1",
+            fitted.map(mu),
+            truth.map(mu),
+            true,
+        ));
+    }
+    if either(&|w| w.stiffness) {
+        let (s, c) = (|w: &crate::Wall| w.stiffness, |w: &crate::Wall| w.damping);
+        out.push(compared(
+            item,
+            "stiffness",
+            "mass/s^2",
+            fitted.map(s),
+            truth.map(s),
+            true,
+        ));
+        out.push(compared(
+            item,
+            "damping",
+            "mass/s",
+            fitted.map(c),
+            truth.map(c),
+            true,
+        ));
+    }
+}
+
+/// Per-body drag (`body_drag`, `body_quadratic_drag`: a body's own or the shared value), each
+/// free body of the truth against the fitted body of the same id, where either has one.
+fn body_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+    for tp in truth.particles.iter().filter(|p| !p.fixed) {
+        let fp = fitted.particles.iter().find(|p| p.id == tp.id);
+        let item = format!("body {}", tp.id);
+        let linear = |p: &super::ParticleSpec, s: &Scene| p.body_drag.unwrap_or(s.physics.body_drag);
+        let quadratic = |p: &super::ParticleSpec, s: &Scene| {
+            p.body_quadratic_drag.unwrap_or(s.physics.body_quadratic_drag)
+        };
+        for (name, unit, law) in [
+            (
+                "body_drag",
+                "mass/s",
+                &linear as &dyn Fn(&super::ParticleSpec, &Scene) -> f64,
+            ),
+            ("body_quadratic_drag", "mass/px", &quadratic),
+        ] {
+            let (f, t) = (fp.map(|p| law(p, fitted)), law(tp, truth));
+            if t > 0.0 || f.is_some_and(|f| f > 0.0) {
+                out.push(compared(&item, name, unit, f, Some(t), true));
+            }
+        }
+    }
+}
+
+/// Ropes (matched by their ends' ids: `length`) and rails (matched by their particle's id:
+/// `position`, the distance of the true rail's point from the fitted line, px; `direction`,
+/// deg; `friction`).
+fn constraint_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+    let rope_key = |scene: &Scene, r: &crate::Rope| {
+        let mut ends = r.ends.map(|e| scene.particles[e.index()].id.clone());
+        ends.sort();
+        ends
+    };
+    let (fr, tr) = (&fitted.physics.ropes, &truth.physics.ropes);
+    for tw in tr {
+        let key = rope_key(truth, tw);
+        let fw = fr.iter().find(|r| rope_key(fitted, r) == key);
+        let item = format!("rope {}-{}", key[0], key[1]);
+        out.push(compared(
+            &item,
+            "length",
+            "px",
+            fw.map(|r| r.length),
+            Some(tw.length),
+            true,
+        ));
+    }
+    for fw in fr {
+        let key = rope_key(fitted, fw);
+        if !tr.iter().any(|r| rope_key(truth, r) == key) {
+            let item = format!("added rope {}-{}", key[0], key[1]);
+            out.push(compared(&item, "length", "px", Some(fw.length), None, true));
+        }
+    }
+    let id = |scene: &Scene, r: &crate::Rail| scene.particles[r.particle.index()].id.clone();
+    let (fl, tl) = (&fitted.physics.rails, &truth.physics.rails);
+    for tw in tl {
+        let item = format!("rail {}", id(truth, tw));
+        let Some(fw) = fl.iter().find(|r| id(fitted, r) == id(truth, tw)) else {
+            out.push(compared(&item, "friction", "1", None, Some(tw.friction), true));
+            continue;
+        };
+        let across = Vec2::new(-fw.direction.y, fw.direction.x);
+        out.push(ValueComparison {
+            item: item.clone(),
+            name: "position".into(),
+            fitted: None,
+            truth: None,
+            error: Some((tw.point - fw.point).dot(&across).abs()),
+            relative_error: None,
+            unit: "px".into(),
+        });
+        // A line's direction is defined up to its sign: the angle is compared modulo 180.
+        let angle = |d: Vec2| d.y.atan2(d.x).to_degrees();
+        let turn = (angle(fw.direction) - angle(tw.direction) + 90.0).rem_euclid(180.0) - 90.0;
+        out.push(compared(
+            &item,
+            "direction",
+            "deg",
+            Some(angle(tw.direction) + turn),
+            Some(angle(tw.direction)),
+            false,
+        ));
+        if fw.friction > 0.0 || tw.friction > 0.0 {
             out.push(compared(
-                "added wall",
-                "restitution",
+                &item,
+                "friction",
                 "1",
-                Some(fw.restitution),
-                None,
-                false,
+                Some(fw.friction),
+                Some(tw.friction),
+                true,
             ));
+        }
+    }
+    for fw in fl {
+        if !tl.iter().any(|r| id(truth, r) == id(fitted, fw)) {
+            let item = format!("added rail {}", id(fitted, fw));
+            out.push(compared(&item, "friction", "1", Some(fw.friction), None, true));
         }
     }
 }
@@ -429,5 +602,108 @@ restitution = 0.8
         assert!((get("wall 1", "restitution").error.unwrap() + 0.05).abs() < 1e-12);
         assert!(get("spring a-c", "length").fitted.is_none());
         assert!((c.max_bond_relative_error.unwrap() - 0.1).abs() < 1e-12);
+    }
+
+    const CONTACTS: &str = r#"
+name = "contacts"
+[recording]
+fps = 50
+frames = 10
+[[particles]]
+id = "a"
+mass = 2
+position = [10, 10]
+body_drag = 0.3
+[[particles]]
+id = "b"
+mass = 2
+position = [30, 10]
+[[particles]]
+id = "pivot"
+mass = 1
+position = [30, 0]
+fixed = true
+[physics]
+gravity = [0, 100]
+body_quadratic_drag = 0.001
+[[physics.walls]]
+point = [0, 200]
+normal = [0, -1]
+restitution = 0.8
+friction = 0.4
+[[physics.walls]]
+point = [300, 0]
+normal = [-1, 0]
+stiffness = 500
+damping = 6
+[[physics.ropes]]
+between = ["b", "pivot"]
+length = 10
+[[physics.rails]]
+particle = "a"
+point = [0, 10]
+direction = [1, 0]
+friction = 0.2
+"#;
+
+    #[test]
+    fn contacts_and_constraints_are_effects_with_their_values() {
+        let truth = Scene::from_toml_str(CONTACTS, "truth").unwrap();
+        // The structure keeps the constraints: given there, they are not concealed.
+        let given = truth.structure();
+        assert_eq!(given.physics.ropes, truth.physics.ropes);
+        assert_eq!(given.physics.rails, truth.physics.rails);
+        let c = compare_scenes(&truth, &truth, &given);
+        assert!(!c.effects_concealed.iter().any(|e| e == "rope" || e == "rail"));
+        let mut structure = given.clone();
+        structure.physics.ropes.clear();
+        structure.physics.rails.clear();
+        let c = compare_scenes(&truth, &truth, &structure);
+        assert_eq!(
+            c.effects_concealed,
+            [
+                "gravity",
+                "body_drag",
+                "body_quadratic_drag",
+                "body_quadratic_drag",
+                "wall",
+                "wall_friction",
+                "wall",
+                "bumper",
+                "rope",
+                "rail"
+            ]
+        );
+        assert!(c.missed.is_empty() && c.spurious.is_empty());
+        assert!(c.values.iter().all(|v| v.error.is_some_and(|e| e.abs() < 1e-12)));
+
+        // The fitted model: the bumper found as a rigid wall, the friction 10 % high, one
+        // body's drag and the rope and rail missed.
+        let mut fitted = truth.clone();
+        fitted.particles[0].body_drag = None;
+        fitted.physics.walls[0].friction = 0.44;
+        fitted.physics.walls[1] = crate::Wall::new(Vec2::new(300.0, 0.0), Vec2::new(-1.0, 0.0), 0.5).unwrap();
+        fitted.physics.ropes.clear();
+        fitted.physics.rails.clear();
+        let c = compare_scenes(&fitted, &truth, &structure);
+        assert_eq!(c.missed, ["body_drag", "bumper", "rope", "rail"]);
+        assert!(c.spurious.is_empty());
+        let get = |item: &str, name: &str| {
+            c.values
+                .iter()
+                .find(|v| v.item == item && v.name == name)
+                .unwrap_or_else(|| panic!("no {item} {name} in {:?}", c.values))
+        };
+        assert!((get("wall 1", "friction").relative_error.unwrap() - 0.1).abs() < 1e-12);
+        // The bumper's restitution for the mean free mass 2: zeta = 6 / (2 sqrt(2000)).
+        let zeta = 6.0 / (2.0 * 2000f64.sqrt());
+        let e = (-zeta * std::f64::consts::PI / (1.0 - zeta * zeta).sqrt()).exp();
+        assert!((get("wall 2", "restitution").truth.unwrap() - e).abs() < 1e-12);
+        assert!((get("wall 2", "restitution").error.unwrap() - (0.5 - e)).abs() < 1e-12);
+        assert!((get("wall 2", "stiffness").error.unwrap() + 500.0).abs() < 1e-12);
+        assert!((get("body a", "body_drag").error.unwrap() + 0.3).abs() < 1e-12);
+        assert!(get("body b", "body_quadratic_drag").error.unwrap().abs() < 1e-15);
+        assert!(get("rope b-pivot", "length").fitted.is_none());
+        assert!(get("rail a", "friction").fitted.is_none());
     }
 }

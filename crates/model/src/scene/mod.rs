@@ -560,8 +560,10 @@ impl Scene {
         })
     }
 
-    /// The structure of this scene: same topology, masses and frame-0 positions; bond values,
-    /// per-spring damping, per-particle drag and `[physics]` removed.
+    /// The structure of this scene: same topology, masses and frame-0 positions, and its
+    /// constraints (`physics.ropes`, `physics.rails`: what holds the particles, as bonds do);
+    /// bond values, per-spring damping, per-particle drag and the rest of `[physics]`
+    /// removed.
     pub fn structure(&self) -> Scene {
         let mut s = self.clone();
         for p in &mut s.particles {
@@ -577,7 +579,11 @@ impl Scene {
             t.rest_cos = None;
             t.stiffness = None;
         }
-        s.physics = Physics::default();
+        s.physics = Physics {
+            ropes: self.physics.ropes.clone(),
+            rails: self.physics.rails.clone(),
+            ..Physics::default()
+        };
         s
     }
 

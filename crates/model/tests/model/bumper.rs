@@ -104,6 +104,13 @@ fn a_damped_bumper_returns_exp_of_minus_zeta_pi_over_sqrt_one_minus_zeta2() {
         let root = (1.0 - zeta * zeta).sqrt();
         let e = (-zeta * std::f64::consts::PI / root).exp();
         let t = std::f64::consts::PI / ((k / m).sqrt() * root);
+        let wall = Wall::new(Vec2::zeros(), Vec2::new(0.0, -1.0), 1.0)
+            .unwrap()
+            .with_bumper(s, c);
+        assert!((wall.bumper_restitution(m) - e).abs() < 1e-12);
+        assert!(wall
+            .bumper_contact_time(m)
+            .is_some_and(|w| (w - t).abs() < 1e-12 * t));
         // Measured: zeta 0.1, e 0.72829 against 0.72925 and contact 0.1412036 against
         // 0.1412041 s; zeta 0.3, e 0.37122 against 0.37233. The dashpot's force jumps at the
         // line, inside a substep: e is off by about c v dt / (2 m) / v = 1e-3.

@@ -485,7 +485,17 @@ fn a_structure_drops_values_and_physics_and_counts_them() {
         .torsions
         .iter()
         .all(|t| t.rest_cos.is_none() && t.stiffness.is_none()));
-    assert_eq!(structure.physics, physfit_model::Physics::default());
+    // The constraints (ropes, rails) hold the particles as bonds do: kept, with the rest of
+    // `[physics]` gone.
+    assert!(!scene.physics.ropes.is_empty() && !scene.physics.rails.is_empty());
+    assert_eq!(
+        structure.physics,
+        physfit_model::Physics {
+            ropes: scene.physics.ropes.clone(),
+            rails: scene.physics.rails.clone(),
+            ..physfit_model::Physics::default()
+        }
+    );
     // Topology, masses, frame-0 state, timing and drawing are kept; a body's own drag is a
     // physics value and goes.
     let mut particles = scene.particles.clone();
@@ -501,10 +511,18 @@ fn a_structure_drops_values_and_physics_and_counts_them() {
         structure.springs.iter().map(|s| s.ends).collect::<Vec<_>>(),
         scene.springs.iter().map(|s| s.ends).collect::<Vec<_>>()
     );
-    // A structure round-trips too, with no value keys written.
+    // A structure round-trips too, with no value keys written but the constraints'.
+    let mut bare = structure.clone();
+    bare.physics.ropes.clear();
+    bare.physics.rails.clear();
+    let text = bare.to_toml_string().unwrap();
+    assert!(
+        !text.contains("length") && !text.contains("rest_cos") && !text.contains("physics"),
+        "{text}"
+    );
     let text = structure.to_toml_string().unwrap();
     assert!(
-        !text.contains("length") && !text.contains("rest_cos") && !text.contains("[physics]"),
+        text.contains("[[physics.ropes]]") && text.contains("[[physics.rails]]") && !text.contains("gravity"),
         "{text}"
     );
     assert_eq!(

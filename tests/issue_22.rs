@@ -1,0 +1,380 @@
+//! Issue 22: contacts and drag per body as diagnosis candidates, each concealed in a rendered
+//! scene, tracked and diagnosed from the structure alone, found back within 5 % with nothing
+//! else added, and the fitted scene rendered again.
+//!
+//! * A ball bounces along a floor with Coulomb friction: physfit must name the field, the
+//!   floor and the friction at it. The friction, restitution and launch speed are drawn from
+//!   fixed seeds; a frictionless ball gets no friction.
+//! * A puck slides to rest on a floor the structure gives (with the field): physfit must name
+//!   the friction alone; on a frictionless floor, nothing.
+//! * Two bodies of masses 1 and 3 fly through one medium (`body_drag` or
+//!   `body_quadratic_drag`, not scaled by the mass): physfit must name the field and that drag
+//!   per body; the same pair under a drag per unit mass gets the per-mass drag.
+//! * A pendulum on a rope listed in the structure: the field alone, `g / L` within 1 %.
+
+use std::path::Path;
+
+use physfit_model::scene::compare_scenes;
+use physfit_model::Scene;
+use serde_json::Value;
+
+use crate::util::{physfit, tempdir, write};
+
+/// Deterministic draws in `[lo, hi)` (a small linear congruential sequence: seeded and
+/// dependency-free).
+fn draw(seed: &mut u64, lo: f64, hi: f64) -> f64 {
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    lo + (*seed >> 11) as f64 / (1u64 << 53) as f64 * (hi - lo)
+}
+
+/// A rendered scene's head: its `name`, 100 frames/s for `frames` frames (10 substeps), a
+/// `width` x `height` picture with particles of radius 5 px and noise 2 grey levels, seeded.
+fn head(name: &str, frames: usize, width: u32, height: u32, seed: u64) -> String {
+    format!(
+        r#"name = "{name}"
+[recording]
+fps = 100.0
+frames = {frames}
+substeps = 10
+[render]
+width = {width}
+height = {height}
+radius = 5.0
+background = 20
+foreground = 235
+noise = 2.0
+seed = {seed}
+"#
+    )
+}
+
+/// A particle launched sideways at `vx` px/s from (60, `y`) px over a floor at y = 340 px
+/// with restitution `e` and Coulomb friction `mu`, under a field of 1000 px/s², for `frames`
+/// frames at 100 frames/s.
+fn floor_scene(name: &str, frames: usize, y: f64, vx: f64, e: f64, mu: f64, seed: u64) -> String {
+    let friction = if mu > 0.0 {
+        format!("friction = {mu}\n")
+    } else {
+        String::new()
+    };
+    let head = head(name, frames, 480, 400, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "ball"
+mass = 1.0
+position = [60.0, {y}]
+velocity = [{vx}, 0.0]
+[physics]
+gravity = [0.0, 1000.0]
+[[physics.walls]]
+point = [0.0, 340.0]
+normal = [0.0, -1.0]
+restitution = {e}
+{friction}"#
+    )
+}
+
+/// Runs `physfit -q` with `args`, asserting success.
+fn run(args: &[&dyn AsRef<std::ffi::OsStr>]) {
+    let mut cmd = physfit();
+    cmd.arg("-q");
+    for a in args {
+        cmd.arg(a);
+    }
+    cmd.assert().success();
+}
+
+/// Renders, tracks and diagnoses `scene` (from its structure alone) in `dir`: the truth, the
+/// structure, `report.json` and the fitted scene.
+fn diagnose_rendered(dir: &Path, scene: &str) -> (Scene, Scene, Value, Scene) {
+    diagnose_rendered_from(dir, scene, Scene::structure)
+}
+
+/// [`diagnose_rendered`] from the structure `given` makes of the truth.
+fn diagnose_rendered_from(
+    dir: &Path,
+    scene: &str,
+    given: impl Fn(&Scene) -> Scene,
+) -> (Scene, Scene, Value, Scene) {
+    let path = write(dir, "scene.toml", scene);
+    let out = dir.join("render");
+    run(&[&"render", &path, &"--out", &out]);
+    let tracks = out.join("tracks.csv");
+    let structure = dir.join("given.toml");
+    given(&Scene::load(&path).expect("scene"))
+        .save(&structure)
+        .expect("structure");
+    run(&[
+        &"track",
+        &out.join("frames"),
+        &"--out",
+        &tracks,
+        &"--structure",
+        &structure,
+    ]);
+    let diag = dir.join("diag");
+    run(&[&"diagnose", &tracks, &"--structure", &structure, &"--out", &diag]);
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(diag.join("report.json")).expect("report.json"))
+            .expect("report.json is JSON");
+    // The fitted scene renders again, its friction included.
+    run(&[&"render", &diag.join("fitted.toml"), &"--out", &dir.join("again")]);
+    (
+        Scene::load(&path).expect("scene"),
+        Scene::load(&structure).expect("structure"),
+        report,
+        Scene::load(&diag.join("fitted.toml")).expect("fitted.toml"),
+    )
+}
+
+/// The scene's friction, drawn from `seed` (0 for the frictionless control), is diagnosed
+/// back within 5 % with exactly the field, the floor and the friction found.
+fn check_friction(seed: u64, frictionless: bool) {
+    let mut s = seed;
+    let mu = if frictionless {
+        0.0
+    } else {
+        draw(&mut s, 0.05, 0.2)
+    };
+    let e = draw(&mut s, 0.6, 0.9);
+    // The ball still slides after its first bounce (which takes `mu (1 + e) 400` px/s): a
+    // friction that stops it at once is only bounded below by the tracks. Without friction
+    // it stays in view for the 3 s.
+    let vx = if frictionless {
+        draw(&mut s, 60.0, 120.0)
+    } else {
+        mu * (1.0 + e) * 400.0 * draw(&mut s, 1.3, 1.8)
+    };
+    let dir = tempdir();
+    // 80 px above the floor: it meets it at 400 px/s, 3 s.
+    let scene = floor_scene("concealed-floor-friction", 300, 260.0, vx, e, mu, seed);
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let friction = c
+        .values
+        .iter()
+        .find(|v| v.item == "wall 1" && v.name == "friction");
+    println!(
+        "seed {seed}: mu {mu:.4}, e {e:.3}, vx {vx:.1} px/s: found {:?}, friction {:?}, verdict {}",
+        c.effects_found,
+        friction.map(|v| (v.fitted, v.relative_error)),
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    let names: Vec<&str> = report["findings"]
+        .as_array()
+        .expect("findings")
+        .iter()
+        .filter_map(|f| f["effect"].as_str())
+        .collect();
+    if frictionless {
+        assert!(friction.is_none(), "{:?}", c.values);
+        assert!(!names.contains(&"wall_friction"), "{names:?}");
+        return;
+    }
+    let error = friction
+        .and_then(|v| v.relative_error)
+        .expect("a fitted friction");
+    assert!(error.abs() < 0.05, "friction {:?} against {mu}", friction);
+    // Its own "where it was seen" text names the bounces that lost tangential speed.
+    let found = report["findings"]
+        .as_array()
+        .and_then(|fs| fs.iter().find(|f| f["effect"] == "wall_friction"))
+        .expect("a wall_friction finding");
+    let text = found["seen"]["text"].as_str().unwrap_or_default();
+    assert!(text.contains("bounce(s) on wall 1 lose"), "{text}");
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_1() {
+    check_friction(1, false);
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_2() {
+    check_friction(2, false);
+}
+
+#[test]
+fn friction_at_a_floor_is_found_within_5_percent_seed_3() {
+    check_friction(3, false);
+}
+
+#[test]
+fn a_frictionless_floor_gets_no_friction() {
+    check_friction(4, true);
+}
+
+/// Two bodies of masses 1 and 3 thrown towards each other under a field of 300 px/s² through
+/// a medium given by `medium` (a `[physics]` line), 2 s at 100 frames/s.
+fn medium_scene(medium: &str, seed: u64) -> String {
+    let head = head("concealed-body-drag", 200, 480, 480, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "light"
+mass = 1.0
+position = [100.0, 80.0]
+velocity = [120.0, -100.0]
+[[particles]]
+id = "heavy"
+mass = 3.0
+position = [300.0, 80.0]
+velocity = [-120.0, -100.0]
+[physics]
+gravity = [0.0, 300.0]
+{medium}
+"#
+    )
+}
+
+/// The medium `key = value` (drawn from `seed` in `[lo, hi)`) is diagnosed back within 5 %
+/// on every body, with exactly the field and it found.
+fn check_medium(seed: u64, key: &str, lo: f64, hi: f64) {
+    let mut s = seed;
+    let value = draw(&mut s, lo, hi);
+    let dir = tempdir();
+    let (truth, structure, report, fitted) =
+        diagnose_rendered(dir.path(), &medium_scene(&format!("{key} = {value}"), seed));
+    let c = compare_scenes(&fitted, &truth, &structure);
+    println!(
+        "seed {seed}: {key} {value:.6}: found {:?}, verdict {}",
+        c.effects_found, report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    let name = if key == "drag" { "drag" } else { key };
+    let errors: Vec<f64> = c
+        .values
+        .iter()
+        .filter(|v| v.name == name)
+        .filter_map(|v| v.relative_error)
+        .collect();
+    println!("  {name} relative errors {errors:?}");
+    assert!(!errors.is_empty(), "{:?}", c.values);
+    assert!(errors.iter().all(|e| e.abs() < 0.05), "{errors:?}");
+}
+
+#[test]
+fn linear_drag_per_body_is_found_within_5_percent() {
+    check_medium(5, "body_drag", 0.3, 1.2);
+}
+
+#[test]
+fn quadratic_drag_per_body_is_found_within_5_percent() {
+    check_medium(6, "body_quadratic_drag", 0.001, 0.005);
+}
+
+#[test]
+fn drag_per_unit_mass_on_bodies_of_different_masses_stays_per_mass() {
+    check_medium(7, "drag", 0.2, 0.8);
+}
+
+/// A pendulum on a rope of length `length` px from a fixed pivot, released at 30 degrees,
+/// under a field `g` px/s², 3 s at 100 frames/s.
+fn rope_scene(g: f64, length: f64, seed: u64) -> String {
+    let (s, c) = 30f64.to_radians().sin_cos();
+    let head = head("rope-pendulum", 300, 400, 400, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "pivot"
+mass = 1.0
+position = [200.0, 60.0]
+fixed = true
+[[particles]]
+id = "bob"
+mass = 1.0
+position = [{x}, {y}]
+[physics]
+gravity = [0.0, {g}]
+[[physics.ropes]]
+between = ["pivot", "bob"]
+length = {length}
+"#,
+        x = 200.0 + length * s,
+        y = 60.0 + length * c,
+    )
+}
+
+#[test]
+fn a_rope_in_the_structure_is_held_and_the_pendulum_gives_g_over_l_within_1_percent() {
+    let seed = 8;
+    let mut s = seed;
+    let g = draw(&mut s, 300.0, 900.0);
+    let length = draw(&mut s, 120.0, 250.0);
+    let dir = tempdir();
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &rope_scene(g, length, seed));
+    // The structure keeps the rope (a constraint, like a bond), so the fit holds it.
+    assert_eq!(structure.physics.ropes, truth.physics.ropes);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let found = fitted.physics.gravity.norm();
+    println!(
+        "rope pendulum: g {g:.3}, L {length:.3}: found {:?}, g {found:.4}, g/L {:.5} against {:.5}, verdict {}",
+        c.effects_found,
+        found / length,
+        g / length,
+        report["verdict"]["text"]
+    );
+    assert_eq!(c.effects_found, ["gravity"]);
+    assert!(c.missed.is_empty() && c.spurious.is_empty(), "{c:?}");
+    assert!(
+        (found / g - 1.0).abs() < 0.01,
+        "g/L {} against {}",
+        found / length,
+        g / length
+    );
+}
+
+/// A puck launched along the floor it rests on (restitution 0.5) with friction `mu` drawn
+/// from `seed` (0 for the control; it stops after `v0^2 / (2 mu g)` px), 2 s, diagnosed back
+/// within 5 % from a structure that gives the field and the floor (and nothing else added).
+fn check_sliding(seed: u64, frictionless: bool) {
+    let mut s = seed;
+    let mu = if frictionless { 0.0 } else { draw(&mut s, 0.1, 0.4) };
+    let v0 = draw(&mut s, 60.0, 200.0);
+    let dir = tempdir();
+    // The structure knows the field and the floor; the floor's friction is concealed.
+    let given = |truth: &Scene| {
+        let mut given = truth.structure();
+        given.physics.gravity = truth.physics.gravity;
+        given.physics.walls = truth
+            .physics
+            .walls
+            .iter()
+            .map(|w| w.clone().with_friction(0.0))
+            .collect();
+        given
+    };
+    let scene = floor_scene("sliding-puck", 200, 340.0, v0, 0.5, mu, seed);
+    let (truth, given, _, fitted) = diagnose_rendered_from(dir.path(), &scene, given);
+    let c = compare_scenes(&fitted, &truth, &given);
+    let found = fitted.physics.walls.first().map(|w| w.friction);
+    println!(
+        "sliding seed {seed}: mu {mu:.4}, v0 {v0:.1} px/s (stops after {:.1} px): found {:?}, friction {found:?}",
+        v0 * v0 / (2.0 * mu * 1000.0),
+        c.effects_found
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    if !frictionless {
+        let found = found.expect("the floor");
+        assert!((found / mu - 1.0).abs() < 0.05, "friction {found} against {mu}");
+    }
+}
+
+#[test]
+fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent() {
+    check_sliding(9, false);
+}
+
+#[test]
+fn sliding_on_a_frictionless_given_floor_adds_nothing() {
+    check_sliding(10, true);
+}
+
+#[test]
+fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent_seed_11() {
+    check_sliding(11, false);
+}
