@@ -131,43 +131,51 @@ pub struct WallGuess {
     pub jolts: Vec<Jolt>,
 }
 
-/// The jolts in `obs` (free particles only) and the noise scale of the impulses (px/s).
+/// What one pass over a recording's frame differences finds (see [`scan_jolts`]).
+#[derive(Clone, Debug, Default)]
+pub struct Scan {
+    /// The jolts: gaps that pass every test against the larger of the track noise and the
+    /// robust spread of all impulses.
+    pub jolts: Vec<Jolt>,
+    /// The faint jolts: gaps that pass every test against the track noise alone, but not
+    /// against the robust spread, while their local jump along the impulse exceeds
+    /// [`JOLT_THRESHOLD`] times the larger of its noise and the robust spread of every gap's
+    /// local jump. A poor smooth model (a short recording whose springs the weak form cannot
+    /// tell) raises the means' spread over a bounce's impulse and partly absorbs it, while the
+    /// local jump, blind to any acceleration linear in time, still holds the whole impulse.
+    /// Their impulse is the local jump, and their significance its size over that scale.
+    pub faint: Vec<Jolt>,
+    /// The end jolts (see [`end_jolts`]).
+    pub ends: Vec<Jolt>,
+    /// The noise scale of the impulses, px/s.
+    pub scale: f64,
+}
+
+/// The jolts, faint jolts and end jolts in `obs` (free particles only), from one computation
+/// of the frame differences. Faint and end jolts only propose walls, which the multi-step fit
+/// confirms or refuses.
 ///
 /// `acc[k][p]`, when given, is the model's acceleration of particle `p` at frame offset `k`
 /// (px/s²), removed from the impulses so that smooth forces are not mistaken for jolts.
-pub fn find_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<Jolt>, f64) {
-    let (jolts, scale) = scan(obs, acc);
-    (
-        jolts
-            .into_iter()
-            .filter(|(_, strict)| *strict)
-            .map(|(j, _)| j)
-            .collect(),
+pub fn scan_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Scan {
+    let differences: Vec<Option<Differences>> = (0..obs.particle_count())
+        .map(|p| (!obs.fixed[p]).then(|| corrected_differences(obs, acc, p)))
+        .collect();
+    let (tagged, scale) = scan(obs, &differences);
+    let (jolts, faint): (Vec<_>, Vec<_>) = tagged.into_iter().partition(|(_, strict)| *strict);
+    Scan {
+        jolts: jolts.into_iter().map(|(j, _)| j).collect(),
+        faint: faint.into_iter().map(|(j, _)| j).collect(),
+        ends: end_jolts(obs, &differences),
         scale,
-    )
-}
-
-/// The faint jolts in `obs`: gaps that pass every test of [`find_jolts`] against the track
-/// noise alone, but not against the robust spread of all impulses, while their local jump
-/// along the impulse exceeds [`JOLT_THRESHOLD`] times the larger of its noise and the robust
-/// spread of every gap's local jump. A poor smooth model (a short recording whose springs the
-/// weak form cannot tell) raises the means' spread over a bounce's impulse and partly absorbs
-/// it, while the local jump, blind to any acceleration linear in time, still holds the whole
-/// impulse. Their walls are only proposals, which the multi-step fit confirms or refuses.
-/// Their impulse is the local jump, and their significance its size over that scale.
-pub fn find_faint_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Vec<Jolt> {
-    scan(obs, acc)
-        .0
-        .into_iter()
-        .filter(|(_, strict)| !*strict)
-        .map(|(j, _)| j)
-        .collect()
+    }
 }
 
 /// Every gap that passes the jolt tests, flagged `true` where it passes them against the
-/// robust spread of all impulses and `false` where it is only faint (see
-/// [`find_faint_jolts`]); and that robust scale (px/s).
-fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bool)>, f64) {
+/// robust spread of all impulses and `false` where it is only faint (see [`Scan::faint`]);
+/// and that robust scale (px/s). `differences[p]` are particle `p`'s corrected differences
+/// (None for a fixed one).
+fn scan(obs: &Observations, differences: &[Option<Differences>]) -> (Vec<(Jolt, bool)>, f64) {
     let m = JOLT_FIT_POINTS;
     let fps = obs.fps;
     // mean(x[k+1+m] - x[k+1]) / m - mean(x[k] - x[k-m]) / m: noise 2 sigma / m per coordinate.
@@ -182,10 +190,9 @@ fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bo
     let mut magnitudes = Vec::new();
     let mut local_magnitudes = Vec::new();
     for (p, (out, out_local)) in series.iter_mut().zip(local.iter_mut()).enumerate() {
-        if obs.fixed[p] {
+        let Some((e, cum)) = &differences[p] else {
             continue;
-        }
-        let (e, cum) = corrected_differences(obs, acc, p);
+        };
         // Within `m` frames of an end, as many differences as there are on the short side
         // (at least MIN_EDGE_POINTS): a bounce near an end of a short recording.
         for k in MIN_EDGE_POINTS..frames.saturating_sub(MIN_EDGE_POINTS + 1) {
@@ -296,7 +303,7 @@ fn scan(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> (Vec<(Jolt, bo
                 best.dot(&n) + JOLT_THRESHOLD * local_noise >= 0.5 * size
             });
             let strict = strict && approaches && concentrated;
-            // A faint one's local jump stands out of every gap's (see `find_faint_jolts`); it is
+            // A faint one's local jump stands out of every gap's (see `Scan::faint`); it is
             // then the impulse, the means' being partly absorbed by the poor model.
             let faint = best_local.filter(|best| !strict && best.dot(&n) >= JOLT_THRESHOLD * local_scale);
             if !strict && faint.is_none() {
@@ -337,7 +344,7 @@ fn corrected_differences(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>, 
     (e, cum)
 }
 
-/// Bounces in the gaps the means of [`find_jolts`] cannot reach (fewer than
+/// Bounces in the gaps the means of [`scan_jolts`] cannot reach (fewer than
 /// [`MIN_EDGE_POINTS`] differences on one side): the first two and the last two. There the
 /// jump is the one-step one, `e[k+1] - e[k-1]` (the difference straddling the gap left out;
 /// in the last gap, which has none after it, `e[k] - e[k-1]`, the part of the impulse the last
@@ -347,16 +354,13 @@ fn corrected_differences(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>, 
 /// one scale; in the last gap only the approach is asked, in the first only a departure), is
 /// an end jolt: a wall proposal only, like a faint one (a bounce in the last
 /// frame of a 66-frame recording moved that frame 4.8 px against a track noise of 0.009 px).
-pub fn end_jolts(obs: &Observations, acc: Option<&[Option<Vec<Vec2>>]>) -> Vec<Jolt> {
+fn end_jolts(obs: &Observations, differences: &[Option<Differences>]) -> Vec<Jolt> {
     let frames = obs.frame_count();
     if frames < 2 * MIN_EDGE_POINTS + 2 {
         return Vec::new();
     }
     let fps = obs.fps;
     let noise = 2.0 * obs.noise * fps;
-    let differences: Vec<Option<Differences>> = (0..obs.particle_count())
-        .map(|p| (!obs.fixed[p]).then(|| corrected_differences(obs, acc, p)))
-        .collect();
     // The one-step jump across gap k: (before, after) differences, px/frame.
     let sides = |k: usize| -> (usize, usize) {
         if k == 0 {

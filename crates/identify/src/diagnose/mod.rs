@@ -120,11 +120,11 @@ const MAX_RESTARTS: usize = 3;
 /// Walls from clear jolts verified per round.
 const MAX_WALLS_PER_ROUND: usize = 3;
 
-/// Walls from faint jolts (see [`jolts::find_faint_jolts`]) verified per round, after the clear
+/// Walls from faint jolts (see [`jolts::Scan::faint`]) verified per round, after the clear
 /// ones.
 const MAX_FAINT_WALLS_PER_ROUND: usize = 2;
 
-/// Walls from end jolts (see [`jolts::end_jolts`]) verified per round, after the faint ones.
+/// Walls from end jolts (see [`jolts::Scan::ends`]) verified per round, after the faint ones.
 const MAX_END_WALLS_PER_ROUND: usize = 1;
 
 /// The smallest number of analysed frames the diagnosis accepts.
@@ -189,25 +189,25 @@ fn diagnose_inner(
     // The rough model (the structure and a uniform field, weak-form estimate) removes smooth
     // forces from the jolt test (an apex under gravity is no bounce) and gives the field the
     // support test needs; twice, the second time without the first pass's bounces and supports.
-    let (rough, _) = jolts::find_jolts(&obs, None);
-    let mut excluded = exclusion(&rough);
+    // Faint and end jolts (in the gaps the means cannot reach) are also kept from this pass
+    // without a model: a rough model whose field absorbs a bounce smears it.
+    let free = jolts::scan_jolts(&obs, None);
+    let rough = &free.jolts;
+    let mut excluded = exclusion(rough);
     let mut jolt_list = Vec::new();
     let mut supports = Vec::new();
     let mut rough_field = physfit_model::Vec2::zeros();
-    // Faint and end jolts (in the gaps the means cannot reach) also without a model: a rough
-    // model whose field absorbs a bounce smears it.
-    let faint_free = jolts::find_faint_jolts(&obs, None);
-    let ends_free = jolts::end_jolts(&obs, None);
     let mut faint = Vec::new();
     let mut ends = Vec::new();
     for _ in 0..2 {
         let weak = WeakForm::new(&family0, &obs, w, &excluded, &held);
         let (model_acc, field) = rough_model(&family0, &obs, &weak, &shot, &held, &start, &scales, &excluded);
         rough_field = field;
-        let (found, jolt_scale) = jolts::find_jolts(&obs, Some(&model_acc));
-        jolt_list = found;
-        faint = jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&model_acc)), &faint_free);
-        ends = jolts::merge_jolts(jolts::end_jolts(&obs, Some(&model_acc)), &ends_free);
+        let found = jolts::scan_jolts(&obs, Some(&model_acc));
+        let jolt_scale = found.scale;
+        jolt_list = found.jolts;
+        faint = jolts::merge_jolts(found.faint, &free.faint);
+        ends = jolts::merge_jolts(found.ends, &free.ends);
         excluded = exclusion(&jolt_list);
         supports = support::find_supports(&obs, &model_acc, field, &excluded);
         for s in &supports {
@@ -398,16 +398,11 @@ fn diagnose_inner(
                     Some(a)
                 })
                 .collect();
-            jolt_list = jolts::find_jolts(&obs, Some(&acc)).0;
+            let found = jolts::scan_jolts(&obs, Some(&acc));
+            jolt_list = found.jolts;
             guesses = jolts::propose_walls(&jolt_list, &obs);
-            faint_guesses = jolts::propose_walls(
-                &jolts::merge_jolts(jolts::find_faint_jolts(&obs, Some(&acc)), &faint_free),
-                &obs,
-            );
-            end_guesses = jolts::propose_walls(
-                &jolts::merge_jolts(jolts::end_jolts(&obs, Some(&acc)), &ends_free),
-                &obs,
-            );
+            faint_guesses = jolts::propose_walls(&jolts::merge_jolts(found.faint, &free.faint), &obs);
+            end_guesses = jolts::propose_walls(&jolts::merge_jolts(found.ends, &free.ends), &obs);
         }
         let accepted_walls: Vec<[f64; 3]> = accepted
             .iter()

@@ -613,7 +613,7 @@ mod faint;
 mod issue_21;
 mod stiff;
 
-/// The jolts `find_jolts` sees, with no model, in `truth`'s tracks of its particle `ball`.
+/// The jolts `scan_jolts` sees, with no model, in `truth`'s tracks of its particle `ball`.
 fn jolts_of_ball(truth: &Scene) -> Vec<Jolt> {
     let mut t = tracks(truth, SIGMA, 1);
     t.points.retain(|p| p.particle == "ball");
@@ -621,7 +621,7 @@ fn jolts_of_ball(truth: &Scene) -> Vec<Jolt> {
     structure.particles.retain(|p| p.id == "ball");
     structure.springs.clear();
     let obs = Observations::from_tracks(&t, &structure, None).unwrap_or_else(|e| panic!("{e}"));
-    jolts::find_jolts(&obs, None).0
+    jolts::scan_jolts(&obs, None).jolts
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! Short recordings of a springy body, one of whose corners bounces off a wall under a field:
 //! over 12-18 frames the weak form cannot tell springs that ring at most a few frames a
 //! period, so the rough model's misfit hides the bounce from the means of the jolt test; the
-//! local jump still holds it (a faint jolt, `jolts::find_faint_jolts`). Before, a tether
+//! local jump still holds it (a faint jolt, `jolts::Scan::faint`). Before, a tether
 //! pulling the corner round stood in for the wall and was called explained (bench recordings
 //! 9 and 25), or nothing was found. A soft, far tether on one particle (not identified) that
 //! stood in for the field gives way to it (`simpler_equivalent`). Drawn from fixed seeds over frame rates, stiffnesses, masses, sizes, fields,
