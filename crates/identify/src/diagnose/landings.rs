@@ -139,7 +139,7 @@ fn on_a_line(run: &[Vec2], step: Vec2) -> Option<(Vec2, f64, f64)> {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
                     (lo.min(v), hi.max(v))
                 });
-            (approach > 0.0 && hi - lo <= 0.5 * approach).then_some((n, lo, approach, hi - lo))
+            (approach >= 0.5 * step.norm() && hi - lo <= 0.5 * approach).then_some((n, lo, approach, hi - lo))
         })
         .min_by(|a, b| a.3.total_cmp(&b.3))
         .map(|(n, offset, approach, _)| (n, offset, approach))
