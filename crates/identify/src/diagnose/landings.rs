@@ -7,8 +7,10 @@
 //! the wall under a strong field takes the wall's push as a steady force. Seen from the
 //! positions alone, a landing at frame `k` is an approach (the step `x[k] - x[k-1]`, whose
 //! normal part exceeds [`LANDING_THRESHOLD`] times its noise `sqrt(2) sigma` for track noise
-//! `sigma`) followed by at least [`LANDING_FRAMES`] frames on a straight line, whose spread
-//! across it stays under half that normal step, and which no particle's centre crosses. The walls are only proposals: the multi-step fit confirms or refuses them.
+//! `sigma`, and half the step: a gentle turn into straight motion is no landing) followed by
+//! at least [`LANDING_FRAMES`] frames on a straight line, whose spread across it stays under
+//! half that normal step, and which no particle's centre crosses. The walls are only
+//! proposals: the multi-step fit confirms or refuses them.
 
 use physfit_model::Vec2;
 
