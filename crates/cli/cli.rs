@@ -245,8 +245,10 @@ pub struct RunArgs {
     #[arg(long, requires = "structure")]
     pub frames: Option<PathBuf>,
     /// The recorded object's structure (particles, masses, first positions, bonds without
-    /// values); its particle positions are those of the first analysed frame.
-    #[arg(long, requires = "frames")]
+    /// values); its particle positions are those of the first analysed frame. With a scene,
+    /// what the analysis is told instead of the scene's own structure: a subset of the
+    /// scene's particles (a pendulum's bob without its pivot, say).
+    #[arg(long)]
     pub structure: Option<PathBuf>,
     /// Frame rate, frames/s (overrides a video's own rate and the structure's
     /// `[recording] fps`).

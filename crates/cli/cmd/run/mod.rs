@@ -2,6 +2,9 @@
 //!
 //! * `physfit run` (no arguments): the built-in default scene, which hides one effect;
 //! * `physfit run SCENE --out DIR`: any scene; the truth is known, so the report compares;
+//! * `physfit run SCENE --structure S --out DIR`: the scene rendered, then analysed knowing only
+//!   the structure `S` (a subset of its particles, bonds without values, no physics): what the
+//!   scene holds beyond `S` (a fixed pivot, a spring, a field) is then concealed;
 //! * `physfit run --frames DIR|VIDEO|STACK --structure S --out DIR [--fps F] [--window A..B]`: a
 //!   recording (a folder of frames, a video, a TIFF stack). A video's own frame rate is used
 //!   unless `--fps` is given.
@@ -147,8 +150,13 @@ pub struct RunReport<'a> {
 
 /// Where the frames come from.
 enum Input {
-    /// A scene rendered here; its truth is known.
-    Scene { scene: Box<Scene>, source: PathBuf },
+    /// A scene rendered here; its truth is known. `structure` is the file of what the
+    /// analysis is told (`--structure`); without it, the scene's own structure.
+    Scene {
+        scene: Box<Scene>,
+        source: PathBuf,
+        structure: Option<PathBuf>,
+    },
     /// A recording's frames and its structure.
     Recording { frames: PathBuf, structure: PathBuf },
 }
@@ -162,16 +170,18 @@ impl Input {
                 frames: frames.clone(),
                 structure: structure.clone(),
             },
-            (Some(path), None, _) => Input::Scene {
+            (Some(path), None, structure) => Input::Scene {
                 scene: Box::new(super::load_scene(path)?),
                 source: path.clone(),
+                structure: structure.clone(),
             },
-            (None, None, _) => Input::Scene {
+            (None, None, structure) => Input::Scene {
                 scene: Box::new(
                     Scene::from_toml_str(DEFAULT_SCENE, DEFAULT_SCENE_NAME)
                         .context("the built-in default scene")?,
                 ),
                 source: PathBuf::from(DEFAULT_SCENE_NAME),
+                structure: structure.clone(),
             },
             (_, Some(_), None) => {
                 bail!("--frames needs --structure (the recorded object's particles and bonds)")
@@ -193,6 +203,31 @@ impl Input {
         }
         names
     }
+}
+
+/// The structure file `path` read as what the analysis of `scene` (read from `source`) is
+/// told: every particle it names must be one of the scene's, and the frame rate is the
+/// scene's (the frames are rendered at it).
+fn told_structure(scene: &Scene, source: &Path, path: &Path) -> anyhow::Result<Scene> {
+    let mut told = super::load_scene(path).context("the structure")?;
+    for particle in &told.particles {
+        if !scene.particles.iter().any(|q| q.id == particle.id) {
+            bail!(
+                "{}: particle \"{}\" is not in the scene {} (its particles: {})",
+                path.display(),
+                particle.id,
+                source.display(),
+                scene
+                    .particles
+                    .iter()
+                    .map(|q| q.id.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    told.recording.fps = scene.recording.fps;
+    Ok(told)
 }
 
 /// The files every run writes, in the order `report.json` lists them.
@@ -307,7 +342,15 @@ impl Stages<'_> {
     /// else the structure's or the scene's) and apply `--scale`.
     fn render(&self, input: Input, seconds: &mut f64) -> anyhow::Result<Rendered> {
         let (frames_dir, mut structure, truth, source) = match input {
-            Input::Scene { scene, source } => {
+            Input::Scene {
+                scene,
+                source,
+                structure,
+            } => {
+                let told = match &structure {
+                    Some(path) => told_structure(&scene, &source, path)?,
+                    None => scene.structure(),
+                };
                 self.explain("render: simulate the scene with its hidden physics and draw every frame");
                 let rendered = timed(seconds, || {
                     super::render::render_scene(&scene, &source, &self.dir, self.verbosity)
@@ -319,7 +362,7 @@ impl Stages<'_> {
                     scene.name,
                     self.args.out.join("frames").display()
                 ));
-                (rendered.frames_dir, scene.structure(), Some(*scene), source)
+                (rendered.frames_dir, told, Some(*scene), source)
             }
             Input::Recording { frames, structure } => {
                 let s = super::load_scene(&structure).context("stage track: the structure")?;
