@@ -378,3 +378,152 @@ fn sliding_on_a_frictionless_given_floor_adds_nothing() {
 fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent_seed_11() {
     check_sliding(11, false);
 }
+
+/// A ball dropped from (60, `y`) px with `vx` px/s sideways onto a floor at y = 340 px under a
+/// field of 1000 px/s², at `fps` frames/s for 3 s: `floor` is the wall's contact keys (a
+/// `restitution`, or a bumper's `stiffness` and `damping`).
+fn drop_scene(name: &str, fps: f64, y: f64, vx: f64, floor: &str, seed: u64) -> String {
+    let frames = (3.0 * fps).round() as usize;
+    let head = head(name, frames, 480, 400, seed).replace("fps = 100.0", &format!("fps = {fps}"));
+    format!(
+        r#"{head}[[particles]]
+id = "ball"
+mass = 1.0
+position = [60.0, {y}]
+velocity = [{vx}, 0.0]
+[physics]
+gravity = [0.0, 1000.0]
+[[physics.walls]]
+point = [0.0, 340.0]
+normal = [0.0, -1.0]
+{floor}
+"#
+    )
+}
+
+/// The report's effect names.
+fn finding_names(report: &Value) -> Vec<String> {
+    report["findings"]
+        .as_array()
+        .expect("findings")
+        .iter()
+        .filter_map(|f| f["effect"].as_str().map(String::from))
+        .collect()
+}
+
+/// A ball bouncing on a spring bumper floor (unit mass) whose contact time (2.5-5 frames)
+/// and restitution (0.6-0.85) are drawn from `seed`, dropped from 100-150 px (impacts from
+/// 450-550 px/s down to a fifth of that): physfit must swap the rigid floor the bounces
+/// first propose for the bumper, with its stiffness, damping and line within 5 %, and
+/// nothing else but the field.
+fn check_bumper(seed: u64) {
+    let mut s = seed;
+    let time = draw(&mut s, 0.025, 0.05);
+    let e: f64 = draw(&mut s, 0.6, 0.85);
+    let drop = draw(&mut s, 100.0, 150.0);
+    let vx = draw(&mut s, 30.0, 70.0);
+    // `e = exp(-zeta pi / sqrt(1 - zeta^2))`, the damped contact time `pi / (w sqrt(1 -
+    // zeta^2))` with `w = sqrt(2 S / m)`, `c = 2 zeta sqrt(2 S m)`.
+    let ln = e.ln();
+    let zeta = -ln / (std::f64::consts::PI.powi(2) + ln * ln).sqrt();
+    let w = std::f64::consts::PI / (time * (1.0 - zeta * zeta).sqrt());
+    let (stiffness, damping) = (w * w / 2.0, 2.0 * zeta * w);
+    let floor = format!("stiffness = {stiffness}\ndamping = {damping}");
+    let dir = tempdir();
+    let scene = drop_scene("concealed-bumper", 100.0, 340.0 - drop, vx, &floor, seed);
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let value = |name: &str| {
+        c.values
+            .iter()
+            .find(|v| v.item == "wall 1" && v.name == name)
+            .cloned()
+    };
+    let impact = (2.0 * 1000.0 * drop).sqrt();
+    let depth = impact / w;
+    println!(
+        "bumper seed {seed}: S {stiffness:.1}, c {damping:.3} (contact {time:.4} s, e {e:.3}), impact {impact:.1} px/s (deepest {depth:.2} px): found {:?}, S {:?}, c {:?}, line {:?}, verdict {}",
+        c.effects_found,
+        value("stiffness").map(|v| (v.fitted, v.relative_error)),
+        value("damping").map(|v| (v.fitted, v.relative_error)),
+        value("position").and_then(|v| v.error),
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    for name in ["stiffness", "damping"] {
+        let v = value(name).expect(name);
+        let error = v.relative_error.expect("a relative error");
+        assert!(error.abs() < 0.05, "{name} {v:?}");
+    }
+    // The line within 5 % of the deepest penetration at the first impact.
+    let line = value("position").and_then(|v| v.error).expect("the line");
+    assert!(line < 0.05 * depth, "line {line} px off, deepest {depth} px");
+    let found = report["findings"]
+        .as_array()
+        .and_then(|fs| fs.iter().find(|f| f["effect"] == "bumper"))
+        .expect("a bumper finding");
+    let text = found["seen"]["text"].as_str().unwrap_or_default();
+    assert!(
+        text.contains("turning point moves with the impact speed"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_spring_bumper_is_found_within_5_percent_seed_12() {
+    check_bumper(12);
+}
+
+#[test]
+fn a_spring_bumper_is_found_within_5_percent_seed_13() {
+    check_bumper(13);
+}
+
+#[test]
+fn a_spring_bumper_is_found_within_5_percent_seed_14() {
+    check_bumper(14);
+}
+
+/// A ball bouncing on a rigid floor (restitution 0.5-0.9 and drop height 60-150 px drawn
+/// from `seed`) at `fps` frames/s stays a rigid wall: the field and the wall, no bumper.
+fn check_rigid_floor(seed: u64, fps: f64) {
+    let mut s = seed;
+    let e = draw(&mut s, 0.5, 0.9);
+    let drop = draw(&mut s, 60.0, 150.0);
+    let vx = draw(&mut s, 30.0, 70.0);
+    let dir = tempdir();
+    let scene = drop_scene(
+        "rigid-floor",
+        fps,
+        340.0 - drop,
+        vx,
+        &format!("restitution = {e}"),
+        seed,
+    );
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let names = finding_names(&report);
+    println!(
+        "rigid floor seed {seed} at {fps} frames/s: e {e:.3}, drop {drop:.1} px: found {:?}, findings {names:?}, verdict {}",
+        c.effects_found, report["verdict"]["text"]
+    );
+    assert!(!names.iter().any(|n| n == "bumper"), "{names:?}");
+    assert!(fitted.physics.walls.iter().all(|w| !w.is_bumper()));
+    assert!(c.missed.is_empty() && c.spurious.is_empty(), "{c:?}");
+}
+
+#[test]
+fn a_rigid_floor_at_100_frames_per_second_is_no_bumper() {
+    check_rigid_floor(15, 100.0);
+}
+
+#[test]
+fn a_rigid_floor_at_50_frames_per_second_is_no_bumper() {
+    check_rigid_floor(16, 50.0);
+}
+
+#[test]
+fn a_rigid_floor_at_240_frames_per_second_is_no_bumper() {
+    check_rigid_floor(17, 240.0);
+}

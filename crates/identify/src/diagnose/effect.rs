@@ -54,12 +54,17 @@ pub enum Effect {
         /// added [`Effect::Wall`]s in effect order.
         wall: usize,
     },
+    /// A spring bumper (see [`physfit_model::Wall::with_bumper`]): a straight line whose
+    /// contact is a one-sided spring of stiffness `S` (energy/px², energy `S s^2` while the
+    /// centre is `s < 0` beyond the line) and dashpot `c` (mass/s), by its normal angle
+    /// (rad), offset (px), stiffness and damping.
+    Bumper,
 }
 
 impl Effect {
     /// The effect's name in `report.json` (`gravity`, `drag`, `quadratic_drag`,
     /// `spring_damping`, `missing_spring`, `wall`, `body_drag`, `body_quadratic_drag`,
-    /// `wall_friction`).
+    /// `wall_friction`, `bumper`).
     pub fn name(self) -> &'static str {
         match self {
             Effect::Gravity => "gravity",
@@ -71,6 +76,7 @@ impl Effect {
             Effect::BodyDrag => "body_drag",
             Effect::BodyQuadraticDrag => "body_quadratic_drag",
             Effect::WallFriction { .. } => "wall_friction",
+            Effect::Bumper => "bumper",
         }
     }
 
@@ -97,6 +103,7 @@ impl Effect {
             Effect::BodyDrag => "linear drag per body".into(),
             Effect::BodyQuadraticDrag => "quadratic drag per body".into(),
             Effect::WallFriction { wall } => format!("friction at wall {}", wall + 1),
+            Effect::Bumper => "spring bumper".into(),
         }
     }
 
@@ -113,6 +120,7 @@ impl Effect {
             Effect::BodyDrag => &["body_drag"],
             Effect::BodyQuadraticDrag => &["body_quadratic_drag"],
             Effect::WallFriction { .. } => &["friction"],
+            Effect::Bumper => &["normal_angle", "offset", "stiffness", "damping"],
         }
     }
 
@@ -138,19 +146,28 @@ impl Effect {
             Effect::MissingSpring { .. } => vec![[1e-6, f64::INFINITY], positive],
             Effect::Tether { .. } => vec![free, free, [1e-6, f64::INFINITY], positive],
             Effect::Wall => vec![free, free, [0.0, 1.0]],
+            // A bumper of stiffness 0 is no wall at all.
+            Effect::Bumper => vec![free, free, [f64::MIN_POSITIVE, f64::INFINITY], positive],
         }
     }
 
     /// Returns true if and only if the effect is a smooth force the weak form can screen
-    /// (every effect but the wall and its friction, which act by impulses).
+    /// (every effect but the walls and friction, which act at contacts).
     pub fn is_smooth(self) -> bool {
         !self.acts_at_contacts()
     }
 
     /// Returns true if and only if the effect acts at contacts with a wall (the wall itself,
-    /// its friction): only where a wall is met, so its transfer is judged through the bounces.
+    /// its friction, a bumper): only where a wall is met, so its transfer is judged through
+    /// the bounces.
     pub fn acts_at_contacts(self) -> bool {
-        matches!(self, Effect::Wall | Effect::WallFriction { .. })
+        matches!(self, Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper)
+    }
+
+    /// Returns true if and only if the effect adds a wall to the model (a rigid wall or a
+    /// bumper): the model's walls are the structure's, then these in effect order.
+    pub fn adds_wall(self) -> bool {
+        matches!(self, Effect::Wall | Effect::Bumper)
     }
 }
 
@@ -159,6 +176,13 @@ impl Effect {
 pub fn wall_from_params(p: &[f64]) -> Option<Wall> {
     let n = Vec2::new(p[0].cos(), p[0].sin());
     Wall::new(n * p[1], n, p[2].clamp(0.0, 1.0))
+}
+
+/// A spring bumper from its parameters `[normal_angle (rad), offset (px), stiffness
+/// (energy/px²), damping (mass/s)]`: the line as in [`wall_from_params`].
+pub fn bumper_from_params(p: &[f64]) -> Option<Wall> {
+    let n = Vec2::new(p[0].cos(), p[0].sin());
+    Some(Wall::new(n * p[1], n, 1.0)?.with_bumper(p[2].max(f64::MIN_POSITIVE), p[3].max(0.0)))
 }
 
 /// Applies `effects` with their parameters (`params`, concatenated in effect order) to a
@@ -204,6 +228,7 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
             Effect::BodyDrag => model.physics.body_drag += p[0],
             Effect::BodyQuadraticDrag => model.physics.body_quadratic_drag += p[0],
             Effect::WallFriction { wall } => frictions.push((wall, p[0])),
+            Effect::Bumper => model.physics.walls.extend(bumper_from_params(p)),
         }
     }
     // Friction acts on a wall however it came (the structure's or an added one); a bumper

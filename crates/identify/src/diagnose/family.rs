@@ -163,6 +163,7 @@ impl Family {
                 Effect::BodyDrag => t.push(m / s),
                 Effect::BodyQuadraticDrag => t.push(m / l),
                 Effect::WallFriction { .. } => t.push(1.0),
+                Effect::Bumper => t.extend([1.0, l, m / (s * s), m / s]),
             }
         }
         t

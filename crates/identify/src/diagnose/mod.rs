@@ -21,6 +21,7 @@
 //!
 //! `docs/diagnosis.md` describes the thresholds and the `report.json` contract.
 
+mod bumper;
 mod contact;
 mod costs;
 mod effect;
@@ -407,7 +408,7 @@ fn diagnose_inner(
         let accepted_walls: Vec<[f64; 3]> = accepted
             .iter()
             .enumerate()
-            .filter(|(_, (p, _, _))| p.effect == Effect::Wall)
+            .filter(|(_, (p, _, _))| p.effect.adds_wall())
             .filter_map(|(k, _)| {
                 let o = current.family.effect_offset(k);
                 current.fit.params.get(o..o + 3).map(|v| [v[0], v[1], v[2]])
@@ -593,6 +594,8 @@ fn diagnose_inner(
         }
         // Drag per body in place of an accepted per-mass drag (see `contact`).
         verified.extend(contact::body_drag_swaps(&ctx, &current));
+        // A spring bumper in place of an accepted rigid wall (see `bumper`).
+        verified.extend(bumper::bumper_swaps(&ctx, &current));
         if debug {
             for v in &verified {
                 let effects: Vec<Effect> = v.proposals.iter().map(|p| p.effect).collect();
@@ -806,7 +809,7 @@ fn diagnose_inner(
         let ln_n = (n.max(2) as f64).ln();
         let mut out: Option<(usize, Current, ShotFit, report::Undecided)> = None;
         for (k, f) in outcome.findings.iter().enumerate() {
-            if f.identified || current.family.effects[k] == Effect::Wall || !variance.is_finite() {
+            if f.identified || current.family.effects[k].adds_wall() || !variance.is_finite() {
                 continue;
             }
             let held = Current {

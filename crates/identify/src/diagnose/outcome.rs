@@ -56,6 +56,8 @@ fn unit(effect: Effect, name: &str) -> &'static str {
         (Effect::SpringDamping | Effect::SpringDashpot { .. } | Effect::BodyDrag, _) => "mass/s",
         (Effect::BodyQuadraticDrag, _) => "mass/px",
         (Effect::WallFriction { .. }, _) => "1",
+        (Effect::Bumper, "damping") => "mass/s",
+        (Effect::Bumper, "normal_angle") => "rad",
         (_, "stiffness") => "energy/px^2",
         (_, "restitution") => "1",
         (_, "normal_x" | "normal_y") => "1",
@@ -231,6 +233,37 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                         effect.label(inp.structure)
                     )
                 };
+            }
+            Effect::Bumper => {
+                let n = Vec2::new(values[0].cos(), values[0].sin());
+                push("normal_x", n.x, errs[0].map(|e| e * n.y.abs()));
+                push("normal_y", n.y, errs[0].map(|e| e * n.x.abs()));
+                push("offset", values[1], errs[1]);
+                push("stiffness", values[2], errs[2]);
+                push("damping", values[3], errs[3]);
+                let (wall, contacts) = super::bumper::bumper_contacts(inp.obs, fam, values);
+                let mut particles: Vec<String> = contacts.iter().map(|c| id(c.particle)).collect();
+                particles.sort();
+                particles.dedup();
+                seen.particles = particles;
+                let first = inp.obs.first_frame;
+                seen.frames = contacts
+                    .iter()
+                    .map(|c| [first + c.window.0, first + c.window.1])
+                    .collect();
+                seen.region = bbox(
+                    contacts
+                        .iter()
+                        .filter_map(|c| inp.obs.positions[c.frame][c.particle]),
+                );
+                let masses: Vec<f64> = contacts
+                    .iter()
+                    .map(|c| inp.structure.particles[c.particle].mass)
+                    .collect();
+                let mass = masses.iter().sum::<f64>() / masses.len().max(1) as f64;
+                seen.text = wall.map_or_else(String::new, |w| {
+                    super::bumper::bumper_seen_text(&w, mass, &contacts)
+                });
             }
             Effect::WallFriction { wall } => {
                 push("friction", values[0], errs[0]);

@@ -382,7 +382,7 @@ impl WeakForm {
                     *v = -vel * vel.norm();
                 }
             })],
-            Effect::Wall | Effect::WallFriction { .. } => Vec::new(),
+            Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => Vec::new(),
         }
     }
 
