@@ -25,7 +25,10 @@
 //!    the best grid point is refined by a golden-section search in `ln S` between its
 //!    neighbours;
 //! 2. from there, all four of the bumper's parameters with the rest;
-//! 3. the rigid wall refitted on the same windows (its three parameters with the rest).
+//! 3. the rigid wall refitted on the same windows (its three parameters with the rest),
+//!    first: where it fits them to the noise (cost within `N + 2 ln N` variances for `N`
+//!    residuals) no bumper can pass the gate below without fitting below the noise, and
+//!    steps 1-2 are skipped.
 //!
 //! The candidate is proposed only when the bumper removes more than `2 ln N` noise variances
 //! of the windows' cost `N` residuals) against the rigid wall: a rigid bounce, which a stiff
@@ -332,6 +335,29 @@ pub fn bumper_evidence(ctx: &Context<'_>, current: &Current, k: usize) -> Option
         (bounds, typical)
     };
     let last = bumper_family.effects.len() - 1;
+    // 0. The rigid wall refitted on the windows, its three parameters with the rest. Where
+    // it fits them to the noise (cost within `N + 2 ln N` variances) no bumper can remove
+    // the gate's `2 ln N` without fitting below the noise: the profile is not computed.
+    let rigid = Windows {
+        ctx,
+        family,
+        contacts: &contacts,
+    };
+    let mut slots = vec![o, o + 1, o + 2];
+    slots.extend(others(family, k));
+    let (bounds, typical) = slot_ranges(family, &slots);
+    let (_, _, rigid_cost, n) = rigid.fit(&current.fit.params, &slots, &bounds, &typical, &observed)?;
+    let floor = noise_floor(ctx.obs.noise, ctx.scales.length);
+    let ln_n = (n.max(2) as f64).ln();
+    if rigid_cost <= (n as f64 + GATE_LN_N * ln_n) * floor * floor {
+        if debug() {
+            eprintln!(
+                "   bumper at wall effect {k}: the rigid wall fits {} contact window(s) to the noise ({rigid_cost:.4} px² over {n} residuals)",
+                contacts.len()
+            );
+        }
+        return None;
+    }
     // 1. The stiffness grid: contact times `pi / w` from a quarter frame to the window; the
     // line and damping started from the stiffness, and fitted with the wall's direction, the
     // other effects and the window states (the windows' cost profiled over the stiffness).
@@ -424,16 +450,6 @@ pub fn bumper_evidence(ctx: &Context<'_>, current: &Current, k: usize) -> Option
     typical[2] = q[b + 2];
     typical[3] = (2.0 * q[b + 2] * mean_mass).sqrt();
     let (q, _, bumper_cost, n) = windows.fit(&q, &slots, &bounds, &typical, &states)?;
-    // 3. The rigid wall refitted on the same windows, its three parameters with the rest.
-    let rigid = Windows {
-        ctx,
-        family,
-        contacts: &contacts,
-    };
-    let mut slots = vec![o, o + 1, o + 2];
-    slots.extend(others(family, k));
-    let (bounds, typical) = slot_ranges(family, &slots);
-    let (_, _, rigid_cost, _) = rigid.fit(&current.fit.params, &slots, &bounds, &typical, &observed)?;
     Some(BumperEvidence {
         init: q[b..].to_vec(),
         costs: [bumper_cost, rigid_cost],
