@@ -74,19 +74,109 @@ pub(crate) fn ladder(width: usize, height: usize) -> Vec<f64> {
 /// it neighbouring particles answer together, halfway between them. A particle's own radius
 /// is taken as up to [`OWN_RADIUS_OF_PEAK`] times the radius of its strongest answer.
 /// Touching particles may be taken for one; the scale of the one kept is still theirs.
+///
+/// The kept blobs are bucketed on a grid as they are kept, and each blob is tested only
+/// against those in the cells within its farthest reach: the same test as against every
+/// kept blob (a scan of all of them was 82 M of a 3.09 G tracking run at N = 1000, 40
+/// frames, callgrind).
 pub(crate) fn strongest(mut blobs: Vec<ScaleBlob>) -> Vec<ScaleBlob> {
     blobs.sort_by(|a, b| b.peak.total_cmp(&a.peak));
+    let inside = |k: &ScaleBlob, b: &ScaleBlob| {
+        let reach = b.radius + OWN_RADIUS_OF_PEAK * k.radius;
+        (k.x - b.x).powi(2) + (k.y - b.y).powi(2) < reach * reach
+    };
     let mut kept: Vec<ScaleBlob> = Vec::new();
+    let Some(mut grid) = KeptGrid::over(&blobs) else {
+        // Some coordinate or radius not finite: every kept blob is asked.
+        for b in blobs {
+            if !kept.iter().any(|k| inside(k, &b)) {
+                kept.push(b);
+            }
+        }
+        return kept;
+    };
     for b in blobs {
-        let inside = kept.iter().any(|k| {
-            let reach = b.radius + OWN_RADIUS_OF_PEAK * k.radius;
-            (k.x - b.x).powi(2) + (k.y - b.y).powi(2) < reach * reach
-        });
-        if !inside {
+        if !grid.near(&b).any(|i| inside(&kept[i], &b)) {
+            grid.insert(kept.len(), &b);
             kept.push(b);
         }
     }
     kept
+}
+
+/// The blobs [`strongest`] has kept (indices), bucketed by cell.
+struct KeptGrid {
+    /// Lower corner of the blobs' bounding box, px.
+    lo: [f64; 2],
+    /// Cell side, px.
+    cell: f64,
+    /// Cells along x and y.
+    dims: [usize; 2],
+    /// The kept blobs of each cell (row-major cells).
+    cells: Vec<Vec<usize>>,
+    /// Largest radius of a kept blob, px.
+    largest: f64,
+}
+
+impl KeptGrid {
+    /// An empty grid over the bounding box of `blobs`, cells about one mean spacing wide (at
+    /// least 1/256 of the larger extent); `None` when some blob's position or radius is not
+    /// finite, or a radius is negative.
+    fn over(blobs: &[ScaleBlob]) -> Option<KeptGrid> {
+        if blobs
+            .iter()
+            .any(|b| !(b.x.is_finite() && b.y.is_finite() && b.radius.is_finite() && b.radius >= 0.0))
+        {
+            return None;
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for b in blobs {
+            lo = [lo[0].min(b.x), lo[1].min(b.y)];
+            hi = [hi[0].max(b.x), hi[1].max(b.y)];
+        }
+        if blobs.is_empty() {
+            (lo, hi) = ([0.0; 2], [0.0; 2]);
+        }
+        let extent = [(hi[0] - lo[0]).max(1e-9), (hi[1] - lo[1]).max(1e-9)];
+        let cell = (extent[0] * extent[1] / blobs.len().max(1) as f64)
+            .sqrt()
+            .max(extent[0].max(extent[1]) / 256.0);
+        let dims = [0, 1].map(|k| (extent[k] / cell) as usize + 1);
+        Some(KeptGrid {
+            lo,
+            cell,
+            dims,
+            cells: vec![Vec::new(); dims[0] * dims[1]],
+            largest: 0.0,
+        })
+    }
+
+    /// The cell index along axis `k` of coordinate `v` (clamped to the grid).
+    fn index(&self, v: f64, k: usize) -> usize {
+        let c = ((v - self.lo[k]) / self.cell).floor();
+        if c <= 0.0 {
+            0
+        } else {
+            (c as usize).min(self.dims[k] - 1)
+        }
+    }
+
+    fn insert(&mut self, i: usize, b: &ScaleBlob) {
+        let c = self.index(b.y, 1) * self.dims[0] + self.index(b.x, 0);
+        self.cells[c].push(i);
+        self.largest = self.largest.max(b.radius);
+    }
+
+    /// The kept blobs that may hold `b`: those in the cells within its reach of the largest
+    /// kept blob (with a relative margin of 1e-6 for the rounding of the squared distance).
+    fn near(&self, b: &ScaleBlob) -> impl Iterator<Item = usize> + '_ {
+        let reach = (b.radius + OWN_RADIUS_OF_PEAK * self.largest) * (1.0 + 1e-6);
+        let (x0, x1) = (self.index(b.x - reach, 0), self.index(b.x + reach, 0));
+        let (y0, y1) = (self.index(b.y - reach, 1), self.index(b.y + reach, 1));
+        (y0..=y1).flat_map(move |gy| {
+            (x0..=x1).flat_map(move |gx| self.cells[gy * self.dims[0] + gx].iter().copied())
+        })
+    }
 }
 
 /// The particle at each named particle's start (px): the strongest of `blobs` (from every
@@ -322,6 +412,53 @@ mod tests {
         // The rim stronger than the whole: the whole overlaps it.
         let strong_rim = ScaleBlob { peak: 60.0, ..rim };
         assert_eq!(strongest(vec![big, strong_rim]), vec![strong_rim]);
+    }
+
+    /// The grid keeps the blobs a test against every kept blob keeps, in the same order:
+    /// random sets from fixed seeds, clustered and spread, radii from the ladder.
+    #[test]
+    fn strongest_keeps_what_a_scan_of_every_kept_blob_keeps() {
+        let every = |mut blobs: Vec<ScaleBlob>| {
+            blobs.sort_by(|a, b| b.peak.total_cmp(&a.peak));
+            let mut kept: Vec<ScaleBlob> = Vec::new();
+            for b in blobs {
+                let inside = kept.iter().any(|k| {
+                    let reach = b.radius + OWN_RADIUS_OF_PEAK * k.radius;
+                    (k.x - b.x).powi(2) + (k.y - b.y).powi(2) < reach * reach
+                });
+                if !inside {
+                    kept.push(b);
+                }
+            }
+            kept
+        };
+        let radii = ladder(512, 512);
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for (n, side) in [
+            (0, 512.0),
+            (1, 512.0),
+            (30, 40.0),
+            (500, 512.0),
+            (3000, 512.0),
+            (2000, 60.0),
+        ] {
+            let blobs: Vec<ScaleBlob> = (0..n)
+                .map(|_| ScaleBlob {
+                    x: side * next(),
+                    y: side * next(),
+                    peak: 100.0 * next(),
+                    radius: radii[(next() * radii.len() as f64) as usize % radii.len()],
+                    snr: 1.0,
+                })
+                .collect();
+            assert_eq!(strongest(blobs.clone()), every(blobs), "{n} blobs over {side} px");
+        }
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! `frame,particle,x,y` and ignore columns they do not know, so truth files
 //! (`frame,particle,x,y`) are track tables too.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::io::Write as _;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -153,19 +154,52 @@ impl TrackTable {
             path: path.to_path_buf(),
             source,
         };
-        let mut w = csv::Writer::from_writer(Vec::new());
-        if self.points.is_empty() {
-            // serde writes the header with the first row; an empty table still needs it.
-            w.write_record(["frame", "particle", "x", "y", "mass", "size", "ep", "flag"])
-                .map_err(|e| io_err(std::io::Error::other(e)))?;
-        }
-        for p in &self.points {
-            w.serialize(p).map_err(|e| io_err(std::io::Error::other(e)))?;
-        }
-        let bytes = w
-            .into_inner()
-            .map_err(|e| io_err(std::io::Error::other(e.to_string())))?;
+        let bytes = self.csv_bytes().map_err(|e| io_err(std::io::Error::other(e)))?;
         crate::write_atomic(path, &bytes).map_err(io_err)
+    }
+
+    /// The table as CSV bytes: the header, then each point's fields as the `csv` crate
+    /// writes them through serde (integers in decimal, floats by `ryu`, the flag's lowercase
+    /// name, a name quoted by `csv` itself where it holds more than letters, digits, `_`,
+    /// `-` and `.`), written straight into the buffer: through serde and the `csv` writer
+    /// the rows took 3.6 k instructions each (143 M of a 3.09 G tracking run at N = 1000,
+    /// 40 frames, callgrind), half of them outside the float formatting.
+    fn csv_bytes(&self) -> Result<Vec<u8>, csv::Error> {
+        let mut out: Vec<u8> = Vec::with_capacity(64 * (self.points.len() + 1));
+        out.extend_from_slice(b"frame,particle,x,y,mass,size,ep,flag\n");
+        let mut float = ryu::Buffer::new();
+        // Names that need more than copying, as `csv` writes them in a record's second field.
+        let mut quoted: HashMap<&str, Vec<u8>> = HashMap::new();
+        for p in &self.points {
+            write!(out, "{},", p.frame).expect("writing to a Vec");
+            let name = p.particle.as_str();
+            if name
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+            {
+                out.extend_from_slice(name.as_bytes());
+            } else {
+                if !quoted.contains_key(name) {
+                    let mut w = csv::Writer::from_writer(Vec::new());
+                    w.write_record(["0", name])?;
+                    let bytes = w.into_inner().map_err(|e| csv::Error::from(e.into_error()))?;
+                    // Without the first field's "0," and the record's "\n".
+                    quoted.insert(name, bytes[2..bytes.len() - 1].to_vec());
+                }
+                out.extend_from_slice(&quoted[name]);
+            }
+            for v in [p.x, p.y, p.mass, p.size, p.ep] {
+                out.push(b',');
+                out.extend_from_slice(float.format(v).as_bytes());
+            }
+            let flag: &[u8] = match p.flag {
+                PointFlag::Detected => b",detected\n",
+                PointFlag::Split => b",split\n",
+                PointFlag::Interpolated => b",interpolated\n",
+            };
+            out.extend_from_slice(flag);
+        }
+        Ok(out)
     }
 
     /// Track names in order of first appearance.
@@ -180,14 +214,23 @@ impl TrackTable {
 
     /// The points of each track, by name, each sorted by frame.
     pub fn by_particle(&self) -> BTreeMap<&str, Vec<&TrackPoint>> {
-        let mut out: BTreeMap<&str, Vec<&TrackPoint>> = BTreeMap::new();
+        // Grouped through a hash map, the B-tree built once from the groups: an ordered-map
+        // entry per point compared names about log2(tracks) times each (62 M of a 3.09 G
+        // tracking run at N = 1000, 40 frames, callgrind).
+        let mut group_of: HashMap<&str, usize> = HashMap::new();
+        let mut groups: Vec<(&str, Vec<&TrackPoint>)> = Vec::new();
         for p in &self.points {
-            out.entry(p.particle.as_str()).or_default().push(p);
+            let name = p.particle.as_str();
+            let g = *group_of.entry(name).or_insert_with(|| {
+                groups.push((name, Vec::new()));
+                groups.len() - 1
+            });
+            groups[g].1.push(p);
         }
-        for v in out.values_mut() {
+        for (_, v) in &mut groups {
             v.sort_by_key(|p| p.frame);
         }
-        out
+        groups.into_iter().collect()
     }
 
     /// One past the largest frame index (0 for an empty table).
@@ -203,6 +246,71 @@ impl TrackTable {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The rows written field by field are the bytes serde wrote: every flag, non-finite
+    /// and extreme values, names that need quoting, random values from a fixed seed.
+    #[test]
+    fn csv_bytes_are_what_serde_writes() {
+        let mut state = 0x853c_49e6_748f_ea9b_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let names = [
+            "0",
+            "p17",
+            "a,b",
+            "say \"hi\"",
+            "two\nlines",
+            " ",
+            "ü",
+            "",
+            "cr\r",
+            "tab\t",
+            "#x",
+            "a-b_c.d",
+        ];
+        let flags = [PointFlag::Detected, PointFlag::Split, PointFlag::Interpolated];
+        let specials = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            0.0,
+            -0.0,
+            1e-7,
+            1e300,
+            5e-324,
+        ];
+        let mut points = Vec::new();
+        for k in 0..500usize {
+            let mut value = || match next() % 4 {
+                0 => specials[(next() % specials.len() as u64) as usize],
+                1 => (next() >> 11) as f64 / (1u64 << 53) as f64 * 512.0,
+                2 => f64::from_bits(next()),
+                _ => (next() % 1000) as f64,
+            };
+            points.push(TrackPoint {
+                frame: if k % 50 == 0 { usize::MAX - k } else { k },
+                particle: names[k % names.len()].to_string(),
+                x: value(),
+                y: value(),
+                mass: value(),
+                size: value(),
+                ep: value(),
+                flag: flags[k % 3],
+            });
+        }
+        let table = TrackTable { points };
+        let mut w = csv::Writer::from_writer(Vec::new());
+        for p in &table.points {
+            w.serialize(p).unwrap();
+        }
+        assert_eq!(table.csv_bytes().unwrap(), w.into_inner().unwrap());
+        let empty = TrackTable::default().csv_bytes().unwrap();
+        assert_eq!(empty, b"frame,particle,x,y,mass,size,ep,flag\n");
+    }
 
     #[test]
     fn reads_truth_columns_and_extra_columns() {

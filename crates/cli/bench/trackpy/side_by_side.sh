@@ -12,7 +12,8 @@ trap 'rm -rf "$work"' EXIT
 python3 -m venv "$work/venv"
 "$work/venv/bin/pip" install -q trackpy numba pillow
 (cd "$root" && cargo build --release -q)
-physfit="$root/target/release/physfit"
+# Where cargo put it: CARGO_TARGET_DIR when set (a worktree with its own target directory).
+physfit="${CARGO_TARGET_DIR:-$root/target}/release/physfit"
 echo "| particles | frames | physfit (s) | physfit tracks | trackpy (s) | trackpy tracks | trackpy / physfit |"
 echo "|---:|---:|---:|---:|---:|---:|---:|"
 for n in 10 100 1000; do

@@ -1,5 +1,6 @@
 //! Per-thread blob finding and location, with joins of close detections.
 
+use crate::distance::closer_than;
 use crate::{
     find_blobs_forming, find_blobs_with_scratch, refine_centroids_with_scratch, Background, BlobSet,
     DetectParameters, Detection, Frame, FrameDecoder, FrameView, LocateScratch, Scratch,
@@ -187,7 +188,9 @@ pub(super) fn join_close(found: &[Detection], radius: f64) -> Option<(Vec<[f64; 
             if found[j].x - found[i].x >= radius {
                 break;
             }
-            if (found[j].x - found[i].x).hypot(found[j].y - found[i].y) < radius {
+            // `hypot`'s answer, without the library call where it is plain (311 k calls,
+            // 17 M instructions at N = 1000, 40 frames).
+            if closer_than(found[j].x - found[i].x, found[j].y - found[i].y, radius) {
                 sets.union(i, j);
                 any = true;
             }

@@ -8,6 +8,7 @@
 //! parallel; linking is sequential.
 
 mod finder;
+mod neighbours;
 mod options;
 mod outcome;
 mod plane;

@@ -39,9 +39,10 @@
 //! where the ball flies fast moved 2.3 px with no such bound).
 
 use super::finder::Workers;
+use super::neighbours::Neighbours;
 use super::size_class::SizeClass;
 use super::stage::Pass;
-use crate::distance::{closer_than, nearest_distance};
+use crate::distance::closer_than;
 use crate::{Background, Detection, FrameView};
 use std::collections::BTreeMap;
 
@@ -99,7 +100,7 @@ pub(super) fn fit_ring_plane(
     let near: Vec<[f64; 2]> = others
         .iter()
         .copied()
-        .filter(|o| (o[0] - c[0]).hypot(o[1] - c[1]) < outer + keep_out)
+        .filter(|o| closer_than(o[0] - c[0], o[1] - c[1], outer + keep_out))
         .collect();
     let keep2 = keep_out * keep_out;
     let mut pixels: Vec<[f64; 3]> = Vec::new();
@@ -358,6 +359,7 @@ pub(super) fn correct_for_planes(
     noise: Noise,
 ) {
     let points: Vec<[f64; 2]> = found.iter().map(|d| [d.x, d.y]).collect();
+    let points = Neighbours::new(&points);
     for (i, d) in found.iter_mut().enumerate() {
         let image = Signal {
             signal,
@@ -413,8 +415,8 @@ pub(super) struct Signal<'a> {
     pub(super) height: usize,
 }
 
-/// Where estimate `i` of `points` (px) moves when located in a window reaching as far as its
-/// particle does ([`extent`], at least `window`), on the signal with the plane fitted on the
+/// Where estimate `i` of `points` (px, with their grid) moves when located in a window
+/// reaching as far as its particle does ([`extent`], at least `window`), on the signal with the plane fitted on the
 /// ring just beyond taken out; `None` where it stays: an estimate whose window another's
 /// reaches (their pixels are split between them by [`crate::refine_centroids`]), one whose
 /// particle ends within `window` and whose ring shows no slope beyond [`SIGNIFICANT`]
@@ -424,7 +426,7 @@ pub(super) struct Signal<'a> {
 #[allow(clippy::too_many_arguments)]
 pub(super) fn corrected_position(
     image: &Signal<'_>,
-    points: &[[f64; 2]],
+    points: &Neighbours<'_>,
     i: usize,
     window: f64,
     most: f64,
@@ -440,17 +442,13 @@ pub(super) fn corrected_position(
     if width == 0 || height == 0 {
         return None;
     }
-    let c = points[i];
+    let c = points.points[i];
     let keep_out = window + 1.0;
-    let nearest = nearest_distance(points, c, i);
-    // Only points whose keep-out disc can reach the widest ring matter.
+    // Only points whose keep-out disc can reach the widest ring matter. The nearest
+    // distance is exact below `matters`, which exceeds both bounds it is compared with
+    // (`2 window + 2` and `most + keep_out`): beyond it, what follows is the same.
     let matters = 1.5 * most.max(window) + 3.0 + 2.0 * keep_out;
-    let others: Vec<[f64; 2]> = points
-        .iter()
-        .enumerate()
-        .filter(|&(j, p)| j != i && closer_than(p[0] - c[0], p[1] - c[1], matters))
-        .map(|(_, p)| *p)
-        .collect();
+    let (nearest, others) = points.near(i, matters);
     if nearest < 2.0 * window + 2.0 {
         return None;
     }
@@ -608,13 +606,10 @@ pub(super) fn planes_move_points(
                     height,
                 };
                 let at: Vec<[f64; 2]> = f.detections.iter().map(|d| [d.x, d.y]).collect();
+                let at = Neighbours::new(&at);
                 let (window, most) = (class.window(), class.plane_reach());
                 for &(name, p) in points {
-                    let Some(k) = f
-                        .detections
-                        .iter()
-                        .position(|d| closer_than(p[0] - d.x, p[1] - d.y, 1.0))
-                    else {
+                    let Some(k) = at.first_within(p, 1.0) else {
                         continue;
                     };
                     // A track that stayed, with an even ring, in half the samples read
@@ -745,7 +740,7 @@ mod tests {
         };
         let p = corrected_position(
             &image,
-            &[[plain[0].x, plain[0].y]],
+            &Neighbours::new(&[[plain[0].x, plain[0].y]]),
             0,
             window,
             30.0,
@@ -771,7 +766,15 @@ mod tests {
             height: h,
         };
         assert_eq!(
-            corrected_position(&image, &[c], 0, 13.0, 20.0, UNIT, Spread::Checked),
+            corrected_position(
+                &image,
+                &Neighbours::new(&[c]),
+                0,
+                13.0,
+                20.0,
+                UNIT,
+                Spread::Checked
+            ),
             None
         );
     }
@@ -787,12 +790,28 @@ mod tests {
             height: h,
         };
         assert_eq!(
-            corrected_position(&image, &[[12.0, 48.0]], 0, 13.0, 20.0, UNIT, Spread::Checked),
+            corrected_position(
+                &image,
+                &Neighbours::new(&[[12.0, 48.0]]),
+                0,
+                13.0,
+                20.0,
+                UNIT,
+                Spread::Checked
+            ),
             None
         );
         let points = [[48.0, 48.0], [70.0, 48.0]];
         assert_eq!(
-            corrected_position(&image, &points, 0, 13.0, 20.0, UNIT, Spread::Checked),
+            corrected_position(
+                &image,
+                &Neighbours::new(&points),
+                0,
+                13.0,
+                20.0,
+                UNIT,
+                Spread::Checked
+            ),
             None
         );
     }

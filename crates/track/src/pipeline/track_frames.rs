@@ -21,7 +21,7 @@ use crate::{
 };
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 /// Frames sampled (evenly over the window) to estimate the background and noise.
@@ -475,10 +475,15 @@ fn merge_classes(by_class: Vec<Vec<FrameDetections>>) -> Vec<FrameDetections> {
 /// The tracks of `table` with a single point, in a frame strictly inside `frames` (first and
 /// last, inclusive).
 pub(super) fn one_frame_tracks(table: &TrackTable, frames: (usize, usize)) -> BTreeSet<String> {
-    table
-        .by_particle()
+    // Each track's point count and first frame, by name: its point list (as
+    // `TrackTable::by_particle` gives it) is not needed.
+    let mut tracks: HashMap<&str, (usize, usize)> = HashMap::new();
+    for p in &table.points {
+        tracks.entry(p.particle.as_str()).or_insert((0, p.frame)).0 += 1;
+    }
+    tracks
         .into_iter()
-        .filter(|(_, points)| points.len() == 1 && points[0].frame > frames.0 && points[0].frame < frames.1)
+        .filter(|&(_, (count, frame))| count == 1 && frame > frames.0 && frame < frames.1)
         .map(|(id, _)| id.to_string())
         .collect()
 }
