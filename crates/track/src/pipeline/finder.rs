@@ -59,8 +59,19 @@ impl Finder {
         // measured once either way.
         let gain = (background.model == BackgroundModel::Constant).then(|| background.gain_to_remove(frame));
         let offset = gain.flatten().and_then(|g| background.uniform_gain_offset(g));
-        let blobs = if background.blind.is_empty() {
-            find_blobs_forming(
+        // Two closures, not one that tests the offset: the plain one stays the one the
+        // detector's row loop inlines (with the test in it, N = 10 of the speed benchmark
+        // took 12 % more instructions).
+        let blobs = match offset {
+            None if background.blind.is_empty() => find_blobs_forming(
+                &mut self.signal,
+                width,
+                height,
+                params,
+                &mut self.detect,
+                |pixels, out| background.signal_range(frame, pixels, out),
+            ),
+            Some(o) if background.blind.is_empty() => find_blobs_forming(
                 &mut self.signal,
                 width,
                 height,
@@ -68,17 +79,17 @@ impl Finder {
                 &mut self.detect,
                 |pixels, out| {
                     background.signal_range(frame, pixels, out);
-                    if let Some(o) = offset {
-                        for v in out.iter_mut() {
-                            *v -= o;
-                        }
+                    for v in out.iter_mut() {
+                        *v -= o;
                     }
                 },
-            )
-        } else {
-            // Blind pixels are filled from their neighbours, so the signal is formed whole first.
-            background.signal_into(frame, &mut self.signal);
-            find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
+            ),
+            _ => {
+                // Blind pixels are filled from their neighbours, so the signal is formed whole
+                // first.
+                background.signal_into(frame, &mut self.signal);
+                find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
+            }
         };
         if levelled && offset.is_none() {
             if let Some(g) = gain.unwrap_or_else(|| background.gain_to_remove(frame)) {
