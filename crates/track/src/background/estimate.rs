@@ -119,11 +119,16 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         brightest: 0.0,
         clip_offset: 0.0,
         structure_threshold: tau,
+        saturated_fraction: 0.0,
         blind: BlindPixels::default(),
     };
     bg.measure_signal(samples);
     bg.reference_gain = samples.iter().map(|&f| bg.frame_gain(f)).sum::<f64>() / k as f64;
     bg.brightest = f64::from(bg.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+    bg.saturated_fraction = samples
+        .iter()
+        .map(|&f| bg.saturated_fraction_of(f))
+        .fold(0.0, f64::max);
     bg
 }
 impl Background {

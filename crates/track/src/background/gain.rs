@@ -9,6 +9,10 @@ use crate::frames::FrameView;
 /// background of 150 under noise 5.
 const GAIN_SAMPLES: usize = 8_192;
 
+/// Fraction of a sample's values at the clip level above which the exposure saturates the
+/// background (see [`Background::uniform_gain_offset`]).
+const SATURATED_LIMIT: f64 = 0.05;
+
 impl Background {
     /// The brightness gain of `frame` against the background image: the median over a
     /// sample of pixels of `pixel / background` (each pixel dithered over one grey level, so
@@ -25,6 +29,25 @@ impl Background {
                 self.grey8_gain_on_level(samples)
             }
             FrameView::Grey8 { samples, .. } => self.gain_of(samples, f32::from),
+        }
+    }
+
+    /// The fraction of `frame`'s values at the 8-bit clip level (255 or more), over the
+    /// values [`Background::frame_gain`] looks at.
+    pub(super) fn saturated_fraction_of(&self, frame: FrameView<'_>) -> f64 {
+        let count = |n: usize, stride: usize, at: &dyn Fn(usize) -> bool| {
+            let picked = n.div_ceil(stride).max(1);
+            (0..n).step_by(stride).filter(|&i| at(i)).count() as f64 / picked as f64
+        };
+        match frame {
+            FrameView::Grey8 { samples, .. } => {
+                let (n, stride) = self.gain_sampling(samples.len());
+                count(n, stride, &|i| samples[i] == u8::MAX)
+            }
+            FrameView::Frame(f) => {
+                let (n, stride) = self.gain_sampling(f.data.len());
+                count(n, stride, &|i| f.data[i] >= 254.5)
+            }
         }
     }
 
@@ -113,6 +136,26 @@ impl Background {
     pub fn gain_to_remove<'a>(&self, frame: impl Into<FrameView<'a>>) -> Option<f64> {
         let g = self.frame_gain(frame) / self.reference_gain;
         (((g - 1.0) * self.brightest).abs() >= 0.1 * self.noise_sigma).then_some(g)
+    }
+
+    /// The offset (grey levels) that the gain `g` (from [`Background::gain_to_remove`]) adds
+    /// to the signal of every pixel against a [`BackgroundModel::Constant`] background, to be
+    /// subtracted from it; `None` for a per-pixel background (where the offset follows the
+    /// background's own brightness) and where the exposure saturates the background (more
+    /// than [`SATURATED_LIMIT`] of some sample's values at 255: clipped pixels do not follow
+    /// the gain). On a flat background a gain is one offset over the whole frame, so it can
+    /// be taken out of the signal the blobs are found in: their noise mask assumes a
+    /// background at zero, and an exposure drift of 9 % on a background of 181 levels (sweep
+    /// style 1026) shifts it by 16 levels, four standard deviations of the smoothed noise,
+    /// which floods the mask with background where the frame is dark (and the particles'
+    /// measured extent with it) and shrinks it where the frame is bright.
+    #[must_use]
+    pub fn uniform_gain_offset(&self, g: f64) -> Option<f32> {
+        if self.model != BackgroundModel::Constant || self.saturated_fraction > SATURATED_LIMIT {
+            return None;
+        }
+        let ub: f32 = self.level.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
+        Some((g as f32 - 1.0) * ub)
     }
 
     /// Removes the gain `g` (from [`Background::gain_to_remove`]) from `signal`, in place.

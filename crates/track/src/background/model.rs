@@ -57,6 +57,11 @@ pub struct Background {
     /// The brightest background value, grey levels: the scale against which a change of
     /// gain is judged significant (see [`Background::remove_gain`]).
     pub brightest: f64,
+    /// The largest fraction, over the samples, of a frame's values at the 8-bit clip level
+    /// (255): where the exposure drives part of the background into saturation, a gain is
+    /// no longer one offset over a flat background (see
+    /// [`Background::uniform_gain_offset`]).
+    pub saturated_fraction: f64,
     /// Pixel noise measured from differences of consecutive samples, grey levels (sets the
     /// threshold of the colour direction).
     pub temporal_noise: f64,

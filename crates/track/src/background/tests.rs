@@ -354,3 +354,85 @@ fn colour_direction_points_to_the_particle_colour() {
     let s = bg.signal(&samples[0]);
     assert!((s[9 * 30 + 4] - n).abs() < 0.5);
 }
+
+/// Dark spots on a flat light background under noise, each frame scaled by its own
+/// exposure: against the constant level, the offset [`Background::uniform_gain_offset`]
+/// takes out leaves the background's signal the same in every frame (within a tenth of the
+/// noise and a level), whatever the drift (±10 %); where the exposure drives a fifth of the background to 255 it
+/// declines; against a per-pixel background it declines.
+#[test]
+fn a_flat_background_loses_its_exposure_offset() {
+    use rand::{Rng, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+    for seed in 0..4u64 {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(40 + seed);
+        let level = rng.gen_range(120.0..200.0f32);
+        let sigma = rng.gen_range(5.0..30.0f32);
+        let noise = Normal::new(0.0, sigma).unwrap();
+        let (w, h) = (64usize, 48usize);
+        let gains: Vec<f32> = (0..12).map(|_| rng.gen_range(0.9..1.1)).collect();
+        let frames: Vec<Frame> = gains
+            .iter()
+            .map(|&g| {
+                let mut f = Frame::filled(w, h, &[level]);
+                for (i, v) in f.data.iter_mut().enumerate() {
+                    let (x, y) = (i % w, i / w);
+                    let spot = (x as f32 - 20.0).hypot(y as f32 - 24.0) < 4.0;
+                    let clean = if spot { level - 120.0 } else { level };
+                    *v = (g * clean + noise.sample(&mut rng)).round().clamp(0.0, 255.0);
+                }
+                f
+            })
+            .collect();
+        let bg = estimate_background(&views(&frames), BackgroundChoice::Constant);
+        assert!(
+            bg.saturated_fraction < 0.05,
+            "seed {seed}: {}",
+            bg.saturated_fraction
+        );
+        // The background's signal less the offset, per frame: the same in every frame (the
+        // gain is taken relative to the samples' mean gain, so it need not be zero).
+        let mut residuals = Vec::new();
+        for f in &frames {
+            let signal = bg.signal(f);
+            let mut background: Vec<f32> = signal
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| (*i % w) as f32 > 30.0)
+                .map(|(_, &s)| s)
+                .collect();
+            let before = median_of(&mut background);
+            let offset = bg
+                .gain_to_remove(f)
+                .and_then(|g| bg.uniform_gain_offset(g))
+                .unwrap_or(0.0);
+            residuals.push(before - offset);
+        }
+        let (lo, hi) = residuals
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &r| {
+                (lo.min(r), hi.max(r))
+            });
+        assert!(
+            hi - lo < 0.1 * sigma + 1.0,
+            "seed {seed}: background signal less the offset {lo:.2} to {hi:.2} (noise {sigma:.1})"
+        );
+        // Driven into saturation: the clipped background does not follow the gain.
+        let bright: Vec<Frame> = frames
+            .iter()
+            .map(|f| Frame {
+                data: f.data.iter().map(|v| (v + 255.0 - level).min(255.0)).collect(),
+                ..f.clone()
+            })
+            .collect();
+        let sat = estimate_background(&views(&bright), BackgroundChoice::Constant);
+        assert!(
+            sat.saturated_fraction > 0.2,
+            "seed {seed}: {}",
+            sat.saturated_fraction
+        );
+        assert_eq!(sat.uniform_gain_offset(1.05), None, "seed {seed}");
+        let per_pixel = estimate_background(&views(&frames), BackgroundChoice::PerPixel);
+        assert_eq!(per_pixel.uniform_gain_offset(1.05), None, "seed {seed}");
+    }
+}

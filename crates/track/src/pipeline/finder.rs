@@ -2,8 +2,8 @@
 
 use crate::distance::closer_than;
 use crate::{
-    find_blobs_forming, find_blobs_with_scratch, refine_centroids_with_scratch, Background, BlobSet,
-    DetectParameters, Detection, Frame, FrameDecoder, FrameView, LocateScratch, Scratch,
+    find_blobs_forming, find_blobs_with_scratch, refine_centroids_with_scratch, Background, BackgroundModel,
+    BlobSet, DetectParameters, Detection, Frame, FrameDecoder, FrameView, LocateScratch, Scratch,
 };
 use std::collections::BTreeMap;
 
@@ -55,22 +55,47 @@ impl Finder {
         let frame = background.matching(frame, &mut self.converted);
         let (width, height) = frame.size();
         self.signal.resize(width * height, 0.0);
-        let blobs = if background.blind.is_empty() {
-            find_blobs_forming(
+        // Against a constant level the gain is one offset over the frame, taken out before
+        // the blobs are found (their noise mask assumes a background at zero); the gain is
+        // measured once either way.
+        let gain = (background.model == BackgroundModel::Constant).then(|| background.gain_to_remove(frame));
+        let offset = gain.flatten().and_then(|g| background.uniform_gain_offset(g));
+        // Two closures, not one that tests the offset: the plain one stays the one the
+        // detector's row loop inlines (with the test in it, N = 10 of the speed benchmark
+        // took 12 % more instructions).
+        let blobs = match offset {
+            None if background.blind.is_empty() => find_blobs_forming(
                 &mut self.signal,
                 width,
                 height,
                 params,
                 &mut self.detect,
                 |pixels, out| background.signal_range(frame, pixels, out),
-            )
-        } else {
-            // Blind pixels are filled from their neighbours, so the signal is formed whole first.
-            background.signal_into(frame, &mut self.signal);
-            find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
+            ),
+            Some(o) if background.blind.is_empty() => find_blobs_forming(
+                &mut self.signal,
+                width,
+                height,
+                params,
+                &mut self.detect,
+                |pixels, out| {
+                    background.signal_range(frame, pixels, out);
+                    for v in out.iter_mut() {
+                        *v -= o;
+                    }
+                },
+            ),
+            _ => {
+                // Blind pixels are filled from their neighbours, so the signal is formed whole
+                // first.
+                background.signal_into(frame, &mut self.signal);
+                find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect)
+            }
         };
-        if levelled {
-            background.remove_gain(frame, &mut self.signal);
+        if levelled && offset.is_none() {
+            if let Some(g) = gain.unwrap_or_else(|| background.gain_to_remove(frame)) {
+                background.apply_gain(g, &mut self.signal);
+            }
         }
         blobs
     }
