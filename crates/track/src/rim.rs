@@ -20,6 +20,11 @@ use nalgebra::{Matrix3, Vector3};
 const ROUNDS: usize = 20;
 /// [`rim_centre`] stops when a round moves the centre by less than this, px.
 const SETTLED: f64 = 1e-3;
+/// A particle is hollow where the mean of its core (within half the rim's radius) stands
+/// under this fraction of its rim's peak: a ring blurred by a third of its radius still
+/// dips to 0.5-0.7 there; a disc, a spot, a shaded sphere or a textured ball (whose texture
+/// averages out round each ring) peaks at its core.
+const DEPTH: f64 = 0.8;
 /// Most stages of [`rim_centre`] (the rim's band measured again about the last centre).
 const STAGES: usize = 3;
 /// [`rim_centre`] stops when a stage moves the centre by less than this, px.
@@ -112,15 +117,22 @@ pub(crate) fn rim_centre(
         if !(peak > 3.0 * noise / (count[peak_at] as f64).sqrt() && peak > 0.0) {
             return None;
         }
-        // Hollow: the rings within half the rim's radius stand under half the peak.
         let rim = peak_at as f64 + 0.5;
         let core_bins = ((0.5 * rim) as usize).max(1);
         let (core_sum, core_count) =
             (0..core_bins).fold((0.0, 0usize), |(s, n), k| (s + sum[k], n + count[k]));
-        let half = 0.5 * peak;
-        if core_count == 0 || core_sum / core_count as f64 >= half {
+        if core_count == 0 {
             return None;
         }
+        let core = core_sum / core_count as f64;
+        // Hollow: the core stands under DEPTH of the peak, by 3 standard errors of the noise
+        // at least. The rim's band lies between the crossings of the level half way from the
+        // core (or zero) to the peak: a thin ring's half maximum, a blurred one's mid-rim.
+        let dip = 3.0 * noise * (1.0 / count[peak_at] as f64 + 1.0 / core_count as f64).sqrt();
+        if core >= DEPTH * peak || peak - core <= dip {
+            return None;
+        }
+        let half = 0.5 * (core.max(0.0) + peak);
         // Where the profile crosses half the peak, inside and outside the rim, interpolated
         // between ring centres.
         let crossing = |ks: &mut dyn Iterator<Item = usize>| -> Option<f64> {

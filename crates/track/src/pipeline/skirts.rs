@@ -21,7 +21,7 @@ const SKIRT_FRAMES: usize = 8;
 /// ([`Skirt::inner`]) may sit inside a hollow particle: its rim is measured
 /// ([`rim_centre`]). A flat disc reads 1, a spot more, a ring followed at about its own
 /// radius near 0.
-const HOLLOW: f64 = 0.5;
+const HOLLOW: f64 = 0.9;
 
 /// The skirts ([`skirts`]) of the detected points of `table` in up to
 /// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
