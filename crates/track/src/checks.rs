@@ -20,16 +20,25 @@
 //!   that is below the background by as much (a particle left in a per-pixel background
 //!   shows as a dark ring round its track), and for one whose parts above and below the
 //!   background cancel in the mean (its mean magnitude beyond the noise's counts).
+//! * **Off the rim.** A ring's located points (its centroids) should keep one offset from its
+//!   rim's centre ([`crate::rim`]), the centroid's lean with the light, give or take their
+//!   errors; points that scatter about it far more have followed something else in some
+//!   frames (see [`MAX_RIM_SCATTER_SIGMAS`]).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
 //! * **Lost inside the image.** A track with frames missing between two of its points (the
 //!   particle lost, bridged no farther, and found again) whose points either side lie too far
 //!   inside the image for the particle to have left it and come back in those frames, at
 //!   twice the largest step the track shows between detected points, and no other track
 //!   within `2 R + 2` of them (a neighbour it crossed or merged with may have hidden it): the
-//!   particle was there alone and was not followed.
+//!   particle was there alone and was not followed. Likewise a track whose particle is lost
+//!   for good, its last detected point farther inside the image than it can travel to the
+//!   border in the frames left.
 
 use std::collections::BTreeMap;
 
+#[cfg(doc)]
+use crate::rim::rim_centre;
+use crate::rim::Rim;
 use crate::track_table::{PointFlag, TrackTable};
 
 /// Largest skirt (see the module doc) of a particle whose radius is the one in use.
@@ -63,6 +72,16 @@ pub(crate) const MAX_LOPSIDED: f64 = 0.12;
 /// with a skirt under 0.04.
 pub(crate) const MAX_ELONGATED: f64 = 0.25;
 
+/// Largest scatter of a ring's located points about its rim's centre: the offsets' spread
+/// about their mean over the sample frames, as a chi-square over its degrees of freedom
+/// `2 (n - 1)` against the rim's and the point's own standard errors, may exceed 1 by this
+/// many of its standard deviations `sqrt(2 / (2 (n - 1)))` (see [`Concern::OffRim`]). A
+/// steady offset is allowed: a centroid leans with the light, and the rim's centre does not.
+/// Measured (`ring_neighbours_table`): followed rings 0.3-3.7 (the errors leave out the
+/// centroid's own bias from frame to frame), a track 1.3-1.7 px off its ring (seed 3003 at
+/// 6 px) 9.7, the limit 7.0 there (8 frames).
+pub(crate) const MAX_RIM_SCATTER_SIGMAS: f64 = 12.0;
+
 /// A particle's skirt in one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Skirt {
@@ -77,6 +96,13 @@ pub(crate) struct Skirt {
     /// pi)`), over the disc's mean signal: as large as `level` where the ring's signal has
     /// one sign, larger where parts above and below the background cancel in `level`.
     pub(crate) magnitude: f64,
+    /// The mean signal within half the radius over the disc's: well under 1 where the
+    /// particle is hollow about the point (a ring), about 1 or more for a disc or a spot.
+    pub(crate) inner: f64,
+    /// The rim of a hollow particle about the point ([`rim_centre`]), where measured.
+    pub(crate) rim: Option<Rim>,
+    /// The point's own standard error on one axis (its `ep`), px.
+    pub(crate) point_error: f64,
 }
 
 /// Why a track does not follow one particle.
@@ -106,6 +132,31 @@ pub(crate) enum Concern {
         /// How far inside the image its points either side of the gap lie, px (beyond the
         /// radius).
         inside: [f64; 2],
+        /// The largest step between its detected points, px per frame.
+        step: f64,
+    },
+    /// The particle is hollow about its points (a ring), and its located points scatter
+    /// about its rim's centre far more than their errors allow.
+    OffRim {
+        /// The offsets' chi-square over its degrees of freedom (see
+        /// [`MAX_RIM_SCATTER_SIGMAS`]).
+        scatter: f64,
+        /// The rim's centre's distance from the point, px (median over `frames`).
+        offset: f64,
+        /// The standard error of the offset on one axis (the rim's and the point's), px
+        /// (median over `frames`).
+        error: f64,
+        /// The rim's radius, px (median over `frames`).
+        rim_radius: f64,
+        /// Sample frames it was measured in.
+        frames: Vec<usize>,
+    },
+    /// The particle was lost for good where it cannot have left the image.
+    Vanished {
+        /// First and last frame without a detection (the last of the window).
+        frames: (usize, usize),
+        /// How far inside the image its last detected point lies, px (beyond the radius).
+        inside: f64,
         /// The largest step between its detected points, px per frame.
         step: f64,
     },
@@ -166,6 +217,28 @@ impl std::fmt::Display for TrackConcern {
                 inside[1],
                 2.0 * step
             ),
+            Concern::OffRim {
+                scatter,
+                offset,
+                error,
+                rim_radius,
+                frames,
+            } => write!(
+                f,
+                "{p}: it is a ring (hollow about its points, rim radius {rim_radius:.1} px) whose located points lie \
+                 {offset:.2} px from its rim's centre and scatter about it {scatter:.1} times as much as their errors \
+                 ({error:.2} px) allow (frames {}): the points do not follow the ring",
+                list(frames)
+            ),
+            Concern::Vanished { frames, inside, step } => write!(
+                f,
+                "{p}: lost from frame {} to the last, {}, though its last position lies {inside:.1} px inside the \
+                 image, farther than it moves in those frames (at most {:.1} px a frame, twice its largest step): it \
+                 was in view and not followed",
+                frames.0,
+                frames.1,
+                2.0 * step
+            ),
             Concern::MostlyUnseen { detected, frames } => write!(
                 f,
                 "{p}: detected in only {detected} of its {frames} frames (the rest bridged from its motion)"
@@ -189,11 +262,14 @@ fn list(frames: &[usize]) -> String {
 
 /// The concerns of every track of `table` for particles of radius `radius` (px), with the
 /// skirts of their points measured in some frames (`skirts[particle]`: frame and skirt each,
-/// from [`skirts`]).
+/// from [`skirts`]), and the skirts of the points as located (`located`, before rings were
+/// moved to their rims' centres), whose rims say whether the located points agreed with them
+/// ([`Concern::OffRim`]).
 pub(crate) fn check_tracks(
     table: &TrackTable,
     radius: f64,
     skirts: &BTreeMap<String, Vec<(usize, Skirt)>>,
+    located: &BTreeMap<String, Vec<(usize, Skirt)>>,
 ) -> Vec<TrackConcern> {
     let mut out = Vec::new();
     for (particle, points) in table.by_particle() {
@@ -234,9 +310,55 @@ pub(crate) fn check_tracks(
                     frames: measured.iter().map(|m| m.0).collect(),
                 },
             });
+            continue;
+        }
+        if let Some(concern) = located.get(particle).and_then(|m| off_rim(m)) {
+            out.push(TrackConcern {
+                particle: particle.to_string(),
+                concern,
+            });
         }
     }
     out
+}
+
+/// [`Concern::OffRim`] where the particle is hollow about its points in most measured
+/// frames (3 at least) and their offsets from its rim's centre scatter beyond
+/// [`MAX_RIM_SCATTER_SIGMAS`].
+fn off_rim(measured: &[(usize, Skirt)]) -> Option<Concern> {
+    let rims: Vec<(usize, Rim, f64)> = measured
+        .iter()
+        .filter_map(|m| m.1.rim.map(|r| (m.0, r, m.1.point_error)))
+        .collect();
+    if rims.len() < 3 || 2 * rims.len() < measured.len() {
+        return None;
+    }
+    let n = rims.len() as f64;
+    let mean = [0, 1].map(|a| rims.iter().map(|r| r.1.offset[a]).sum::<f64>() / n);
+    // The offsets' scatter about their mean against what the rim's and the point's own
+    // errors allow: a chi-square of 2 (n - 1) degrees of freedom.
+    let chi2: f64 = rims
+        .iter()
+        .map(|r| {
+            let v = r.1.error.powi(2) + r.2.powi(2);
+            ((r.1.offset[0] - mean[0]).powi(2) + (r.1.offset[1] - mean[1]).powi(2)) / v.max(1e-12)
+        })
+        .sum();
+    let dof = 2.0 * (n - 1.0);
+    let scatter = chi2 / dof;
+    let mut offsets: Vec<f64> = rims.iter().map(|r| r.1.offset[0].hypot(r.1.offset[1])).collect();
+    let offset = physfit_tracks::stats::median_upper(&mut offsets);
+    let mut errors: Vec<f64> = rims.iter().map(|r| r.1.error.hypot(r.2)).collect();
+    let error = physfit_tracks::stats::median_upper(&mut errors);
+    let mut radii: Vec<f64> = rims.iter().map(|r| r.1.radius).collect();
+    let rim_radius = physfit_tracks::stats::median_upper(&mut radii);
+    (scatter > 1.0 + MAX_RIM_SCATTER_SIGMAS * (2.0 / dof).sqrt()).then(|| Concern::OffRim {
+        scatter,
+        offset,
+        error,
+        rim_radius,
+        frames: rims.iter().map(|r| r.0).collect(),
+    })
 }
 
 /// The tracks of `table` (particles of radius `radius` px in frames of `size` px) that were
@@ -247,7 +369,12 @@ pub(crate) fn check_tracks(
 /// and comes back travels to the border and back), and no other track's point lies within
 /// `2 radius + 2` px of either point in its frame (the crossing distance: two particles that
 /// met may hide each other). Tracks of fewer than two such steps are left alone.
-pub(crate) fn lost_inside(table: &TrackTable, radius: f64, size: (usize, usize)) -> Vec<TrackConcern> {
+pub(crate) fn lost_inside(
+    table: &TrackTable,
+    radius: f64,
+    size: (usize, usize),
+    last_frame: usize,
+) -> Vec<TrackConcern> {
     let (w, h) = (size.0 as f64, size.1 as f64);
     let mut by_frame: BTreeMap<usize, Vec<&crate::track_table::TrackPoint>> = BTreeMap::new();
     for p in &table.points {
@@ -278,6 +405,23 @@ pub(crate) fn lost_inside(table: &TrackTable, radius: f64, size: (usize, usize))
             continue;
         }
         let step = steps.iter().copied().fold(0.0, f64::max);
+        // Lost for good: its last detected point lies farther inside the image than it can
+        // travel to the border in the frames after it.
+        if let Some(end) = points.iter().rev().find(|p| p.flag == PointFlag::Detected) {
+            let gap = last_frame.saturating_sub(end.frame);
+            let a = inside(end);
+            if gap >= 2 && a > 2.0 * step * gap as f64 && !crowded(end) {
+                out.push(TrackConcern {
+                    particle: particle.to_string(),
+                    concern: Concern::Vanished {
+                        frames: (end.frame + 1, last_frame),
+                        inside: a,
+                        step,
+                    },
+                });
+                continue;
+            }
+        }
         for p in points.windows(2) {
             let gap = p[1].frame - p[0].frame;
             if gap < 2 {
@@ -346,6 +490,7 @@ pub(crate) fn skirts(
                 return None;
             }
             let (mut core, mut nc, mut ring, mut nr) = (0.0, 0usize, 0.0, 0usize);
+            let (mut inner, mut ni) = (0.0, 0usize);
             let (mut side, mut axis, mut magnitude) = ([0.0f64; 2], [0.0f64; 2], 0.0f64);
             for y in y0 as usize..=y1 as usize {
                 let dy = y as f64 - p[1];
@@ -353,8 +498,13 @@ pub(crate) fn skirts(
                     let dx = x as f64 - p[0];
                     let d2 = dx * dx + dy * dy;
                     if d2 <= radius2 {
-                        core += f64::from(signal[y * width + x]);
+                        let v = f64::from(signal[y * width + x]);
+                        core += v;
                         nc += 1;
+                        if 4.0 * d2 <= radius2 {
+                            inner += v;
+                            ni += 1;
+                        }
                     } else if d2 > inner2
                         && d2 <= outer2
                         && others
@@ -392,6 +542,13 @@ pub(crate) fn skirts(
                 magnitude: (magnitude / nr as f64 - noise_sigma * std::f64::consts::FRAC_2_PI.sqrt())
                     .max(0.0)
                     / (core / nc as f64),
+                inner: if ni > 0 {
+                    (inner / ni as f64) / (core / nc as f64)
+                } else {
+                    1.0
+                },
+                rim: None,
+                point_error: 0.0,
             })
         })
         .collect()
@@ -460,7 +617,7 @@ mod tests {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
         };
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 5.0, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 5.0, &measured, &measured).len(), 1);
     }
 
     /// A ring of radii 14-20 px followed on its rim at 3.1 px: the rim runs through the point,
@@ -488,7 +645,7 @@ mod tests {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 77.0, 60.0)).collect(),
         };
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 3.1, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 3.1, &measured, &measured).len(), 1);
         // A disc of 6 px, with the ring from 9 to 14 px 80 grey levels below the background on one side.
         let dark: Vec<f32> = (0..w * h)
             .map(|i| {
@@ -506,7 +663,7 @@ mod tests {
         let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level < -LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
         // The same ring 60 grey levels above the background on one side and below it on the
         // other: its mean cancels, its magnitude does not.
         let split: Vec<f32> = dark
@@ -531,12 +688,12 @@ mod tests {
             "{s:?}"
         );
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 6.0, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
         let disc: Vec<f32> = dark.iter().map(|v| v.max(0.0)).collect();
         let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level.abs() < 0.01 && s.elongated < 0.01, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert!(check_tracks(&t, 6.0, &measured).is_empty());
+        assert!(check_tracks(&t, 6.0, &measured, &measured).is_empty());
     }
 
     #[test]
@@ -549,13 +706,16 @@ mod tests {
             lopsided: 0.0,
             elongated: 0.0,
             magnitude: level,
+            inner: 1.0,
+            rim: None,
+            point_error: 0.0,
         };
         let mut skirts = BTreeMap::new();
         skirts.insert(
             "a".to_string(),
             vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.7))],
         );
-        let c = check_tracks(&t, 4.0, &skirts);
+        let c = check_tracks(&t, 4.0, &skirts, &skirts);
         assert_eq!(c.len(), 1);
         assert!(matches!(c[0].concern, Concern::Larger { skirt, .. } if (skirt - 0.7).abs() < 1e-12));
         assert!(
@@ -567,12 +727,12 @@ mod tests {
             "a".to_string(),
             vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.05))],
         );
-        assert!(check_tracks(&t, 4.0, &skirts).is_empty());
+        assert!(check_tracks(&t, 4.0, &skirts, &skirts).is_empty());
         for p in t.points.iter_mut().skip(9) {
             p.flag = PointFlag::Interpolated;
         }
         assert_eq!(
-            check_tracks(&t, 4.0, &skirts),
+            check_tracks(&t, 4.0, &skirts, &skirts),
             vec![TrackConcern {
                 particle: "a".into(),
                 concern: Concern::MostlyUnseen {
@@ -582,7 +742,66 @@ mod tests {
             }]
         );
         t.points[9].flag = PointFlag::Detected;
-        assert!(check_tracks(&t, 4.0, &skirts).is_empty());
+        assert!(check_tracks(&t, 4.0, &skirts, &skirts).is_empty());
+    }
+
+    /// A ring whose located points scatter about its rim's centre far more than the rim's and
+    /// the points' own errors allow (offsets of 0.5 px in every direction, errors 0.05 px) is
+    /// reported; one whose points keep a steady offset within their errors (a centroid
+    /// leaning with the light) is not, nor one hollow in under half its frames.
+    #[test]
+    fn a_ring_whose_points_scatter_about_its_rim_is_reported() {
+        let t = TrackTable {
+            points: (0..8).map(|k| TrackPoint::new(k, "r", 50.0, 50.0)).collect(),
+        };
+        let with_rim = |k: usize, offset: [f64; 2]| {
+            (
+                k,
+                Skirt {
+                    level: 0.0,
+                    lopsided: 0.0,
+                    elongated: 0.0,
+                    magnitude: 0.0,
+                    inner: 0.1,
+                    rim: Some(Rim {
+                        offset,
+                        error: 0.03,
+                        radius: 9.0,
+                    }),
+                    point_error: 0.04,
+                },
+            )
+        };
+        let scattered: Vec<(usize, Skirt)> = (0..8)
+            .map(|k| {
+                let a = k as f64 * 2.4;
+                with_rim(k, [0.5 * a.cos(), 0.5 * a.sin()])
+            })
+            .collect();
+        let measured = BTreeMap::from([("r".to_string(), scattered.clone())]);
+        let c = check_tracks(&t, 9.0, &measured, &measured);
+        assert!(
+            matches!(
+                c[..],
+                [TrackConcern {
+                    concern: Concern::OffRim { .. },
+                    ..
+                }]
+            ),
+            "{c:?}"
+        );
+        assert!(c[0].to_string().starts_with("r: it is a ring"), "{}", c[0]);
+        let steady: Vec<(usize, Skirt)> = (0..8)
+            .map(|k| with_rim(k, [0.3 + 0.04 * (k % 2) as f64, -0.2]))
+            .collect();
+        let measured = BTreeMap::from([("r".to_string(), steady)]);
+        assert!(check_tracks(&t, 9.0, &measured, &measured).is_empty());
+        let mut mostly_solid = scattered;
+        for s in mostly_solid.iter_mut().skip(3) {
+            s.1.rim = None;
+        }
+        let measured = BTreeMap::from([("r".to_string(), mostly_solid)]);
+        assert!(check_tracks(&t, 9.0, &measured, &measured).is_empty());
     }
 
     /// A track walking 1 px a frame across the middle of a 100 px frame with frames 5-7
@@ -602,19 +821,42 @@ mod tests {
                 })
                 .collect(),
         };
-        let lost = lost_inside(&track(50.0, &[5, 6, 7], false), 4.0, (100, 100));
+        let lost = lost_inside(&track(50.0, &[5, 6, 7], false), 4.0, (100, 100), 11);
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(
             matches!(lost[0].concern, Concern::LostInside { frames: (5, 7), .. }),
             "{lost:?}"
         );
         assert!(lost[0].to_string().contains("lost in frames 5-7"), "{}", lost[0]);
-        assert!(lost_inside(&track(6.0, &[5, 6, 7], false), 4.0, (100, 100)).is_empty());
-        assert!(lost_inside(&track(50.0, &[], false), 4.0, (100, 100)).is_empty());
-        assert!(lost_inside(&track(50.0, &[5, 6, 7], true), 4.0, (100, 100)).is_empty());
+        assert!(lost_inside(&track(6.0, &[5, 6, 7], false), 4.0, (100, 100), 11).is_empty());
+        assert!(lost_inside(&track(50.0, &[], false), 4.0, (100, 100), 11).is_empty());
+        assert!(lost_inside(&track(50.0, &[5, 6, 7], true), 4.0, (100, 100), 11).is_empty());
         // Beside a neighbour (within 2 R + 2 before the gap) it may have been hidden by it.
         let mut beside = track(50.0, &[5, 6, 7], false);
         beside.points.push(TrackPoint::new(4, "b", 44.0, 56.0));
-        assert!(lost_inside(&beside, 4.0, (100, 100)).is_empty());
+        assert!(lost_inside(&beside, 4.0, (100, 100), 11).is_empty());
+        // Lost for good after frame 6 in the middle of the image, the window running to frame
+        // 11: it vanished in view; near the border it may have left.
+        let mut ends = track(50.0, &[], false);
+        ends.points.retain(|p| p.frame <= 6);
+        let lost = lost_inside(&ends, 4.0, (100, 100), 11);
+        assert!(
+            matches!(
+                lost[..],
+                [TrackConcern {
+                    concern: Concern::Vanished { frames: (7, 11), .. },
+                    ..
+                }]
+            ),
+            "{lost:?}"
+        );
+        assert!(
+            lost[0].to_string().contains("lost from frame 7 to the last, 11"),
+            "{}",
+            lost[0]
+        );
+        let mut leaves = track(6.0, &[], false);
+        leaves.points.retain(|p| p.frame <= 6);
+        assert!(lost_inside(&leaves, 4.0, (100, 100), 11).is_empty());
     }
 }

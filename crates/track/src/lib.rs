@@ -22,6 +22,7 @@ mod naming;
 mod pipeline;
 mod png_reader;
 mod point_grid;
+mod rim;
 mod scale;
 mod score;
 mod shared_blobs;

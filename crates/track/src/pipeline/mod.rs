@@ -13,6 +13,7 @@ mod options;
 mod outcome;
 mod plane;
 mod radius;
+mod rims;
 mod samples;
 mod size_class;
 mod skirts;

@@ -2,6 +2,7 @@
 
 use super::finder::{Parts, Surround, Workers};
 use super::options::TrackOptions;
+use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
 use super::skirts::sample_skirts;
 use super::track_frames::one_frame_tracks;
@@ -166,15 +167,33 @@ impl Stage<'_> {
             }
             // Tracks that contradict themselves: named particles not followed are an error (their
             // tracks would be wrong); unnamed ones are warned of.
-            let skirts = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            let located = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            // Rings are located by their rim's centre (see `rims`), and their skirts measured
+            // again about it.
+            let hollow = hollow_particles(&located);
+            let moved = centre_on_rims(
+                &mut class_table,
+                &hollow,
+                frames,
+                background,
+                class.sizes.radius,
+                workers,
+            )?;
+            let remeasured;
+            let skirts = if moved > 0 {
+                remeasured = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+                &remeasured
+            } else {
+                &located
+            };
             // Unnamed tracks end once lost (a particle found again starts a new one): only named
             // tracks can be lost and found again.
             let lost = match named {
-                Some(_) => lost_inside(&class_table, class.sizes.radius, size),
+                Some(_) => lost_inside(&class_table, class.sizes.radius, size, last),
                 None => Vec::new(),
             };
             concerns.extend(
-                check_tracks(&class_table, class.sizes.radius, &skirts)
+                check_tracks(&class_table, class.sizes.radius, skirts, &located)
                     .iter()
                     .chain(&lost)
                     .map(|c| (c.to_string(), class.sizes.radius)),

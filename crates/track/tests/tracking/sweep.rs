@@ -586,3 +586,50 @@ fn large_rings_are_followed_or_refused() {
         .collect();
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
+
+/// Rings located by their rim's centre (`crate::rim`): hollow particles of 4-20 px beside
+/// their neighbours, under each seed's gradient, vignetting and exposure drift, are followed
+/// within `max(0.05 + 0.01 sigma, 2 CRB)` of their true centres, without the allowance for a
+/// centroid's lean with the light that the sweep's tolerance adds: the rim's position does
+/// not lean. Their intensity centroids did (seed 3000 at 20 px, gradient 0.19: 0.07 / 0.33 px
+/// RMS, at 14 px and blur 2.4 px 0.05 / 0.19; seed 3004 at 14 px: 0.11 / 0.11 px; now 0.015 /
+/// 0.024, 0.014 / 0.035 and 0.012 / 0.014). And rings whose centroids scattered about their
+/// rim (seed 3003 at 4 and 6 px and noise 5, a saturating exposure drift: 1.28 / 0.27 and
+/// 1.68 / 1.26 px RMS written without a word) are refused.
+#[test]
+fn rings_are_followed_to_their_rims_centre() {
+    let cases: &[(u64, usize, f64)] = &[
+        (3000, 2, 5.0),
+        (3000, 3, 5.0),
+        (3000, 4, 5.0),
+        (3000, 4, 15.0),
+        (3001, 2, 5.0),
+        (3002, 0, 5.0),
+        (3002, 1, 5.0),
+        (3002, 1, 15.0),
+        (3002, 2, 5.0),
+        (3002, 4, 5.0),
+        (3004, 1, 5.0),
+        (3004, 2, 5.0),
+        (3004, 2, 15.0),
+        (3004, 3, 5.0),
+        (3004, 3, 15.0),
+        (3005, 2, 5.0),
+    ];
+    let mut bad = Vec::new();
+    for &(seed, i, noise) in cases {
+        let row = ring_row(seed, RING_RADII[i], ring_width(seed, i), noise);
+        let base = 0.05 + 0.01 * row.style.noise;
+        let within = (0..2).all(|a| row.rms[a] <= base.max(2.0 * row.crb[a]));
+        if !(within && row.recall >= 1.0 && row.switches == 0) {
+            bad.push(format!("{} (without the lean: {base:.3} px)", row.line()));
+        }
+    }
+    for i in [0, 1] {
+        let refused = ring_row(3003, RING_RADII[i], ring_width(3003, i), 5.0);
+        if !refused.followed_or_refused() {
+            bad.push(refused.line());
+        }
+    }
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
