@@ -124,7 +124,12 @@ fn effect_columns(
             let r_l1 = with(1.0)?;
             Some(vec![diff(&r_l0, r0, h), diff(&r_l1, &r_l0, h)])
         }
-        Effect::Wall | Effect::WallFriction { .. } => None,
+        Effect::Wall
+        | Effect::WallFriction { .. }
+        | Effect::Rail { .. }
+        | Effect::RailFriction { .. }
+        | Effect::Rope { .. }
+        | Effect::AnchoredRope { .. } => None,
     }
 }
 
@@ -174,7 +179,12 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                         v
                     }
                 }
-                Effect::Wall | Effect::WallFriction { .. } => return None,
+                Effect::Wall
+                | Effect::WallFriction { .. }
+                | Effect::Rail { .. }
+                | Effect::RailFriction { .. }
+                | Effect::Rope { .. }
+                | Effect::AnchoredRope { .. } => return None,
             };
             let _ = k;
             Some((score, values))

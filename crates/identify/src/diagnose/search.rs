@@ -246,7 +246,12 @@ impl Context<'_> {
                 let [l, s] = spring(theta, (a - mean).norm());
                 vec![a.x, a.y, l, s]
             }
-            Effect::Wall | Effect::WallFriction { .. } => fallback.to_vec(),
+            Effect::Wall
+            | Effect::WallFriction { .. }
+            | Effect::Rail { .. }
+            | Effect::RailFriction { .. }
+            | Effect::Rope { .. }
+            | Effect::AnchoredRope { .. } => fallback.to_vec(),
         }
     }
 
@@ -1537,7 +1542,12 @@ fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
         | Effect::BodyQuadraticDrag => params.to_vec(),
         Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
         Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
-        Effect::Wall | Effect::WallFriction { .. } => Vec::new(),
+        Effect::Wall
+        | Effect::WallFriction { .. }
+        | Effect::Rail { .. }
+        | Effect::RailFriction { .. }
+        | Effect::Rope { .. }
+        | Effect::AnchoredRope { .. } => Vec::new(),
     }
 }
 

@@ -382,7 +382,12 @@ impl WeakForm {
                     *v = -vel * vel.norm();
                 }
             })],
-            Effect::Wall | Effect::WallFriction { .. } => Vec::new(),
+            Effect::Wall
+            | Effect::WallFriction { .. }
+            | Effect::Rail { .. }
+            | Effect::RailFriction { .. }
+            | Effect::Rope { .. }
+            | Effect::AnchoredRope { .. } => Vec::new(),
         }
     }
 
