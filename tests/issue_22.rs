@@ -527,3 +527,296 @@ fn a_rigid_floor_at_50_frames_per_second_is_no_bumper() {
 fn a_rigid_floor_at_240_frames_per_second_is_no_bumper() {
     check_rigid_floor(17, 240.0);
 }
+
+/// [`rope_scene`]'s pendulum, diagnosed from a structure without its rope (or field): it is
+/// found as a rope with `g / L` within 1 % and its length within 5 %, and nothing else added.
+fn check_unlisted_rope(seed: u64) {
+    let mut s = seed;
+    let g = draw(&mut s, 300.0, 900.0);
+    let length = draw(&mut s, 120.0, 250.0);
+    let dir = tempdir();
+    let without_rope = |truth: &Scene| {
+        let mut given = truth.structure();
+        given.physics.ropes.clear();
+        given
+    };
+    let (truth, given, report, fitted) =
+        diagnose_rendered_from(dir.path(), &rope_scene(g, length, seed), without_rope);
+    assert!(given.physics.ropes.is_empty());
+    let c = compare_scenes(&fitted, &truth, &given);
+    let found = fitted.physics.gravity.norm();
+    let rope = fitted.physics.ropes.first().map(|r| r.length);
+    let names = finding_names(&report);
+    println!(
+        "unlisted rope seed {seed}: g {g:.3}, L {length:.3}: findings {names:?}, g {found:.4}, rope {rope:?}, g/L {:.5} against {:.5}, verdict {}",
+        found / rope.unwrap_or(f64::NAN),
+        g / length,
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    assert!(names.contains(&"rope".to_string()), "{names:?}");
+    assert_eq!(fitted.physics.ropes.len(), 1, "{:?}", fitted.physics.ropes);
+    let rope = rope.expect("a rope");
+    assert!((rope / length - 1.0).abs() < 0.05, "rope {rope} against {length}");
+    let ratio = found / rope / (g / length);
+    assert!(
+        (ratio - 1.0).abs() < 0.01,
+        "g/L off by {:.3} %",
+        100.0 * (ratio - 1.0)
+    );
+    // Its own "where it was seen" text.
+    let text = seen_of(&report, "rope");
+    assert!(text.contains("within the noise: a rigid rope"), "{text}");
+}
+
+/// The "where it was seen" text of `report`'s first finding named `effect`.
+fn seen_of(report: &Value, effect: &str) -> String {
+    report["findings"]
+        .as_array()
+        .and_then(|fs| fs.iter().find(|f| f["effect"] == effect))
+        .and_then(|f| f["seen"]["text"].as_str())
+        .unwrap_or_default()
+        .to_string()
+}
+
+#[test]
+fn an_unlisted_rope_is_found_as_a_rope_with_g_over_l_within_1_percent_seed_12() {
+    check_unlisted_rope(12);
+}
+
+#[test]
+fn an_unlisted_rope_is_found_as_a_rope_with_g_over_l_within_1_percent_seed_13() {
+    check_unlisted_rope(13);
+}
+
+#[test]
+fn an_unlisted_rope_is_found_as_a_rope_with_g_over_l_within_1_percent_seed_14() {
+    check_unlisted_rope(14);
+}
+
+/// A cart on a rail at `angle` degrees (image axes, y down) through a fixed anchor at
+/// (80, 150) px, pulled by a spring `S (d - L)^2` to it, released at rest `amplitude` px
+/// beyond the spring's rest length, under a field of 500 px/s² down, with Coulomb friction
+/// `mu` on the rail, 3 s at 100 frames/s.
+fn rail_scene(angle: f64, stiffness: f64, rest: f64, amplitude: f64, mu: f64, seed: u64) -> String {
+    let (s, c) = angle.to_radians().sin_cos();
+    let head = head("cart-on-rail", 300, 480, 400, seed);
+    let d = rest + amplitude;
+    format!(
+        r#"{head}[[particles]]
+id = "anchor"
+mass = 1.0
+position = [80.0, 150.0]
+fixed = true
+[[particles]]
+id = "cart"
+mass = 1.0
+position = [{x}, {y}]
+[[springs]]
+between = ["anchor", "cart"]
+length = {rest}
+stiffness = {stiffness}
+[physics]
+gravity = [0.0, 500.0]
+[[physics.rails]]
+particle = "cart"
+point = [80.0, 150.0]
+direction = [{c}, {s}]
+friction = {mu}
+"#,
+        x = 80.0 + d * c,
+        y = 150.0 + d * s,
+    )
+}
+
+/// A cart on a rail (angle, spring and friction drawn from `seed`; no friction when
+/// `frictionless`), diagnosed from a structure that gives the field and the spring but not
+/// the rail: the rail is found with its direction within 1 degree, its line within a pixel,
+/// the spring within 5 % and the friction within 5 %, and nothing else added.
+fn check_rail(seed: u64, frictionless: bool) {
+    let mut s = seed;
+    let angle = draw(&mut s, -20.0, 20.0);
+    let stiffness = draw(&mut s, 20.0, 60.0);
+    let rest = draw(&mut s, 120.0, 180.0);
+    let amplitude = draw(&mut s, 40.0, 90.0);
+    let mu = if frictionless {
+        0.0
+    } else {
+        draw(&mut s, 0.02, 0.1)
+    };
+    let dir = tempdir();
+    // The structure knows the field (an air track's cart is weighed on a known g); the rail
+    // is concealed.
+    let given = |truth: &Scene| {
+        let mut given = truth.structure();
+        given.physics.gravity = truth.physics.gravity;
+        given.physics.rails.clear();
+        given
+    };
+    let scene = rail_scene(angle, stiffness, rest, amplitude, mu, seed);
+    let (truth, given, report, fitted) = diagnose_rendered_from(dir.path(), &scene, given);
+    assert!(given.physics.rails.is_empty());
+    let c = compare_scenes(&fitted, &truth, &given);
+    let value = |name: &str| c.values.iter().find(|v| v.item == "rail cart" && v.name == name);
+    let names = finding_names(&report);
+    println!(
+        "rail seed {seed}: angle {angle:.3} deg, S {stiffness:.3}, L {rest:.2}, amplitude {amplitude:.1} px, mu {mu:.4}: findings {names:?}, direction {:?}, position {:?}, friction {:?}, verdict {}",
+        value("direction").map(|v| (v.fitted, v.error)),
+        value("position").and_then(|v| v.error),
+        value("friction").map(|v| (v.fitted, v.relative_error)),
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    let turn = value("direction")
+        .and_then(|v| v.error)
+        .expect("a rail direction");
+    assert!(turn.abs() < 1.0, "rail direction off by {turn} degrees");
+    let across = value("position").and_then(|v| v.error).expect("a rail position");
+    assert!(across < 1.0, "rail line {across} px off");
+    for v in c.values.iter().filter(|v| v.item.starts_with("spring")) {
+        let e = v.relative_error.expect("a spring value");
+        assert!(e.abs() < 0.05, "{v:?}");
+    }
+    let friction = value("friction");
+    if frictionless {
+        assert!(friction.is_none(), "{friction:?}");
+        assert!(!names.contains(&"rail_friction".to_string()), "{names:?}");
+    } else {
+        let e = friction.and_then(|v| v.relative_error).expect("a friction");
+        assert!(e.abs() < 0.05, "friction {friction:?} against {mu}");
+        assert!(seen_of(&report, "rail_friction").contains("sliding on its rail decelerate"));
+    }
+    let text = seen_of(&report, "rail");
+    assert!(text.contains("RMS across it"), "{text}");
+}
+
+#[test]
+fn a_cart_on_an_unlisted_rail_is_found_with_its_friction_seed_15() {
+    check_rail(15, false);
+}
+
+#[test]
+fn a_cart_on_an_unlisted_rail_is_found_with_its_friction_seed_16() {
+    check_rail(16, false);
+}
+
+#[test]
+fn a_cart_on_an_unlisted_rail_is_found_with_its_friction_seed_17() {
+    check_rail(17, false);
+}
+
+#[test]
+fn a_cart_on_an_unlisted_frictionless_rail_gets_no_friction() {
+    check_rail(18, true);
+}
+
+/// A particle thrown at (`vx`, `vy`) px/s from (60, 300) px under a field `g` px/s², 2 s at
+/// 100 frames/s.
+fn throw_scene(vx: f64, vy: f64, g: [f64; 2], seed: u64) -> String {
+    let head = head("thrown", 200, 480, 400, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "ball"
+mass = 1.0
+position = [60.0, 300.0]
+velocity = [{vx}, {vy}]
+[physics]
+gravity = [{gx}, {gy}]
+"#,
+        gx = g[0],
+        gy = g[1],
+    )
+}
+
+/// A thrown ball (free 2-D motion in a field) and a ball thrown along the field (a straight
+/// path, the rail candidate's own shape), diagnosed from their structure: the field alone,
+/// no rail.
+fn check_free_motion(seed: u64, straight: bool) {
+    let mut s = seed;
+    // Within the picture for the 2 s: it turns back within 312 px, and is back past its
+    // start no sooner than 2 s.
+    let g = draw(&mut s, 100.0, 150.0);
+    let speed = draw(&mut s, 150.0, 250.0);
+    let scene = if straight {
+        // Along x: thrown right against a field pointing left, it turns back.
+        throw_scene(speed, 0.0, [-g, 0.0], seed)
+    } else {
+        throw_scene(0.5 * speed, -0.6 * speed, [0.0, g], seed)
+    };
+    let dir = tempdir();
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let names = finding_names(&report);
+    println!("free motion seed {seed} (straight {straight}): g {g:.2}, speed {speed:.1}: findings {names:?}");
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    assert!(fitted.physics.rails.is_empty(), "{:?}", fitted.physics.rails);
+}
+
+#[test]
+fn free_motion_in_a_field_gets_no_rail() {
+    check_free_motion(19, false);
+}
+
+#[test]
+fn a_straight_fall_along_the_field_gets_no_rail() {
+    check_free_motion(20, true);
+}
+
+/// A bob on a soft spring (stiffness drawn from `seed`: it stretches by tens of pixels) to a
+/// fixed pivot, swinging in a field, diagnosed from a structure without the spring: a
+/// spring (a missing spring or a tether), not a rope.
+fn check_soft_spring(seed: u64) {
+    let mut s = seed;
+    let g = draw(&mut s, 300.0, 600.0);
+    let stiffness = draw(&mut s, 5.0, 10.0);
+    let head = head("soft-spring", 300, 400, 400, seed);
+    // Released at 30 degrees from the pivot, 40 px short of the hanging stretch.
+    let hanging = 120.0 + g / (2.0 * stiffness);
+    let d = hanging - 40.0;
+    let (sn, cs) = 30f64.to_radians().sin_cos();
+    let scene = format!(
+        r#"{head}[[particles]]
+id = "pivot"
+mass = 1.0
+position = [200.0, 40.0]
+fixed = true
+[[particles]]
+id = "bob"
+mass = 1.0
+position = [{x}, {y}]
+[[springs]]
+between = ["pivot", "bob"]
+length = 120.0
+stiffness = {stiffness}
+[physics]
+gravity = [0.0, {g}]
+"#,
+        x = 200.0 + d * sn,
+        y = 40.0 + d * cs,
+    );
+    let without_spring = |truth: &Scene| {
+        let mut given = truth.structure();
+        given.springs.clear();
+        given
+    };
+    let dir = tempdir();
+    let (truth, given, report, fitted) = diagnose_rendered_from(dir.path(), &scene, without_spring);
+    let c = compare_scenes(&fitted, &truth, &given);
+    let names = finding_names(&report);
+    println!(
+        "soft spring seed {seed}: g {g:.1}, S {stiffness:.3} (hangs {hanging:.1} px): findings {names:?}, verdict {}",
+        report["verdict"]["text"]
+    );
+    assert!(c.missed.is_empty(), "missed {:?}", c.missed);
+    assert!(c.spurious.is_empty(), "falsely added {:?}", c.spurious);
+    assert!(names.contains(&"missing_spring".to_string()), "{names:?}");
+    assert!(fitted.physics.ropes.is_empty(), "{:?}", fitted.physics.ropes);
+}
+
+#[test]
+fn a_soft_spring_tether_stays_a_spring() {
+    check_soft_spring(21);
+}

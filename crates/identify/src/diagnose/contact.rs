@@ -40,7 +40,7 @@ pub fn friction_proposals(obs: &Observations, current: &Current, jolts: &[Jolt])
         if has || wall.is_bumper() || wall.friction > 0.0 {
             continue;
         }
-        let sliding = sliding_on(obs, family, &current.fit.params, wall);
+        let sliding = sliding_on(obs, family, &current.fit.params, wall, &family.free);
         out.extend(friction_at(obs, wall, k, jolts, &sliding));
     }
     out
@@ -60,8 +60,15 @@ pub struct Sliding {
     pub pressed: f64,
 }
 
-/// The sliding of `family`'s free particles on `wall` under `params`' model (see [`Sliding`]).
-pub fn sliding_on(obs: &Observations, family: &Family, params: &[f64], wall: &Wall) -> Sliding {
+/// The sliding of `particles` (free particles of `family`) on `wall` under `params`' model
+/// (see [`Sliding`]).
+pub fn sliding_on(
+    obs: &Observations,
+    family: &Family,
+    params: &[f64],
+    wall: &Wall,
+    particles: &[usize],
+) -> Sliding {
     let model = family.model(params, None);
     let fps2 = obs.fps * obs.fps;
     let near = 5.0 * obs.noise;
@@ -72,7 +79,7 @@ pub fn sliding_on(obs: &Observations, family: &Family, params: &[f64], wall: &Wa
         let _ = family.model(params, Some(&mut full));
         let mut acc = vec![Vec2::zeros(); model.particle_count()];
         model.accelerations(&full, &mut acc);
-        for &p in &family.free {
+        for &p in particles {
             let x = [k - 1, k, k + 1].map(|f| obs.positions[f][p]);
             let [Some(a), Some(b), Some(c)] = x else { continue };
             let on = [a, b, c].iter().all(|x| wall.signed_distance(*x).abs() <= near);
@@ -123,6 +130,23 @@ pub fn friction_with_walls(
     out
 }
 
+/// Coulomb `mu` from `sliding`: its summed deceleration over its summed push, when that
+/// deceleration exceeds three times its noise. Second differences of consecutive frames
+/// telescope: a run of them sums to the difference of its end velocities, whose noise is
+/// `2 sigma fps^2` per coordinate, so the noise is that times the square root of the number
+/// of runs (consecutive sliding frames of one particle; a second difference alone, noise
+/// `sqrt(6) sigma fps^2`, is bounded by it too).
+pub fn sliding_mu(obs: &Observations, sliding: &Sliding) -> Option<f64> {
+    let runs = sliding
+        .frames
+        .iter()
+        .filter(|&&(p, k)| k == 0 || !sliding.frames.contains(&(p, k - 1)))
+        .count();
+    let noise = 6f64.sqrt() * obs.noise * obs.fps * obs.fps * (runs as f64).sqrt();
+    let slides = sliding.pressed > 0.0 && sliding.deceleration > 3.0 * noise;
+    slides.then(|| sliding.deceleration / sliding.pressed)
+}
+
 /// The friction candidate at `wall` (index `k` among the model's walls) from the bounces on
 /// it among `jolts`, when their tangential loss exceeds three times its noise.
 fn friction_at(
@@ -144,16 +168,10 @@ fn friction_at(
         (l + lost, n + dv_n)
     });
     let bounces = !met.is_empty() && normal > 0.0 && loss > 3.0 * impulse_noise * (met.len() as f64).sqrt();
-    // A second difference's noise is `sqrt(6) sigma fps^2` per coordinate.
-    let acc_noise = 6f64.sqrt() * obs.noise * obs.fps * obs.fps;
-    let slides = sliding.pressed > 0.0
-        && sliding.deceleration > 3.0 * acc_noise * (sliding.frames.len() as f64).sqrt();
     let mu = if bounces {
         loss / normal
-    } else if slides {
-        sliding.deceleration / sliding.pressed
     } else {
-        return None;
+        sliding_mu(obs, sliding)?
     };
     Some(Proposal {
         effect: Effect::WallFriction { wall: k },

@@ -5,7 +5,7 @@
 //! identifier fits. This module says what each effect's parameters are, their admissible
 //! ranges, and how a parameter vector becomes a model term; nothing here depends on data.
 
-use physfit_model::{Model, ParticleId, Scene, Spring, State, Vec2, Wall};
+use physfit_model::{Model, ParticleId, Rail, Rope, Scene, Spring, State, Vec2, Wall};
 use serde::Serialize;
 
 /// A candidate effect, by the structure's particle and spring indices.
@@ -59,12 +59,38 @@ pub enum Effect {
     /// centre is `s < 0` beyond the line) and dashpot `c` (mass/s), by its normal angle
     /// (rad), offset (px), stiffness and damping.
     Bumper,
+    /// A rail: `particle` is held on the line `n . x = offset`, `n = (cos a, sin a)`
+    /// ([`physfit_model::Rail`]; parameters `normal_angle` rad, `offset` px).
+    Rail {
+        /// The particle held on the line.
+        particle: usize,
+    },
+    /// Coulomb friction `mu` (dimensionless) on the rail of `particle` (an [`Effect::Rail`]
+    /// of the same particle): it slides with deceleration `mu g_n`, `g_n` its push across.
+    RailFriction {
+        /// The particle on the rail.
+        particle: usize,
+    },
+    /// A rigid rope (a rod, [`physfit_model::Rope`], not slack) of length `length` px
+    /// between two of the structure's particles (one may be fixed).
+    Rope {
+        /// First particle index.
+        a: usize,
+        /// Second particle index.
+        b: usize,
+    },
+    /// A rigid rope of length `length` px from `particle` to a fixed point
+    /// (`anchor_x`, `anchor_y`, px) that is not among the structure's particles.
+    AnchoredRope {
+        /// The particle on the rope.
+        particle: usize,
+    },
 }
 
 impl Effect {
     /// The effect's name in `report.json` (`gravity`, `drag`, `quadratic_drag`,
     /// `spring_damping`, `missing_spring`, `wall`, `body_drag`, `body_quadratic_drag`,
-    /// `wall_friction`, `bumper`).
+    /// `wall_friction`, `bumper`, `rail`, `rail_friction`, `rope`).
     pub fn name(self) -> &'static str {
         match self {
             Effect::Gravity => "gravity",
@@ -77,6 +103,9 @@ impl Effect {
             Effect::BodyQuadraticDrag => "body_quadratic_drag",
             Effect::WallFriction { .. } => "wall_friction",
             Effect::Bumper => "bumper",
+            Effect::Rail { .. } => "rail",
+            Effect::RailFriction { .. } => "rail_friction",
+            Effect::Rope { .. } | Effect::AnchoredRope { .. } => "rope",
         }
     }
 
@@ -104,6 +133,10 @@ impl Effect {
             Effect::BodyQuadraticDrag => "quadratic drag per body".into(),
             Effect::WallFriction { wall } => format!("friction at wall {}", wall + 1),
             Effect::Bumper => "spring bumper".into(),
+            Effect::Rail { particle } => format!("rail of {}", id(particle)),
+            Effect::RailFriction { particle } => format!("friction on the rail of {}", id(particle)),
+            Effect::Rope { a, b } => format!("rope {}-{}", id(a), id(b)),
+            Effect::AnchoredRope { particle } => format!("rope of {} to a fixed point", id(particle)),
         }
     }
 
@@ -119,7 +152,10 @@ impl Effect {
             Effect::Wall => &["normal_angle", "offset", "restitution"],
             Effect::BodyDrag => &["body_drag"],
             Effect::BodyQuadraticDrag => &["body_quadratic_drag"],
-            Effect::WallFriction { .. } => &["friction"],
+            Effect::WallFriction { .. } | Effect::RailFriction { .. } => &["friction"],
+            Effect::Rail { .. } => &["normal_angle", "offset"],
+            Effect::Rope { .. } => &["length"],
+            Effect::AnchoredRope { .. } => &["anchor_x", "anchor_y", "length"],
             Effect::Bumper => &["normal_angle", "offset", "stiffness", "damping"],
         }
     }
@@ -142,19 +178,36 @@ impl Effect {
             | Effect::SpringDashpot { .. }
             | Effect::BodyDrag
             | Effect::BodyQuadraticDrag
-            | Effect::WallFriction { .. } => vec![positive],
+            | Effect::WallFriction { .. }
+            | Effect::RailFriction { .. } => vec![positive],
             Effect::MissingSpring { .. } => vec![[1e-6, f64::INFINITY], positive],
             Effect::Tether { .. } => vec![free, free, [1e-6, f64::INFINITY], positive],
             Effect::Wall => vec![free, free, [0.0, 1.0]],
             // A bumper of stiffness 0 is no wall at all.
             Effect::Bumper => vec![free, free, [f64::MIN_POSITIVE, f64::INFINITY], positive],
+            Effect::Rail { .. } => vec![free, free],
+            Effect::Rope { .. } => vec![[1e-6, f64::INFINITY]],
+            Effect::AnchoredRope { .. } => vec![free, free, [1e-6, f64::INFINITY]],
         }
     }
 
     /// Returns true if and only if the effect is a smooth force the weak form can screen
-    /// (every effect but the walls and friction, which act at contacts).
+    /// (every effect but the walls, bumpers and their friction, which act at contacts, and
+    /// the constraints, which act by projection).
     pub fn is_smooth(self) -> bool {
-        !self.acts_at_contacts()
+        !self.acts_at_contacts() && !self.is_constraint()
+    }
+
+    /// Returns true if and only if the effect is a constraint or acts through one (a rail,
+    /// its friction, a rope): the weak form cannot screen it, the fits hold it.
+    pub fn is_constraint(self) -> bool {
+        matches!(
+            self,
+            Effect::Rail { .. }
+                | Effect::RailFriction { .. }
+                | Effect::Rope { .. }
+                | Effect::AnchoredRope { .. }
+        )
     }
 
     /// Returns true if and only if the effect acts at contacts with a wall (the wall itself,
@@ -193,6 +246,7 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
     let mut offset = 0;
     let mut dashpots = Vec::new();
     let mut frictions = Vec::new();
+    let mut rail_frictions = Vec::new();
     for &e in effects {
         let p = &params[offset..offset + e.parameter_count()];
         offset += e.parameter_count();
@@ -229,6 +283,39 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
             Effect::BodyQuadraticDrag => model.physics.body_quadratic_drag += p[0],
             Effect::WallFriction { wall } => frictions.push((wall, p[0])),
             Effect::Bumper => model.physics.walls.extend(bumper_from_params(p)),
+            Effect::Rail { particle } => {
+                let n = Vec2::new(p[0].cos(), p[0].sin());
+                let along = Vec2::new(-n.y, n.x);
+                model
+                    .physics
+                    .rails
+                    .extend(Rail::new(ParticleId(particle as u32), n * p[1], along));
+            }
+            Effect::RailFriction { particle } => rail_frictions.push((particle, p[0])),
+            Effect::Rope { a, b } => model.physics.ropes.push(Rope {
+                ends: [ParticleId(a as u32), ParticleId(b as u32)],
+                length: p[0],
+                slack: false,
+            }),
+            Effect::AnchoredRope { particle } => {
+                let anchor = model.add_particle(1.0, true);
+                model.physics.ropes.push(Rope {
+                    ends: [ParticleId(particle as u32), anchor],
+                    length: p[2],
+                    slack: false,
+                });
+                if let Some(s) = state.as_deref_mut() {
+                    s.positions.push(Vec2::new(p[0], p[1]));
+                    s.velocities.push(Vec2::zeros());
+                }
+            }
+        }
+    }
+    // Friction acts on the particle's rail (the structure's or an added one).
+    for (particle, mu) in rail_frictions {
+        let on = |r: &&mut Rail| r.particle.index() == particle;
+        if let Some(r) = model.physics.rails.iter_mut().find(on) {
+            r.friction += mu;
         }
     }
     // Friction acts on a wall however it came (the structure's or an added one); a bumper

@@ -162,7 +162,10 @@ impl Family {
                 Effect::Wall => t.extend([1.0, l, 1.0]),
                 Effect::BodyDrag => t.push(m / s),
                 Effect::BodyQuadraticDrag => t.push(m / l),
-                Effect::WallFriction { .. } => t.push(1.0),
+                Effect::WallFriction { .. } | Effect::RailFriction { .. } => t.push(1.0),
+                Effect::Rail { .. } => t.extend([1.0, l]),
+                Effect::Rope { .. } => t.push(l),
+                Effect::AnchoredRope { .. } => t.extend([l, l, l]),
                 Effect::Bumper => t.extend([1.0, l, m / (s * s), m / s]),
             }
         }

@@ -22,6 +22,7 @@
 //! `docs/diagnosis.md` describes the thresholds and the `report.json` contract.
 
 mod bumper;
+mod constraints;
 mod contact;
 mod costs;
 mod effect;
@@ -482,6 +483,14 @@ fn diagnose_inner(
             &walls_left,
             field_proposal.as_ref(),
         ));
+        // Rails under straight tracks (verified here, with their friction), and friction on
+        // the accepted rails (see `constraints`).
+        let rails = constraints::verify_rails(&ctx, &current);
+        to_verify.extend(
+            constraints::rail_friction_proposals(&obs, &current)
+                .into_iter()
+                .map(|p| vec![p]),
+        );
         // Pairs that work only together (a field with a tether is a pendulum; a field with
         // drag): the weak form's best pairs are verified when they pass the screen's gate
         // (the weak form often cannot tell which partner a field needs: drag or dashpots).
@@ -583,6 +592,7 @@ fn diagnose_inner(
             }
             verified.push(ctx.verify_with(&current, p, !fitted));
         }
+        verified.extend(rails);
         // Swaps: when no addition earns its place and the fit is still far from the noise, an
         // accepted smooth effect may be a poor stand-in for a better explanation (a far
         // tether imitating a pendulum's field and tether): each is taken out, the best single
@@ -776,7 +786,7 @@ fn diagnose_inner(
         &refit,
     ) {
         let (old, _, added) = accepted.remove(k);
-        let (proposal, evidence, fit, family) = simpler;
+        let (proposal, evidence, fit, family, reason) = simpler;
         if std::env::var_os("PHYSFIT_DEBUG").is_some() {
             eprintln!(" simpler equivalent: {:?} -> {:?}", old.effect, proposal.effect);
         }
@@ -786,10 +796,7 @@ fn diagnose_inner(
             added_round: added,
             round: round + 1,
             by: vec![proposal.effect.label(&family0.structure)],
-            reason: Some(format!(
-                "not identified by the tracks, and {} fits every frame as well with fewer parameters",
-                proposal.effect.label(&family0.structure)
-            )),
+            reason: Some(reason),
         });
         accepted.push((proposal, evidence, round + 1));
         current = Current {
@@ -1076,11 +1083,12 @@ fn prune(
     }
 }
 
-/// A swap for a finding of `current` that the tracks do not identify: the simpler candidate
-/// (fewer parameters, screened best on the model without it) whose refit on every frame
-/// (`refit`) is no worse than `final_fit` by more than the parameters it saves are worth on
-/// the information criterion. Returns the finding's index, and the candidate with its
-/// evidence, refit and family.
+/// A swap for a finding of `current`: a rigid rope for a spring whose length stays constant
+/// within the noise (see `constraints::rope_for`), or, for a finding the tracks do not
+/// identify, the simpler candidate (fewer parameters, screened best on the model without
+/// it); taken when its refit on every frame (`refit`) is no worse than `final_fit` by more
+/// than the parameters it saves are worth on the information criterion. Returns the
+/// finding's index, and the candidate with its evidence, refit, family and the reason.
 #[allow(clippy::type_complexity)]
 fn simpler_equivalent(
     ctx: &Context<'_>,
@@ -1090,7 +1098,7 @@ fn simpler_equivalent(
     candidates: &[Effect],
     rough_field: physfit_model::Vec2,
     refit: &dyn Fn(&Current) -> Option<ShotFit>,
-) -> Option<(usize, (Proposal, report::Evidence, ShotFit, Family))> {
+) -> Option<(usize, (Proposal, report::Evidence, ShotFit, Family, String))> {
     if outcome.findings.len() != current.family.effects.len() {
         return None;
     }
@@ -1106,55 +1114,63 @@ fn simpler_equivalent(
     };
     for (k, f) in outcome.findings.iter().enumerate() {
         let effect = current.family.effects[k];
-        if f.identified || !effect.is_smooth() {
-            continue;
-        }
         let width = effect.parameter_count();
         let reduced = ctx.without(&held, k);
-        let Some(p) = ctx
-            .screen(&reduced, candidates)
+        // Ropes in place of a spring of constant length; for a finding not identified, the
+        // simpler candidate screened best without it.
+        let mut options: Vec<(Proposal, &str)> = constraints::rope_for(ctx, &current.family, &final_fit.params, k)
             .into_iter()
-            .filter(|p| p.effect.parameter_count() < width && p.effect != effect)
-            .filter(|p| !reduced.family.effects.contains(&p.effect))
-            .filter(|p| p.screen.is_some_and(|s| s > 0.0))
-            .max_by(|a, b| a.screen.unwrap_or(0.0).total_cmp(&b.screen.unwrap_or(0.0)))
-        else {
-            continue;
-        };
-        // A field also starts from the rough model's and from none (the screen's is taken
-        // beside the finding it would replace, and both take in bounces that are only faint).
-        let mut starts = vec![p.clone()];
-        if p.effect == Effect::Gravity {
-            for init in [rough_field, physfit_model::Vec2::zeros()] {
-                starts.push(Proposal {
-                    init: vec![init.x, init.y],
-                    ..p.clone()
-                });
+            .map(|p| (p, "its length stays constant within the noise, and the candidate fits every frame as well without a stiffness"))
+            .collect();
+        if !f.identified && effect.is_smooth() {
+            let screened = ctx
+                .screen(&reduced, candidates)
+                .into_iter()
+                .filter(|p| p.effect.parameter_count() < width && p.effect != effect)
+                .filter(|p| !reduced.family.effects.contains(&p.effect))
+                .filter(|p| p.screen.is_some_and(|s| s > 0.0))
+                .max_by(|a, b| a.screen.unwrap_or(0.0).total_cmp(&b.screen.unwrap_or(0.0)));
+            if let Some(p) = screened {
+                // A field also starts from the rough model's and from none (the screen's is
+                // taken beside the finding it would replace, and both take in bounces that
+                // are only faint).
+                let mut starts = vec![p.clone()];
+                if p.effect == Effect::Gravity {
+                    for init in [rough_field, physfit_model::Vec2::zeros()] {
+                        starts.push(Proposal {
+                            init: vec![init.x, init.y],
+                            ..p.clone()
+                        });
+                    }
+                }
+                let reason = "not identified by the tracks, and the candidate fits every frame as well with fewer parameters";
+                options.extend(starts.into_iter().map(|p| (p, reason)));
             }
         }
-        let Some((p, v, with, fit)) = starts
+        // The option worth the most on the information criterion (the least worth).
+        let Some((p, v, with, fit, worth, reason)) = options
             .into_iter()
-            .filter_map(|p| {
+            .filter_map(|(p, reason)| {
                 let v = ctx.verify(&reduced, std::slice::from_ref(&p));
                 let with = v.current.clone()?;
                 let fit = refit(&with)?;
-
-                Some((p, v, with, fit))
+                let saved = width as f64 - p.effect.parameter_count() as f64;
+                let worth = (fit.sum_squares - final_fit.sum_squares) / variance - saved * ln_n;
+                if std::env::var_os("PHYSFIT_DEBUG").is_some() {
+                    eprintln!(
+                        " simpler than {effect:?}: {:?} leaves {:.4} px² against {:.4} (worth {worth:.2})",
+                        p.effect, fit.sum_squares, final_fit.sum_squares
+                    );
+                }
+                Some((p, v, with, fit, worth, reason))
             })
-            .min_by(|a, b| a.3.sum_squares.total_cmp(&b.3.sum_squares))
+            .min_by(|a, b| a.4.total_cmp(&b.4))
         else {
             continue;
         };
-        let saved = (width - p.effect.parameter_count()) as f64;
-        let worth = (fit.sum_squares - final_fit.sum_squares) / variance - saved * ln_n;
-        if std::env::var_os("PHYSFIT_DEBUG").is_some() {
-            eprintln!(
-                " simpler than {effect:?}: {:?} leaves {:.4} px² against {:.4} (worth {worth:.2})",
-                p.effect, fit.sum_squares, final_fit.sum_squares
-            );
-        }
         if worth <= 0.0 {
-            return Some((k, (p, v.evidence, fit, with.family)));
+            let reason = reason.replace("the candidate", &p.effect.label(&current.family.structure));
+            return Some((k, (p, v.evidence, fit, with.family, reason)));
         }
     }
     None

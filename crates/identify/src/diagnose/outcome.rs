@@ -55,7 +55,8 @@ fn unit(effect: Effect, name: &str) -> &'static str {
         (Effect::QuadraticDrag, _) => "1/px",
         (Effect::SpringDamping | Effect::SpringDashpot { .. } | Effect::BodyDrag, _) => "mass/s",
         (Effect::BodyQuadraticDrag, _) => "mass/px",
-        (Effect::WallFriction { .. }, _) => "1",
+        (Effect::WallFriction { .. } | Effect::RailFriction { .. }, _) => "1",
+        (Effect::Rail { .. }, "normal_angle") => "rad",
         (Effect::Bumper, "damping") => "mass/s",
         (Effect::Bumper, "normal_angle") => "rad",
         (_, "stiffness") => "energy/px^2",
@@ -270,7 +271,7 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                 let model_wall = fam.model(&fit.params, None).physics.walls.get(wall).cloned();
                 let normal = model_wall.as_ref().map_or_else(Vec2::zeros, |w| w.normal);
                 let sliding = model_wall
-                    .map(|w| super::contact::sliding_on(inp.obs, fam, &fit.params, &w))
+                    .map(|w| super::contact::sliding_on(inp.obs, fam, &fit.params, &w, &fam.free))
                     .unwrap_or_default();
                 let mut particles: Vec<String> = proposal
                     .jolts
@@ -333,6 +334,22 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                     values[1]
                 );
             }
+            Effect::Rail { particle }
+            | Effect::RailFriction { particle }
+            | Effect::AnchoredRope { particle } => {
+                for (i, name) in effect.parameter_names().iter().enumerate() {
+                    push(name, values[i], errs[i]);
+                }
+                seen.particles = vec![id(particle)];
+                seen.frames = vec![window];
+                seen.text = super::constraints::seen_text(inp.obs, fam, &fit.params, k, &id);
+            }
+            Effect::Rope { a, b } => {
+                push("length", values[0], errs[0]);
+                seen.particles = vec![id(a), id(b)];
+                seen.frames = vec![window];
+                seen.text = super::constraints::seen_text(inp.obs, fam, &fit.params, k, &id);
+            }
         }
         // Held values carry no standard error; values the tracks do not pin down are named.
         let mut notes = Vec::new();
@@ -347,7 +364,14 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
         let magnitude = |name: &str| {
             !matches!(
                 name,
-                "gravity_x" | "gravity_y" | "normal_x" | "normal_y" | "offset" | "anchor_x" | "anchor_y"
+                "gravity_x"
+                    | "gravity_y"
+                    | "normal_x"
+                    | "normal_y"
+                    | "normal_angle"
+                    | "offset"
+                    | "anchor_x"
+                    | "anchor_y"
             )
         };
         let mut unidentified: Vec<String> = parameters
@@ -561,6 +585,15 @@ fn final_scene(
                     damping: None,
                 });
             }
+            // The rope itself is in the model's physics (its anchor's index is this one's).
+            Effect::AnchoredRope { .. } => scene.particles.push(ParticleSpec {
+                id: anchor_id(structure, k),
+                mass: 1.0,
+                position: Vec2::new(v[0], v[1]),
+                velocity: Vec2::zeros(),
+                fixed: true,
+                ..Default::default()
+            }),
             _ => {}
         }
     }

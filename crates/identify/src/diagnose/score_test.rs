@@ -124,7 +124,13 @@ fn effect_columns(
             let r_l1 = with(1.0)?;
             Some(vec![diff(&r_l0, r0, h), diff(&r_l1, &r_l0, h)])
         }
-        Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => None,
+        Effect::Wall
+        | Effect::WallFriction { .. }
+        | Effect::Rail { .. }
+        | Effect::RailFriction { .. }
+        | Effect::Rope { .. }
+        | Effect::Bumper
+        | Effect::AnchoredRope { .. } => None,
     }
 }
 
@@ -174,7 +180,13 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                         v
                     }
                 }
-                Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => return None,
+                Effect::Wall
+                | Effect::WallFriction { .. }
+                | Effect::Rail { .. }
+                | Effect::RailFriction { .. }
+                | Effect::Rope { .. }
+                | Effect::Bumper
+                | Effect::AnchoredRope { .. } => return None,
             };
             let _ = k;
             Some((score, values))

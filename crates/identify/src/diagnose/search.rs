@@ -246,7 +246,13 @@ impl Context<'_> {
                 let [l, s] = spring(theta, (a - mean).norm());
                 vec![a.x, a.y, l, s]
             }
-            Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => fallback.to_vec(),
+            Effect::Wall
+            | Effect::WallFriction { .. }
+            | Effect::Rail { .. }
+            | Effect::RailFriction { .. }
+            | Effect::Rope { .. }
+            | Effect::Bumper
+            | Effect::AnchoredRope { .. } => fallback.to_vec(),
         }
     }
 
@@ -1537,7 +1543,13 @@ fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
         | Effect::BodyQuadraticDrag => params.to_vec(),
         Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
         Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
-        Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => Vec::new(),
+        Effect::Wall
+        | Effect::WallFriction { .. }
+        | Effect::Rail { .. }
+        | Effect::RailFriction { .. }
+        | Effect::Rope { .. }
+        | Effect::Bumper
+        | Effect::AnchoredRope { .. } => Vec::new(),
     }
 }
 

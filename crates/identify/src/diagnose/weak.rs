@@ -382,7 +382,13 @@ impl WeakForm {
                     *v = -vel * vel.norm();
                 }
             })],
-            Effect::Wall | Effect::WallFriction { .. } | Effect::Bumper => Vec::new(),
+            Effect::Wall
+            | Effect::WallFriction { .. }
+            | Effect::Rail { .. }
+            | Effect::RailFriction { .. }
+            | Effect::Rope { .. }
+            | Effect::Bumper
+            | Effect::AnchoredRope { .. } => Vec::new(),
         }
     }
 
