@@ -64,15 +64,70 @@ impl Family {
         }
     }
 
-    /// The same family without effect `k` (its pins dropped, later ones re-indexed).
+    /// The effects that act through effect `k` and mean nothing without it, in increasing
+    /// order: the friction on the wall `k` adds, and the friction on the rail `k` adds
+    /// (unless the structure holds that particle on a rail of its own).
+    pub fn dependents(&self, k: usize) -> Vec<usize> {
+        let on_wall = self.added_wall_index(k);
+        let on_rail = match self.effects[k] {
+            Effect::Rail { particle } => {
+                let given = self
+                    .structure
+                    .physics
+                    .rails
+                    .iter()
+                    .any(|r| r.particle.index() == particle);
+                (!given).then_some(particle)
+            }
+            _ => None,
+        };
+        (0..self.effects.len())
+            .filter(|&j| match self.effects[j] {
+                Effect::WallFriction { wall } => Some(wall) == on_wall,
+                Effect::RailFriction { particle } => Some(particle) == on_rail,
+                _ => false,
+            })
+            .collect()
+    }
+
+    /// The model's index of the wall effect `k` adds (the structure's walls come first, then
+    /// the added ones in effect order), if it adds one.
+    fn added_wall_index(&self, k: usize) -> Option<usize> {
+        self.effects[k].adds_wall().then(|| {
+            self.structure.physics.walls.len() + self.effects[..k].iter().filter(|e| e.adds_wall()).count()
+        })
+    }
+
+    /// The effects [`Family::without_effect`] takes out with `k`: `k` and its
+    /// [`dependents`](Family::dependents), in decreasing order.
+    pub fn removed_with(&self, k: usize) -> Vec<usize> {
+        let mut out = self.dependents(k);
+        out.push(k);
+        out.sort_unstable_by(|a, b| b.cmp(a));
+        out
+    }
+
+    /// The same family without effect `k` and the effects that depend on it (see
+    /// [`Family::removed_with`]; their pins dropped, later ones re-indexed, and friction on a
+    /// later added wall moved to that wall's new index).
     pub fn without_effect(&self, k: usize) -> Family {
-        let mut effects = self.effects.clone();
-        effects.remove(k);
+        let removed = self.removed_with(k);
+        let wall = self.added_wall_index(k);
+        let effects = (0..self.effects.len())
+            .filter(|j| !removed.contains(j))
+            .map(|j| match (self.effects[j], wall) {
+                (Effect::WallFriction { wall: w }, Some(gone)) if w > gone => {
+                    Effect::WallFriction { wall: w - 1 }
+                }
+                (e, _) => e,
+            })
+            .collect();
+        let shift = |e: usize| e - removed.iter().filter(|&&r| r < e).count();
         let pins = self
             .pins
             .iter()
-            .filter(|(e, _, _)| *e != k)
-            .map(|&(e, i, v)| (if e > k { e - 1 } else { e }, i, v))
+            .filter(|(e, _, _)| !removed.contains(e))
+            .map(|&(e, i, v)| (shift(e), i, v))
             .collect();
         Family {
             effects,
@@ -237,5 +292,93 @@ impl DataScales {
             stiffness: sc.spring,
             omega: sc.omega,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ball on a floor (the structure's wall 0) and on a rail of its own.
+    fn family(effects: Vec<Effect>) -> Family {
+        let text = r#"
+name = "t"
+[recording]
+fps = 100.0
+frames = 10
+[[particles]]
+id = "a"
+mass = 1.0
+position = [10.0, 10.0]
+[[particles]]
+id = "b"
+mass = 1.0
+position = [30.0, 10.0]
+[[physics.walls]]
+point = [0.0, 100.0]
+normal = [0.0, -1.0]
+restitution = 0.8
+[[physics.rails]]
+particle = "b"
+point = [0.0, 10.0]
+direction = [1.0, 0.0]
+"#;
+        let structure = Scene::from_toml_str(text, "t.toml").unwrap_or_else(|e| panic!("{e}"));
+        Family {
+            free: vec![0, 1],
+            known: None,
+            problem: None,
+            structure,
+            effects,
+            pins: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn an_added_wall_goes_with_its_friction_and_later_frictions_follow_their_walls() {
+        // Model walls: 0 the structure's, 1 and 2 added by effects 0 and 2.
+        let f = family(vec![
+            Effect::Wall,
+            Effect::WallFriction { wall: 1 },
+            Effect::Wall,
+            Effect::WallFriction { wall: 2 },
+            Effect::WallFriction { wall: 0 },
+        ]);
+        assert_eq!(f.dependents(0), vec![1]);
+        assert_eq!(f.dependents(2), vec![3]);
+        assert_eq!(f.removed_with(0), vec![1, 0]);
+        let g = f.without_effect(0);
+        assert_eq!(
+            g.effects,
+            vec![
+                Effect::Wall,
+                Effect::WallFriction { wall: 1 },
+                Effect::WallFriction { wall: 0 }
+            ]
+        );
+        // A friction alone goes alone; the wall it acts on stays.
+        assert_eq!(f.removed_with(3), vec![3]);
+        assert_eq!(f.without_effect(3).effects.len(), 4);
+        // A pin on a later effect follows it.
+        let mut pinned = f.clone();
+        pinned.pins = vec![(3, 0, 0.5), (1, 0, 0.2)];
+        assert_eq!(pinned.without_effect(0).pins, vec![(1, 0, 0.5)]);
+    }
+
+    #[test]
+    fn an_added_rail_goes_with_its_friction_but_a_given_rail_keeps_it() {
+        let f = family(vec![
+            Effect::Rail { particle: 0 },
+            Effect::RailFriction { particle: 0 },
+            Effect::Rail { particle: 1 },
+            Effect::RailFriction { particle: 1 },
+        ]);
+        assert_eq!(f.removed_with(0), vec![1, 0]);
+        assert_eq!(
+            f.without_effect(0).effects,
+            vec![Effect::Rail { particle: 1 }, Effect::RailFriction { particle: 1 }]
+        );
+        // Particle b has the structure's rail: its friction still has a rail to act on.
+        assert_eq!(f.removed_with(2), vec![2]);
     }
 }

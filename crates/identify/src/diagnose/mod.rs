@@ -1050,7 +1050,9 @@ fn prune(
             } else {
                 fit.fit.sum_squares
             };
-            let k_params = current.family.effects[k].parameter_count();
+            let k_params: usize = (current.family.removed_with(k).iter())
+                .map(|&j| current.family.effects[j].parameter_count())
+                .sum();
             let held_worth = (after - before) / variance - k_params as f64 * (n.max(2) as f64).ln();
             // It must pay on the fitted frames too (see `Evidence::score_on`).
             let fitted_worth = (fit.fit.sum_squares - current.fit.sum_squares) / variance
@@ -1070,15 +1072,18 @@ fn prune(
             }
         }
         let Some((_, k, fit)) = worst else { return };
-        let (old, _, added) = accepted.remove(k);
-        replaced.push(report::Replaced {
-            effect: old.effect.name().into(),
-            label: old.effect.label(&family0.structure),
-            added_round: added,
-            round,
-            by: Vec::new(),
-            reason: None,
-        });
+        // The effect and those that act through it (friction on its wall) go together.
+        for j in current.family.removed_with(k) {
+            let (old, _, added) = accepted.remove(j);
+            replaced.push(report::Replaced {
+                effect: old.effect.name().into(),
+                label: old.effect.label(&family0.structure),
+                added_round: added,
+                round,
+                by: Vec::new(),
+                reason: None,
+            });
+        }
         *current = fit;
     }
 }

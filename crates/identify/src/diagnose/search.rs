@@ -1304,14 +1304,17 @@ impl Context<'_> {
         n > p && current.fit.sum_squares / ((n - p) as f64) <= EXPLAINED_VARIANCE_RATIO * floor * floor
     }
 
-    /// `current` without its effect `k`: the family without it and the fit's values without
-    /// its parameters (not refitted; the held-out cost is kept).
+    /// `current` without its effect `k` and those that act through it (see
+    /// [`Family::removed_with`]): the family without them and the fit's values without their
+    /// parameters (not refitted; the held-out cost is kept).
     pub fn without(&self, current: &Current, k: usize) -> Current {
         let family = &current.family;
-        let o = family.effect_offset(k);
-        let width = family.effects[k].parameter_count();
         let mut params = current.fit.params.clone();
-        params.drain(o..o + width);
+        // Decreasing order: each drain leaves the earlier offsets in place.
+        for j in family.removed_with(k) {
+            let o = family.effect_offset(j);
+            params.drain(o..o + family.effects[j].parameter_count());
+        }
         let mut fit = current.fit.clone();
         fit.params = params;
         Current {
