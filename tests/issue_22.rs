@@ -820,3 +820,101 @@ gravity = [0.0, {g}]
 fn a_soft_spring_tether_stays_a_spring() {
     check_soft_spring(21);
 }
+
+/// Two pucks (masses 1 and 2) joined by a spring, launched across a table seen from above
+/// with the table's dry friction `medium` (`surface_friction = a`, or a drag for the
+/// control), 2.5 s at 100 frames/s: the launch speeds (150-250 px/s) and the spring are
+/// drawn from `seed`.
+fn table_scene(medium: &str, seed: u64) -> String {
+    let mut s = seed;
+    let stiffness = draw(&mut s, 20.0, 60.0);
+    let (va, vb) = (draw(&mut s, 150.0, 250.0), draw(&mut s, 150.0, 250.0));
+    let turn = draw(&mut s, -0.3, 0.3);
+    let head = head("pucks-on-a-table", 250, 480, 400, seed);
+    format!(
+        r#"{head}[[particles]]
+id = "a"
+mass = 1.0
+position = [80.0, 120.0]
+velocity = [{ax}, {ay}]
+[[particles]]
+id = "b"
+mass = 2.0
+position = [80.0, 175.0]
+velocity = [{bx}, {by}]
+[[springs]]
+between = ["a", "b"]
+length = 50.0
+stiffness = {stiffness}
+[physics]
+{medium}
+"#,
+        ax = va * turn.cos(),
+        ay = va * turn.sin() + 40.0,
+        bx = vb * 0.8,
+        by = vb * 0.3,
+    )
+}
+
+/// [`table_scene`] with its friction (150-400 px/s²) drawn from `seed`, diagnosed from the
+/// structure alone: the surface's friction within 5 %, the spring within 5 %, and nothing
+/// else added.
+fn check_surface_friction(seed: u64) {
+    let mut s = seed.wrapping_mul(31);
+    let a = draw(&mut s, 150.0, 400.0);
+    let dir = tempdir();
+    let scene = table_scene(&format!("surface_friction = {a}"), seed);
+    let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+    let c = compare_scenes(&fitted, &truth, &structure);
+    let found = fitted.physics.surface_friction;
+    println!(
+        "surface friction seed {seed}: a {a:.3}: found {:?}, a {found:.4} ({:+.4} %), bonds {:?}, verdict {}",
+        c.effects_found,
+        100.0 * (found / a - 1.0),
+        c.max_bond_relative_error,
+        report["verdict"]["text"]
+    );
+    assert_eq!(c.effects_found, ["surface_friction"], "{:?}", c.values);
+    assert!((found / a - 1.0).abs() < 0.05, "a {found} against {a}");
+    assert!(
+        c.max_bond_relative_error.is_some_and(|e| e < 0.05),
+        "{:?}",
+        c.values
+    );
+    let text = seen_of(&report, "surface_friction");
+    assert!(text.contains("stays put once stopped"), "{text}");
+}
+
+#[test]
+fn dry_friction_of_a_table_is_found_within_5_percent_seed_31() {
+    check_surface_friction(31);
+}
+
+#[test]
+fn dry_friction_of_a_table_is_found_within_5_percent_seed_32() {
+    check_surface_friction(32);
+}
+
+#[test]
+fn dry_friction_of_a_table_is_found_within_5_percent_seed_33() {
+    check_surface_friction(33);
+}
+
+/// The same pucks slowed by a linear drag (1-3 /s), which never stops them, get the drag and
+/// no dry friction.
+#[test]
+fn pucks_slowed_by_drag_get_no_dry_friction() {
+    for seed in [34, 35] {
+        let mut s = seed;
+        let drag = draw(&mut s, 1.0, 3.0);
+        let dir = tempdir();
+        let scene = table_scene(&format!("drag = {drag}"), seed);
+        let (truth, structure, report, fitted) = diagnose_rendered(dir.path(), &scene);
+        let c = compare_scenes(&fitted, &truth, &structure);
+        println!(
+            "drag control seed {seed}: drag {drag:.4}: found {:?}, verdict {}",
+            c.effects_found, report["verdict"]["text"]
+        );
+        assert_eq!(c.effects_found, ["drag"], "seed {seed}: {:?}", c.values);
+    }
+}

@@ -4,7 +4,8 @@
 //! advances a [`State`] by one substep of a [`Model`], using a caller-owned scratch buffer, so
 //! the same model can be stepped from many states in parallel (the identifier does this) with
 //! no allocation on the hot path. Ropes and rails are projected after each substep
-//! ([`crate::constraint`]), then walls are applied, as singular events.
+//! ([`crate::constraint`]), the surface's dry friction is applied
+//! ([`crate::Physics::apply_surface_friction`]), then walls are applied, as singular events.
 
 use crate::{Model, State, Vec2};
 use serde::{Deserialize, Serialize};
@@ -228,6 +229,15 @@ pub(crate) fn step_substep(
     if constrained {
         model.apply_constraints(&scratch.x_old, state, dt, &mut scratch.rail_dv);
         // The projection moved the positions the end acceleration was evaluated at.
+        scratch.acc_valid = false;
+    }
+    if model.physics.surface_friction != 0.0 {
+        let fixed = model.particles.particles.iter().map(|p| p.fixed);
+        let tau = match kind {
+            IntegratorKind::Verlet => 0.5 * dt,
+            IntegratorKind::Euler => dt,
+        };
+        model.physics.apply_surface_friction(fixed, state, dt, tau);
         scratch.acc_valid = false;
     }
     // `scratch.acc` is the acceleration at the end of the substep (Verlet) or at its start

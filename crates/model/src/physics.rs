@@ -14,7 +14,7 @@
 //! along its normal, so the contact line moves with the impact speed. Its spring is part of
 //! the model's [`crate::Potential`], its dashpot a velocity-dependent force.
 
-use crate::{Rail, Rope, Vec2};
+use crate::{Rail, Rope, State, Vec2};
 
 /// A straight wall: the line through `point` with unit `normal` pointing into the allowed side.
 #[derive(Clone, Debug, PartialEq)]
@@ -224,7 +224,8 @@ impl Wall {
 /// Coulomb friction of a contact with unit `normal` and coefficient `mu`: the velocity `v`'s
 /// part across the normal (px/s) loses `min(mu * dv_n, |v_t|)`, `dv_n` (px/s, >= 0) the
 /// contact's normal velocity change; the position `x` moves by the change times `tau` (s),
-/// the time since the contact. The one law of walls ([`Wall::apply_friction`]) and rails.
+/// the time since the contact. The one law of walls ([`Wall::apply_friction`]), rails and
+/// the surface ([`Physics::surface_friction`], with a zero `normal`).
 #[inline]
 pub(crate) fn coulomb_friction(normal: Vec2, mu: f64, x: &mut Vec2, v: &mut Vec2, dv_n: f64, tau: f64) {
     let vt = *v - normal * v.dot(&normal);
@@ -253,6 +254,12 @@ pub struct Physics {
     /// Quadratic drag coefficient `c` of every body without its own, mass/px:
     /// `F = -c |v| v`, not scaled by the mass.
     pub body_quadratic_drag: f64,
+    /// Dry friction of the surface the motion lies on (a table or an air-less floor seen
+    /// from above), px/s²: the deceleration `mu g` of every free particle while it slides,
+    /// `F = -surface_friction * m * v / |v|`; a particle at rest stays at rest while the
+    /// other forces on it are below `m * surface_friction` (Coulomb's law with the normal
+    /// force out of the image plane, so only the product `mu g` shows).
+    pub surface_friction: f64,
     /// Walls the particles' centres bounce off.
     pub walls: Vec<Wall>,
     /// Ropes and rods: distance constraints between particles.
@@ -262,6 +269,33 @@ pub struct Physics {
 }
 
 impl Physics {
+    /// Applies the surface's dry friction ([`Physics::surface_friction`]) over a substep of
+    /// `dt` s to the free particles of `state` (`fixed[k]` is true for a fixed particle):
+    /// each velocity loses `min(surface_friction dt, |v|)` along itself, and its position
+    /// that change times `tau` s, the time over which the substep's update moved it with
+    /// that velocity (`dt / 2` for velocity Verlet, the trapezoidal rule of a uniform
+    /// deceleration; `dt` for semi-implicit Euler), so that a particle the other forces
+    /// cannot start stays where it is.
+    pub fn apply_surface_friction(
+        &self,
+        fixed: impl Iterator<Item = bool>,
+        state: &mut State,
+        dt: f64,
+        tau: f64,
+    ) {
+        let push = self.surface_friction * dt;
+        for ((x, v), fixed) in state
+            .positions
+            .iter_mut()
+            .zip(state.velocities.iter_mut())
+            .zip(fixed)
+        {
+            if !fixed {
+                coulomb_friction(Vec2::zeros(), 1.0, x, v, push, tau);
+            }
+        }
+    }
+
     /// Returns true if and only if some rope or rail constrains the motion.
     pub fn has_constraints(&self) -> bool {
         !self.ropes.is_empty() || !self.rails.is_empty()

@@ -46,6 +46,10 @@ pub enum Effect {
     BodyDrag,
     /// Quadratic drag per body, not scaled by the mass: `F = -c |v| v` (`c` in mass/px).
     BodyQuadraticDrag,
+    /// Dry friction of the surface under the motion (a puck on a table seen from above,
+    /// [`physfit_model::Physics::surface_friction`]): every free particle that slides
+    /// decelerates at `a` (px/s², `mu g`), `F = -a m v / |v|`, and one at rest sticks.
+    SurfaceFriction,
     /// Coulomb friction at a wall (see [`physfit_model::Wall::apply_friction`]): bounces lose
     /// tangential speed, at most `mu` times their normal velocity change, and a particle
     /// sliding on it decelerates at `mu g_n`.
@@ -90,6 +94,7 @@ pub enum Effect {
 impl Effect {
     /// The effect's name in `report.json` (`gravity`, `drag`, `quadratic_drag`,
     /// `spring_damping`, `missing_spring`, `wall`, `body_drag`, `body_quadratic_drag`,
+    /// `surface_friction`,
     /// `wall_friction`, `bumper`, `rail`, `rail_friction`, `rope`).
     pub fn name(self) -> &'static str {
         match self {
@@ -101,6 +106,7 @@ impl Effect {
             Effect::Wall => "wall",
             Effect::BodyDrag => "body_drag",
             Effect::BodyQuadraticDrag => "body_quadratic_drag",
+            Effect::SurfaceFriction => "surface_friction",
             Effect::WallFriction { .. } => "wall_friction",
             Effect::Bumper => "bumper",
             Effect::Rail { .. } => "rail",
@@ -131,6 +137,7 @@ impl Effect {
             Effect::Wall => "wall".into(),
             Effect::BodyDrag => "linear drag per body".into(),
             Effect::BodyQuadraticDrag => "quadratic drag per body".into(),
+            Effect::SurfaceFriction => "dry friction of the surface under the motion".into(),
             Effect::WallFriction { wall } => format!("friction at wall {}", wall + 1),
             Effect::Bumper => "spring bumper".into(),
             Effect::Rail { particle } => format!("rail of {}", id(particle)),
@@ -152,6 +159,7 @@ impl Effect {
             Effect::Wall => &["normal_angle", "offset", "restitution"],
             Effect::BodyDrag => &["body_drag"],
             Effect::BodyQuadraticDrag => &["body_quadratic_drag"],
+            Effect::SurfaceFriction => &["surface_friction"],
             Effect::WallFriction { .. } | Effect::RailFriction { .. } => &["friction"],
             Effect::Rail { .. } => &["normal_angle", "offset"],
             Effect::Rope { .. } => &["length"],
@@ -178,6 +186,7 @@ impl Effect {
             | Effect::SpringDashpot { .. }
             | Effect::BodyDrag
             | Effect::BodyQuadraticDrag
+            | Effect::SurfaceFriction
             | Effect::WallFriction { .. }
             | Effect::RailFriction { .. } => vec![positive],
             Effect::MissingSpring { .. } => vec![[1e-6, f64::INFINITY], positive],
@@ -281,6 +290,7 @@ pub fn apply_effects(effects: &[Effect], params: &[f64], model: &mut Model, mut 
             }
             Effect::BodyDrag => model.physics.body_drag += p[0],
             Effect::BodyQuadraticDrag => model.physics.body_quadratic_drag += p[0],
+            Effect::SurfaceFriction => model.physics.surface_friction += p[0],
             Effect::WallFriction { wall } => frictions.push((wall, p[0])),
             Effect::Bumper => model.physics.walls.extend(bumper_from_params(p)),
             Effect::Rail { particle } => {

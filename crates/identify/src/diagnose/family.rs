@@ -217,6 +217,7 @@ impl Family {
                 Effect::Wall => t.extend([1.0, l, 1.0]),
                 Effect::BodyDrag => t.push(m / s),
                 Effect::BodyQuadraticDrag => t.push(m / l),
+                Effect::SurfaceFriction => t.push(l / (s * s)),
                 Effect::WallFriction { .. } | Effect::RailFriction { .. } => t.push(1.0),
                 Effect::Rail { .. } => t.extend([1.0, l]),
                 Effect::Rope { .. } => t.push(l),

@@ -50,7 +50,7 @@ pub struct Outcome {
 
 fn unit(effect: Effect, name: &str) -> &'static str {
     match (effect, name) {
-        (Effect::Gravity, _) => "px/s^2",
+        (Effect::Gravity | Effect::SurfaceFriction, _) => "px/s^2",
         (Effect::Drag, _) => "1/s",
         (Effect::QuadraticDrag, _) => "1/px",
         (Effect::SpringDamping | Effect::SpringDashpot { .. } | Effect::BodyDrag, _) => "mass/s",
@@ -205,7 +205,8 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             | Effect::QuadraticDrag
             | Effect::SpringDamping
             | Effect::BodyDrag
-            | Effect::BodyQuadraticDrag => {
+            | Effect::BodyQuadraticDrag
+            | Effect::SurfaceFriction => {
                 push(
                     effect.parameter_names()[0].trim_start_matches("spring_"),
                     values[0],
@@ -228,6 +229,11 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
                         .map(|&p| inp.structure.particles[p].mass)
                         .collect();
                     super::contact::body_drag_seen_text(&effect.label(inp.structure), &masses)
+                } else if effect == Effect::SurfaceFriction {
+                    format!(
+                        "every free particle decelerates at {:.2} px/s^2 against its motion while it slides, whatever its speed, and stays put once stopped: Coulomb friction with a surface under the motion (mu g; mu alone cannot be known without g)",
+                        values[0]
+                    )
                 } else {
                     format!(
                         "{} acting throughout, against the motion",

@@ -102,7 +102,8 @@ fn effect_columns(
         | Effect::SpringDamping
         | Effect::SpringDashpot { .. }
         | Effect::BodyDrag
-        | Effect::BodyQuadraticDrag => {
+        | Effect::BodyQuadraticDrag
+        | Effect::SurfaceFriction => {
             let h = eps[0];
             Some(vec![diff(&run(&[h])?, r0, h)])
         }
@@ -163,7 +164,8 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                 | Effect::SpringDamping
                 | Effect::SpringDashpot { .. }
                 | Effect::BodyDrag
-                | Effect::BodyQuadraticDrag => {
+                | Effect::BodyQuadraticDrag
+                | Effect::SurfaceFriction => {
                     if step[0] < 0.0 {
                         score = 0.0;
                     }

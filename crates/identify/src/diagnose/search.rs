@@ -235,7 +235,8 @@ impl Context<'_> {
             | Effect::SpringDamping
             | Effect::SpringDashpot { .. }
             | Effect::BodyDrag
-            | Effect::BodyQuadraticDrag => vec![theta[0].max(0.0)],
+            | Effect::BodyQuadraticDrag
+            | Effect::SurfaceFriction => vec![theta[0].max(0.0)],
             Effect::MissingSpring { a, b } => spring(theta, self.mean_distance(a, b)).to_vec(),
             Effect::Tether { particle } => {
                 let a = anchor.unwrap_or_else(Vec2::zeros);
@@ -1543,7 +1544,8 @@ fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
         | Effect::SpringDamping
         | Effect::SpringDashpot { .. }
         | Effect::BodyDrag
-        | Effect::BodyQuadraticDrag => params.to_vec(),
+        | Effect::BodyQuadraticDrag
+        | Effect::SurfaceFriction => params.to_vec(),
         Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
         Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
         Effect::Wall
@@ -1571,7 +1573,12 @@ pub fn noise_floor(noise: f64, length: f64) -> f64 {
 /// Every smooth candidate for `family`'s structure.
 pub fn smooth_candidates(family: &Family, obs: &Observations) -> Vec<Effect> {
     let s = &family.structure;
-    let mut out = vec![Effect::Gravity, Effect::Drag, Effect::QuadraticDrag];
+    let mut out = vec![
+        Effect::Gravity,
+        Effect::Drag,
+        Effect::QuadraticDrag,
+        Effect::SurfaceFriction,
+    ];
     if !s.springs.is_empty() {
         out.push(Effect::SpringDamping);
     }

@@ -382,6 +382,19 @@ impl WeakForm {
                     *v = -vel * vel.norm();
                 }
             })],
+            // Sliding only: at rest the friction holds whatever the other forces leave, which
+            // the weak form does not see.
+            Effect::SurfaceFriction => vec![self.column(|state, f| {
+                for (p, v) in f.iter_mut().enumerate() {
+                    let vel = state.velocities[p];
+                    let speed = vel.norm();
+                    *v = if speed > 0.0 {
+                        -vel * (masses[p] / speed)
+                    } else {
+                        Vec2::zeros()
+                    };
+                }
+            })],
             Effect::Wall
             | Effect::WallFriction { .. }
             | Effect::Rail { .. }

@@ -3,7 +3,8 @@
 //!
 //! Effects are named as the diagnosis names them (`gravity`, `drag`, `quadratic_drag`,
 //! `spring_damping`, `wall`, `missing_spring`, and the contacts and constraints
-//! `wall_friction`, `bumper`, `body_drag`, `body_quadratic_drag`, `rope`, `rail`), so a run on a rendered scene can say which
+//! `wall_friction`, `bumper`, `surface_friction`, `body_drag`, `body_quadratic_drag`, `rope`,
+//! `rail`), so a run on a rendered scene can say which
 //! concealed effects were found, which were missed and which were added without cause.
 
 use serde::Serialize;
@@ -56,10 +57,17 @@ pub struct SceneComparison {
 /// from: its springs are the listed ones; every other spring or particle is an added effect).
 pub fn compare_scenes(fitted: &Scene, truth: &Scene, structure: &Scene) -> SceneComparison {
     let mut values = Vec::new();
-    bond_values(fitted, truth, &mut values);
-    physics_values(fitted, truth, &mut values);
+    let rigid = rope_tethers(fitted, truth);
+    bond_values(fitted, truth, &rigid, &mut values);
+    physics_values(fitted, truth, &rigid, &mut values);
     let effects_concealed = effects_beyond(truth, structure);
-    let effects_found = effects_beyond(fitted, structure);
+    let mut effects_found = effects_beyond(fitted, structure);
+    // A rope standing for a stiff tether is that tether found.
+    for _ in &rigid {
+        if let Some(k) = effects_found.iter().position(|e| e == "rope") {
+            effects_found[k] = "missing_spring".to_string();
+        }
+    }
     let missed = multiset_minus(&effects_concealed, &effects_found);
     let spurious = multiset_minus(&effects_found, &effects_concealed);
     let max_of = |pick: &dyn Fn(&ValueComparison) -> Option<f64>| {
@@ -93,7 +101,8 @@ pub fn compare_scenes(fitted: &Scene, truth: &Scene, structure: &Scene) -> Scene
 
 /// The effects `scene` carries beyond `structure`, one entry per instance (a scene with two
 /// walls lists `wall` twice), in the diagnosis's names: `gravity`, `drag`, `quadratic_drag`,
-/// `spring_damping`, `body_drag` and `body_quadratic_drag` (once per body with a coefficient),
+/// `spring_damping`, `surface_friction`, `body_drag` and `body_quadratic_drag` (once per body
+/// with a coefficient),
 /// `wall` (every wall, rigid or bumper), `wall_friction` (a wall with Coulomb friction),
 /// `bumper` (a wall with a stiffness), `rope`, `rail`, `missing_spring`.
 pub fn effects_beyond(scene: &Scene, structure: &Scene) -> Vec<String> {
@@ -119,6 +128,7 @@ fn physics_effects(scene: &Scene) -> Vec<String> {
     push(p.gravity.norm() > 0.0, "gravity");
     push(p.drag > 0.0, "drag");
     push(p.quadratic_drag > 0.0, "quadratic_drag");
+    push(p.surface_friction > 0.0, "surface_friction");
     push(
         p.spring_damping > 0.0 || scene.springs.iter().any(|s| s.damping.is_some_and(|d| d > 0.0)),
         "spring_damping",
@@ -198,7 +208,7 @@ fn compared(
     }
 }
 
-fn bond_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+fn bond_values(fitted: &Scene, truth: &Scene, rigid: &[(usize, usize, f64)], out: &mut Vec<ValueComparison>) {
     let f_keys = spring_keys(fitted);
     let t_keys = spring_keys(truth);
     let mut seen = Vec::new();
@@ -244,7 +254,13 @@ fn bond_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
         if !seen.contains(key) {
             let ts = &truth.springs[j];
             let item = spring_name(key);
-            out.push(compared(&item, "length", "px", None, ts.rest_length, true));
+            // A tether found as a rope: its anchor and length, and no stiffness (rigid).
+            let rope = rigid.iter().find(|m| m.1 == j);
+            if let Some(&(_, _, offset)) = rope {
+                out.push(compared(&item, "anchor", "px", Some(offset), Some(0.0), false));
+            }
+            let length = rope.map(|m| fitted.physics.ropes[m.0].length);
+            out.push(compared(&item, "length", "px", length, ts.rest_length, true));
             out.push(compared(&item, "stiffness", "mass/s^2", None, ts.stiffness, true));
         }
     }
@@ -282,6 +298,45 @@ fn bond_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
     }
 }
 
+/// `(moving id, fixed id, fixed position)` of a bond or rope with `ends` in `scene` when
+/// exactly one end is fixed.
+fn tether_ends(scene: &Scene, ends: [crate::ParticleId; 2]) -> Option<(String, String, Vec2)> {
+    let ends = ends.map(|e| &scene.particles[e.index()]);
+    match (ends[0].fixed, ends[1].fixed) {
+        (true, false) => Some((ends[1].id.clone(), ends[0].id.clone(), ends[0].position)),
+        (false, true) => Some((ends[0].id.clone(), ends[1].id.clone(), ends[1].position)),
+        _ => None,
+    }
+}
+
+/// Ropes of `fitted` that stand for a stiff spring of `truth` from a fixed point to a moving
+/// particle (a diagnosis takes a tether whose length stays constant within the noise as a
+/// rope to the anchor it adds, `anchor-N`): paired by their moving end when the fixed end's
+/// id is not in `truth`. Returns `(fitted rope, truth spring, anchor distance in px)`; each
+/// truth spring is paired once, with the nearest anchor.
+fn rope_tethers(fitted: &Scene, truth: &Scene) -> Vec<(usize, usize, f64)> {
+    let mut pairs: Vec<(usize, usize, f64)> = Vec::new();
+    for (k, rope) in fitted.physics.ropes.iter().enumerate() {
+        let Some((moving, anchor_id, anchor)) = tether_ends(fitted, rope.ends) else {
+            continue;
+        };
+        if truth.particles.iter().any(|p| p.id == anchor_id) {
+            continue;
+        }
+        let best = (0..truth.springs.len())
+            .filter(|&j| pairs.iter().all(|p| p.1 != j))
+            .filter_map(|j| {
+                let (m, _, a) = tether_ends(truth, truth.springs[j].ends)?;
+                (m == moving).then(|| (j, (a - anchor).norm()))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((j, offset)) = best {
+            pairs.push((k, j, offset));
+        }
+    }
+    pairs
+}
+
 /// Tethers named differently in `fitted` and `truth`: a spring from a fixed particle to a
 /// moving one, whose fixed end has another id in each (a diagnosis names the anchor it adds
 /// `anchor-N`; the scene, `pivot`), paired by their moving end when neither key is in the
@@ -294,12 +349,8 @@ fn matched_tethers(
     t_keys: &[[String; 2]],
 ) -> Vec<(usize, usize, f64)> {
     let tether = |scene: &Scene, k: usize| {
-        let ends = scene.springs[k].ends.map(|e| &scene.particles[e.index()]);
-        match (ends[0].fixed, ends[1].fixed) {
-            (true, false) => Some((ends[1].id.clone(), ends[0].position)),
-            (false, true) => Some((ends[0].id.clone(), ends[1].position)),
-            _ => None,
-        }
+        let (moving, _, anchor) = tether_ends(scene, scene.springs[k].ends)?;
+        Some((moving, anchor))
     };
     let mut pairs: Vec<(usize, usize, f64)> = Vec::new();
     for (k, key) in f_keys.iter().enumerate() {
@@ -320,7 +371,12 @@ fn matched_tethers(
     pairs
 }
 
-fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+fn physics_values(
+    fitted: &Scene,
+    truth: &Scene,
+    rigid: &[(usize, usize, f64)],
+    out: &mut Vec<ValueComparison>,
+) {
     let (f, t) = (&fitted.physics, &truth.physics);
     if f.gravity.norm() > 0.0 || t.gravity.norm() > 0.0 {
         out.push(compared(
@@ -351,6 +407,12 @@ fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>)
     for (name, unit, fv, tv) in [
         ("drag", "1/s", f.drag, t.drag),
         ("quadratic_drag", "1/px", f.quadratic_drag, t.quadratic_drag),
+        (
+            "surface_friction",
+            "px/s^2",
+            f.surface_friction,
+            t.surface_friction,
+        ),
     ] {
         if fv > 0.0 || tv > 0.0 {
             out.push(compared(name, name, unit, Some(fv), Some(tv), true));
@@ -409,7 +471,7 @@ fn physics_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>)
         }
     }
     body_values(fitted, truth, out);
-    constraint_values(fitted, truth, out);
+    constraint_values(fitted, truth, rigid, out);
 }
 
 /// A wall's contact values: its restitution (a bumper's for the scene's mean free mass, see
@@ -494,7 +556,12 @@ fn body_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
 /// Ropes (matched by their ends' ids: `length`) and rails (matched by their particle's id:
 /// `position`, the distance of the true rail's point from the fitted line, px; `direction`,
 /// deg; `friction`).
-fn constraint_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueComparison>) {
+fn constraint_values(
+    fitted: &Scene,
+    truth: &Scene,
+    rigid: &[(usize, usize, f64)],
+    out: &mut Vec<ValueComparison>,
+) {
     let rope_key = |scene: &Scene, r: &crate::Rope| {
         let mut ends = r.ends.map(|e| scene.particles[e.index()].id.clone());
         ends.sort();
@@ -514,9 +581,9 @@ fn constraint_values(fitted: &Scene, truth: &Scene, out: &mut Vec<ValueCompariso
             true,
         ));
     }
-    for fw in fr {
+    for (k, fw) in fr.iter().enumerate() {
         let key = rope_key(fitted, fw);
-        if !tr.iter().any(|r| rope_key(truth, r) == key) {
+        if !tr.iter().any(|r| rope_key(truth, r) == key) && !rigid.iter().any(|m| m.0 == k) {
             let item = format!("added rope {}-{}", key[0], key[1]);
             out.push(compared(&item, "length", "px", Some(fw.length), None, true));
         }
@@ -656,6 +723,49 @@ restitution = 0.8
         assert!((value("anchor").error.unwrap() - 5.0).abs() < 1e-12);
         assert!((value("length").relative_error.unwrap() + 0.01).abs() < 1e-12);
         assert!((value("stiffness").relative_error.unwrap() - 14.0).abs() < 1e-12);
+        assert_eq!(c.max_bond_relative_error, None);
+    }
+
+    /// A stiff tether a diagnosis found as a rope to the anchor it adds is that tether found:
+    /// its anchor distance and length scored against the truth's spring, no stiffness, and no
+    /// rope added without cause.
+    #[test]
+    fn a_rope_to_an_added_anchor_is_scored_as_the_truths_stiff_tether() {
+        let text = |pivot: &str, at: [f64; 2], bond: &str| {
+            let text = format!(
+                "name = \"p\"\n[recording]\nfps = 60\nframes = 10\n\
+                 [[particles]]\nid = \"bob\"\nmass = 1\nposition = [0, 100]\n\
+                 [[particles]]\nid = \"{pivot}\"\nmass = 1\nposition = [{}, {}]\nfixed = true\n{bond}",
+                at[0], at[1]
+            );
+            Scene::from_toml_str(&text, "p").unwrap()
+        };
+        let truth = text(
+            "pivot",
+            [0.0, -200.0],
+            "[[springs]]\nbetween = [\"bob\", \"pivot\"]\nlength = 300\nstiffness = 2e5\n",
+        );
+        let fitted = text(
+            "anchor-1",
+            [0.0, -203.0],
+            "[[physics.ropes]]\nbetween = [\"anchor-1\", \"bob\"]\nlength = 303\n",
+        );
+        let mut structure = truth.structure();
+        structure.springs.clear();
+        structure.particles.truncate(1);
+        let c = compare_scenes(&fitted, &truth, &structure);
+        assert_eq!(c.effects_concealed, ["missing_spring"]);
+        assert_eq!(c.effects_found, ["missing_spring"]);
+        assert!(c.missed.is_empty() && c.spurious.is_empty(), "{c:?}");
+        let value = |name: &str| c.values.iter().find(|v| v.name == name).unwrap();
+        assert_eq!(value("anchor").item, "spring bob-pivot");
+        assert!((value("anchor").error.unwrap() - 3.0).abs() < 1e-12);
+        assert!((value("length").relative_error.unwrap() - 0.01).abs() < 1e-12);
+        assert_eq!(value("stiffness").fitted, None);
+        assert!(
+            !c.values.iter().any(|v| v.item.starts_with("added rope")),
+            "{c:?}"
+        );
         assert_eq!(c.max_bond_relative_error, None);
     }
 

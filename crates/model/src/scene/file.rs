@@ -235,6 +235,9 @@ pub struct PhysicsFile {
     /// Quadratic drag of every body without its own, mass/px (`F = -c |v| v`, not per mass).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub body_quadratic_drag: Option<f64>,
+    /// Dry friction of the surface under the motion, px/s² (the deceleration `mu g`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_friction: Option<f64>,
     /// Walls.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub walls: Vec<WallFile>,

@@ -440,6 +440,7 @@ impl Scene {
             && is_plus_zero(ph.spring_damping)
             && is_plus_zero(ph.body_drag)
             && is_plus_zero(ph.body_quadratic_drag)
+            && is_plus_zero(ph.surface_friction)
             && ph.walls.is_empty()
             && ph.ropes.is_empty()
             && ph.rails.is_empty()
@@ -457,6 +458,7 @@ impl Scene {
                 spring_damping: nz(ph.spring_damping),
                 body_drag: nz(ph.body_drag),
                 body_quadratic_drag: nz(ph.body_quadratic_drag),
+                surface_friction: nz(ph.surface_friction),
                 walls: ph
                     .walls
                     .iter()
@@ -733,6 +735,11 @@ fn physics_from_file(ph: &PhysicsFile, resolve: &Resolve) -> Result<Physics, Sce
             "physics.body_quadratic_drag",
             ph.body_quadratic_drag,
             &mut out.body_quadratic_drag,
+        ),
+        (
+            "physics.surface_friction",
+            ph.surface_friction,
+            &mut out.surface_friction,
         ),
     ] {
         if let Some(v) = v {

@@ -8,4 +8,5 @@ mod drag_per_body;
 mod integration_laws;
 mod physics_laws;
 mod scene_file;
+mod surface_friction;
 mod wall_friction;

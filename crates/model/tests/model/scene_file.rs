@@ -382,6 +382,7 @@ quadratic_drag = 1e-4
 spring_damping = 0.3
 body_drag = 0.30000000000000004
 body_quadratic_drag = 2.5e-5
+surface_friction = 12.5
 
 [[physics.walls]]
 point = [0.0, 480.0]
