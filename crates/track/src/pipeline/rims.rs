@@ -40,7 +40,9 @@ pub(super) fn hollow_particles(skirts: &BTreeMap<String, Vec<(usize, Skirt)>>) -
 /// Moves each detected point of the particles `hollow` in `table` to its rim's centre
 /// ([`rim_centre`], searched out to [`RIM_REACH`] times `radius` px and 2 px, about the
 /// point, in the frame's levelled signal against `background`); its `ep` becomes the rim
-/// centre's standard error. Points whose rim is not found stay. Returns how many moved.
+/// centre's standard error. Points whose rim is not found are placed from the motion of
+/// their rim-centred neighbours instead ([`bridge_unrimmed`]). Returns how many moved and
+/// a warning per particle with points placed so, naming them.
 pub(super) fn centre_on_rims(
     table: &mut TrackTable,
     hollow: &BTreeSet<String>,
@@ -48,9 +50,9 @@ pub(super) fn centre_on_rims(
     background: &Background,
     radius: f64,
     workers: &Workers,
-) -> Result<usize, TrackError> {
+) -> Result<(usize, Vec<String>), TrackError> {
     if hollow.is_empty() {
-        return Ok(0);
+        return Ok((0, Vec::new()));
     }
     let first = frames.numbers.first().copied().unwrap_or(0);
     // Each frame's points (all of them: a neighbour's pixels are its own), by index.
@@ -100,12 +102,161 @@ pub(super) fn centre_on_rims(
         })
         .collect::<Result<_, TrackError>>()?;
     let mut moved = 0;
+    let mut rimmed = vec![false; table.points.len()];
     for (i, at, ep) in moves.into_iter().flatten() {
         let p = &mut table.points[i];
         p.x = at[0];
         p.y = at[1];
         p.ep = ep;
+        rimmed[i] = true;
         moved += 1;
     }
-    Ok(moved)
+    let unrimmed: Vec<usize> = (0..table.points.len())
+        .filter(|&i| {
+            let p = &table.points[i];
+            !rimmed[i] && p.flag == PointFlag::Detected && hollow.contains(&p.particle)
+        })
+        .collect();
+    let warnings = bridge_unrimmed(table, &unrimmed, &rimmed);
+    Ok((moved, warnings))
+}
+
+/// Frames on each side of a point whose rim-centred neighbours place it.
+const BRIDGE_REACH: usize = 3;
+
+/// Places each point `unrimmed` (indices into `table`: a hollow particle's detected points
+/// whose rim was not found, so that only their centroid is known, which leans with the light
+/// and the neighbours by up to the rim's width) from the motion of the same particle's
+/// rim-centred points (`rimmed[i]`) within [`BRIDGE_REACH`] frames: a quadratic in time
+/// through them, least squares, when it has a point on each side and three in all. Each such
+/// point is flagged [`PointFlag::Interpolated`] and its `ep` becomes NaN (unknown). Points
+/// with too few neighbours stay as located, and are named too. Returns one warning per
+/// particle, naming its frames.
+fn bridge_unrimmed(table: &mut TrackTable, unrimmed: &[usize], rimmed: &[bool]) -> Vec<String> {
+    if unrimmed.is_empty() {
+        return Vec::new();
+    }
+    // Each particle's rim-centred points by frame.
+    let mut anchors: BTreeMap<&str, BTreeMap<usize, [f64; 2]>> = BTreeMap::new();
+    for (i, p) in table.points.iter().enumerate() {
+        if rimmed[i] {
+            anchors
+                .entry(p.particle.as_str())
+                .or_default()
+                .insert(p.frame, [p.x, p.y]);
+        }
+    }
+    let placed: Vec<(usize, Option<[f64; 2]>)> = unrimmed
+        .iter()
+        .map(|&i| {
+            let p = &table.points[i];
+            let near: Vec<(f64, [f64; 2])> = anchors.get(p.particle.as_str()).map_or_else(Vec::new, |a| {
+                a.range(p.frame.saturating_sub(BRIDGE_REACH)..=p.frame + BRIDGE_REACH)
+                    .map(|(&k, &x)| (k as f64 - p.frame as f64, x))
+                    .collect()
+            });
+            (i, quadratic_at_zero(&near))
+        })
+        .collect();
+    let mut by_particle: BTreeMap<String, (Vec<usize>, Vec<usize>)> = BTreeMap::new();
+    for (i, at) in placed {
+        let p = &mut table.points[i];
+        let entry = by_particle.entry(p.particle.clone()).or_default();
+        match at {
+            Some(at) => {
+                p.x = at[0];
+                p.y = at[1];
+                p.ep = f64::NAN;
+                p.flag = PointFlag::Interpolated;
+                entry.0.push(p.frame);
+            }
+            None => entry.1.push(p.frame),
+        }
+    }
+    let list = |frames: &[usize]| frames.iter().map(usize::to_string).collect::<Vec<_>>().join(", ");
+    by_particle
+        .into_iter()
+        .map(|(particle, (bridged, kept))| {
+            let mut text = format!(
+                "{particle}: a ring whose rim was not found in some frames (its centroid there leans with the light and its neighbours)"
+            );
+            if !bridged.is_empty() {
+                text.push_str(&format!(
+                    "; placed from the motion of its rim's centre in frame(s) {} (flagged interpolated)",
+                    list(&bridged)
+                ));
+            }
+            if !kept.is_empty() {
+                text.push_str(&format!(
+                    "; left at its centroid, which may be off by up to the rim's width, in frame(s) {}",
+                    list(&kept)
+                ));
+            }
+            text
+        })
+        .collect()
+}
+
+/// The value at `t = 0` of the least-squares quadratic in `t` through `points` (`(t, [x, y])`),
+/// when they hold a point on each side of 0 and three in all.
+fn quadratic_at_zero(points: &[(f64, [f64; 2])]) -> Option<[f64; 2]> {
+    let before = points.iter().any(|p| p.0 < 0.0);
+    let after = points.iter().any(|p| p.0 > 0.0);
+    if !before || !after || points.len() < 3 {
+        return None;
+    }
+    // Normal equations of x(t) = a + b t + c t^2; the value at 0 is a.
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut rhs = nalgebra::Matrix3x2::<f64>::zeros();
+    for &(t, x) in points {
+        let basis = nalgebra::Vector3::new(1.0, t, t * t);
+        m += basis * basis.transpose();
+        rhs += basis * nalgebra::RowVector2::new(x[0], x[1]);
+    }
+    let solution = m.lu().solve(&rhs)?;
+    Some([solution[(0, 0)], solution[(0, 1)]])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::TrackPoint;
+
+    /// A ring falling along `x = 10 + 2k, y = 20 + k^2 / 2` over frames 0-9, its rim not found
+    /// in frames 4 and 9 (located 3 px off there, as a centroid leaning on a neighbour): frame
+    /// 4 is placed back on the path exactly and flagged interpolated; frame 9, with rim-centred
+    /// points on one side only, stays and is named.
+    #[test]
+    fn points_without_their_rim_are_placed_from_the_motion_or_named() {
+        let path = |k: usize| [10.0 + 2.0 * k as f64, 20.0 + 0.5 * (k * k) as f64];
+        let mut table = TrackTable {
+            points: (0..10)
+                .map(|k| {
+                    let [x, y] = path(k);
+                    let off = if k == 4 || k == 9 { 3.0 } else { 0.0 };
+                    TrackPoint::new(k, "r", x + off, y)
+                })
+                .collect(),
+        };
+        let rimmed: Vec<bool> = (0..10).map(|k| k != 4 && k != 9).collect();
+        let warnings = bridge_unrimmed(&mut table, &[4, 9], &rimmed);
+        let p = &table.points[4];
+        assert!(
+            (p.x - path(4)[0]).abs() < 1e-9 && (p.y - path(4)[1]).abs() < 1e-9,
+            "{p:?}"
+        );
+        assert_eq!(p.flag, PointFlag::Interpolated);
+        assert!(p.ep.is_nan());
+        assert_eq!(table.points[9].flag, PointFlag::Detected);
+        assert!((table.points[9].x - path(9)[0] - 3.0).abs() < 1e-12);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        let w = &warnings[0];
+        assert!(w.starts_with("r: a ring whose rim was not found"), "{w}");
+        assert!(w.contains("in frame(s) 4 (flagged interpolated)"), "{w}");
+        assert!(
+            w.contains("left at its centroid") && w.ends_with("in frame(s) 9"),
+            "{w}"
+        );
+        assert!(bridge_unrimmed(&mut table, &[], &rimmed).is_empty());
+    }
 }

@@ -171,7 +171,7 @@ impl Stage<'_> {
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
-            let moved = centre_on_rims(
+            let (moved, unrimmed) = centre_on_rims(
                 &mut class_table,
                 &hollow,
                 frames,
@@ -179,6 +179,7 @@ impl Stage<'_> {
                 class.sizes.radius,
                 workers,
             )?;
+            warnings.extend(unrimmed);
             let remeasured;
             let skirts = if moved > 0 {
                 remeasured = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;

@@ -261,6 +261,15 @@ fn debug_errors(style: &Style, outcome: &physfit_track::TrackOutcome, truth: &ph
         for p in outcome.table.points.iter().filter(|p| &p.particle == name) {
             if let Some(t) = truth.positions.get(p.frame).map(|f| f[i]) {
                 e.push([p.x - t[0], p.y - t[1]]);
+                if (p.x - t[0]).hypot(p.y - t[1]) > 0.5 {
+                    eprintln!(
+                        "    {name} frame {}: error {:+.2} / {:+.2} ({:?})",
+                        p.frame,
+                        p.x - t[0],
+                        p.y - t[1],
+                        p.flag
+                    );
+                }
             }
         }
         let n = e.len().max(1) as f64;
