@@ -1558,6 +1558,38 @@ fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
     }
 }
 
+/// Frames a particle must stay within the noise of one place to count as at rest.
+const REST_FRAMES: usize = 3;
+
+/// Returns true if and only if some free particle of `obs` comes to rest after moving, as
+/// dry friction stops it: [`REST_FRAMES`] consecutive steps each within three noises of
+/// zero (`3 sqrt(2) sigma`, the noise of a step), after a step of more than ten.
+pub fn seen_to_stop(obs: &Observations) -> bool {
+    let step_noise = 2f64.sqrt() * noise_floor(obs.noise, 1.0);
+    (0..obs.fixed.len()).filter(|&p| !obs.fixed[p]).any(|p| {
+        let mut moved = false;
+        let mut still = 0;
+        for w in obs.positions.windows(2) {
+            let Some(step) = w[0][p].zip(w[1][p]).map(|(a, b)| (b - a).norm()) else {
+                still = 0;
+                continue;
+            };
+            if step > 10.0 * step_noise {
+                moved = true;
+                still = 0;
+            } else if step <= 3.0 * step_noise {
+                still += 1;
+                if moved && still >= REST_FRAMES {
+                    return true;
+                }
+            } else {
+                still = 0;
+            }
+        }
+        false
+    })
+}
+
 /// The track noise used as a yardstick, px: the measured noise, or where the tracks are exact
 /// (a simulation's, noise 0) a millionth of the data's length scale (a fit converges no
 /// closer than that).
@@ -1570,15 +1602,18 @@ pub fn noise_floor(noise: f64, length: f64) -> f64 {
     }
 }
 
-/// Every smooth candidate for `family`'s structure.
+/// Every smooth candidate for `family`'s structure. The dry friction of a surface under the
+/// motion is one only where the structure gives no field (given a field in the image plane,
+/// the recording is seen from the side, and dry friction acts at walls and rails: their
+/// own candidates) and some particle is seen to come to rest ([`seen_to_stop`]): its
+/// constant deceleration otherwise stands in for whatever slows a swing or a flight (on
+/// the real pendulum, 6.4 +- 2.0 px/s^2 beside the field and the tether).
 pub fn smooth_candidates(family: &Family, obs: &Observations) -> Vec<Effect> {
     let s = &family.structure;
-    let mut out = vec![
-        Effect::Gravity,
-        Effect::Drag,
-        Effect::QuadraticDrag,
-        Effect::SurfaceFriction,
-    ];
+    let mut out = vec![Effect::Gravity, Effect::Drag, Effect::QuadraticDrag];
+    if s.physics.gravity.norm() == 0.0 && seen_to_stop(obs) {
+        out.push(Effect::SurfaceFriction);
+    }
     if !s.springs.is_empty() {
         out.push(Effect::SpringDamping);
     }
