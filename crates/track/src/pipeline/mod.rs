@@ -7,6 +7,7 @@
 //! from the components at that radius. Frames are decoded, filtered and located in
 //! parallel; linking is sequential.
 
+mod border;
 mod finder;
 mod neighbours;
 mod options;

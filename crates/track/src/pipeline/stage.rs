@@ -1,5 +1,6 @@
 //! One size class's pass over the frames: located and linked at its own radius.
 
+use super::border::drop_cut_by_border;
 use super::finder::{Parts, Surround, Workers};
 use super::options::TrackOptions;
 use super::rims::{centre_on_rims, hollow_particles};
@@ -199,6 +200,9 @@ impl Stage<'_> {
                     .chain(&lost)
                     .map(|c| (c.to_string(), class.sizes.radius)),
             );
+            // Points of particles cut by the image border are not written (see `border`); they
+            // served as neighbours and in the checks above.
+            warnings.extend(drop_cut_by_border(&mut class_table, class.sizes.radius, size));
             table.points.extend(class_table.points);
             ambiguities.extend(class_ambiguities);
         }
