@@ -1,6 +1,6 @@
 //! Models shared by the tests.
 
-use physfit_model::{Model, ParticleId, Spring, State, Torsion, Vec2};
+use physfit_model::{IntegrationParameters, IntegratorKind, Model, ParticleId, Spring, State, Torsion, Vec2};
 
 /// A paper-like 8-particle object: a ring of 8 unit masses of radius 60 px around
 /// (256, 256) with 8 springs round the ring (rest lengths 10 % longer than drawn), 10
@@ -80,4 +80,16 @@ pub fn single(mass: f64) -> Model {
 /// The largest distance between corresponding positions of two states, px.
 pub fn max_distance(a: &[Vec2], b: &[Vec2]) -> f64 {
     a.iter().zip(b).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max)
+}
+
+/// Frame rate of the closed-form tests, frames/s.
+pub const FPS: f64 = 100.0;
+
+/// Integration at [`FPS`] with 20 substeps a frame (0.5 ms) and the scheme `kind`.
+pub fn params(kind: IntegratorKind) -> IntegrationParameters {
+    IntegrationParameters {
+        frame_dt: 1.0 / FPS,
+        substeps: 20,
+        integrator: kind,
+    }
 }

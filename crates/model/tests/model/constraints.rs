@@ -1,17 +1,9 @@
 //! Ropes and rails (issue 22): constraints projected after each substep, against the
 //! pendulum's period, free fall until a slack rope catches, and a slide along a rail.
 
-use physfit_model::{simulate, IntegrationParameters, IntegratorKind, Model, Rail, Rope, Scene, State, Vec2};
+use physfit_model::{simulate, IntegratorKind, Model, Rail, Rope, Scene, State, Vec2};
 
-const FPS: f64 = 100.0;
-
-fn params(kind: IntegratorKind) -> IntegrationParameters {
-    IntegrationParameters {
-        frame_dt: 1.0 / FPS,
-        substeps: 20,
-        integrator: kind,
-    }
-}
+use crate::common::{params, FPS};
 
 /// A bob of mass 1 on a rope of length `length` from a fixed pivot at (200, 50), under
 /// g = 1000 px/s² down, released at rest `angle` rad from the vertical.

@@ -1,17 +1,9 @@
 //! Drag per body (issue 22): `F = -b v - c |v| v` with `b`, `c` not scaled by the mass,
 //! shared (`physics.body_drag`, `body_quadratic_drag`) or a particle's own.
 
-use physfit_model::{simulate, IntegrationParameters, IntegratorKind, Model, Scene, State, Vec2};
+use physfit_model::{simulate, IntegratorKind, Model, Scene, State, Vec2};
 
-const FPS: f64 = 100.0;
-
-fn params(kind: IntegratorKind) -> IntegrationParameters {
-    IntegrationParameters {
-        frame_dt: 1.0 / FPS,
-        substeps: 20,
-        integrator: kind,
-    }
-}
+use crate::common::{params, FPS};
 
 #[test]
 fn a_shared_body_drag_decays_each_velocity_at_b_over_its_mass() {

@@ -1,22 +1,12 @@
 //! Each piece of physics against its closed-form answer.
 
 use physfit_model::{
-    dashpot_force_on_i, simulate, step, IntegrationParameters, IntegratorKind, Model, ParticleId, Physics,
-    Spring, SpringGeometry, State, StepScratch, Torsion, Vec2, Wall,
+    dashpot_force_on_i, simulate, step, IntegratorKind, Model, ParticleId, Physics, Spring, SpringGeometry,
+    State, StepScratch, Torsion, Vec2, Wall,
 };
 use proptest::prelude::*;
 
-use crate::common::{paper8, single};
-
-const FPS: f64 = 100.0;
-
-fn params(kind: IntegratorKind) -> IntegrationParameters {
-    IntegrationParameters {
-        frame_dt: 1.0 / FPS,
-        substeps: 20,
-        integrator: kind,
-    }
-}
+use crate::common::{paper8, params, single, FPS};
 
 #[test]
 fn free_fall_follows_x0_plus_v0_t_plus_half_g_t2() {

@@ -3,19 +3,9 @@
 //! after `v0 / a` s and `v0^2 / (2 a)` px, stick while the other forces are weaker, and
 //! sliding at `g - a` once they are stronger.
 
-use physfit_model::{simulate, IntegrationParameters, IntegratorKind, Scene, State, Vec2};
+use physfit_model::{simulate, IntegratorKind, Scene, State, Vec2};
 
-use crate::common::single;
-
-const FPS: f64 = 100.0;
-
-fn params(kind: IntegratorKind) -> IntegrationParameters {
-    IntegrationParameters {
-        frame_dt: 1.0 / FPS,
-        substeps: 20,
-        integrator: kind,
-    }
-}
+use crate::common::{params, single, FPS};
 
 #[test]
 fn a_puck_launched_on_a_table_stops_after_v0_squared_over_2a_and_stays() {

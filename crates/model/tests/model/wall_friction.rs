@@ -1,19 +1,9 @@
 //! Coulomb friction at a wall (issue 22): sliding friction `mu m g_n` on a particle resting
 //! on the wall, with stick, and the tangential impulse of a bounce, `mu` times the normal one.
 
-use physfit_model::{simulate, IntegrationParameters, IntegratorKind, Scene, State, Vec2, Wall};
+use physfit_model::{simulate, IntegratorKind, Scene, State, Vec2, Wall};
 
-use crate::common::single;
-
-const FPS: f64 = 100.0;
-
-fn params(kind: IntegratorKind) -> IntegrationParameters {
-    IntegrationParameters {
-        frame_dt: 1.0 / FPS,
-        substeps: 20,
-        integrator: kind,
-    }
-}
+use crate::common::{params, single, FPS};
 
 #[test]
 fn a_particle_sliding_on_a_floor_stops_after_v0_squared_over_2_mu_g() {
