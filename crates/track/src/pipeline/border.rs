@@ -6,16 +6,20 @@
 //! a position left out is a frame the fit does without; a position off by pixels with an
 //! error of hundredths misleads it.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
-use crate::TrackTable;
+use crate::{Ambiguity, AmbiguityKind, TrackTable};
 
 /// Removes from `table` every point whose centre lies within `radius` (px, the radius in
 /// use, which holds the particle's blurred edge) of the edge of a `size` (width, height px)
 /// image, or beyond it (pixel centres at integers: the image spans `-0.5` to
 /// `width - 0.5`). Returns one warning per particle that lost points, naming its runs of
-/// frames.
-pub(super) fn drop_cut_by_border(table: &mut TrackTable, radius: f64, size: (usize, usize)) -> Vec<String> {
+/// frames, and the `(particle, frame)` of every point dropped.
+pub(super) fn drop_cut_by_border(
+    table: &mut TrackTable,
+    radius: f64,
+    size: (usize, usize),
+) -> (Vec<String>, BTreeSet<(String, usize)>) {
     let reach = radius;
     let (w, h) = (size.0 as f64, size.1 as f64);
     let inside = |x: f64, y: f64| {
@@ -30,7 +34,12 @@ pub(super) fn drop_cut_by_border(table: &mut TrackTable, radius: f64, size: (usi
         }
         keep
     });
-    cut.into_iter()
+    let dropped = cut
+        .iter()
+        .flat_map(|(p, frames)| frames.iter().map(move |&k| (p.clone(), k)))
+        .collect();
+    let warnings = cut
+        .into_iter()
         .map(|(particle, mut frames)| {
             frames.sort_unstable();
             format!(
@@ -38,7 +47,25 @@ pub(super) fn drop_cut_by_border(table: &mut TrackTable, radius: f64, size: (usi
                 runs(&frames)
             )
         })
-        .collect()
+        .collect();
+    (warnings, dropped)
+}
+
+/// Takes out of the `Missing` runs of `ambiguities` the particles whose points there were all
+/// `dropped` (a bridge no longer written is no longer bridged), and the runs left empty.
+pub(super) fn forget_dropped_bridges(ambiguities: &mut Vec<Ambiguity>, dropped: &BTreeSet<(String, usize)>) {
+    if dropped.is_empty() {
+        return;
+    }
+    for a in ambiguities
+        .iter_mut()
+        .filter(|a| a.kind == AmbiguityKind::Missing)
+    {
+        let (first, last) = (a.first_frame, a.last_frame);
+        a.particles
+            .retain(|p| !(first..=last).all(|k| dropped.contains(&(p.clone(), k))));
+    }
+    ambiguities.retain(|a| !a.particles.is_empty());
 }
 
 /// `frame 3` or `frames 3-5, 9` for sorted `frames`.
@@ -81,7 +108,18 @@ mod tests {
                 })
                 .collect(),
         };
-        let warnings = drop_cut_by_border(&mut table, 6.0, (100, 100));
+        let (warnings, dropped) = drop_cut_by_border(&mut table, 6.0, (100, 100));
+        assert_eq!(dropped.len(), 5);
+        // A bridge of frames 9-10 wholly dropped is forgotten; one reaching frame 6 stays.
+        let run = |first: usize, last: usize| Ambiguity {
+            kind: AmbiguityKind::Missing,
+            particles: vec!["out".to_string()],
+            first_frame: first,
+            last_frame: last,
+        };
+        let mut ambiguities = vec![run(9, 10), run(6, 8)];
+        forget_dropped_bridges(&mut ambiguities, &dropped);
+        assert_eq!(ambiguities, vec![run(6, 8)]);
         // Row 80 + 2k is cut beyond 93.5: k >= 7 (row 94).
         let kept: Vec<usize> = table
             .points

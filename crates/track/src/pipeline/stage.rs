@@ -1,6 +1,6 @@
 //! One size class's pass over the frames: located and linked at its own radius.
 
-use super::border::drop_cut_by_border;
+use super::border::{drop_cut_by_border, forget_dropped_bridges};
 use super::finder::{Parts, Surround, Workers};
 use super::options::TrackOptions;
 use super::rims::{centre_on_rims, hollow_particles};
@@ -202,7 +202,9 @@ impl Stage<'_> {
             );
             // Points of particles cut by the image border are not written (see `border`); they
             // served as neighbours and in the checks above.
-            warnings.extend(drop_cut_by_border(&mut class_table, class.sizes.radius, size));
+            let (border, dropped) = drop_cut_by_border(&mut class_table, class.sizes.radius, size);
+            warnings.extend(border);
+            forget_dropped_bridges(&mut class_ambiguities, &dropped);
             table.points.extend(class_table.points);
             ambiguities.extend(class_ambiguities);
         }
