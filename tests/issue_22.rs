@@ -918,3 +918,51 @@ fn pucks_slowed_by_drag_get_no_dry_friction() {
         assert_eq!(c.effects_found, ["drag"], "seed {seed}: {:?}", c.values);
     }
 }
+
+/// A puck slowing on a straight line across a table that leaves the view before it stops
+/// (surface friction 150-300 px/s², launch 400-500 px/s) is, to the tracks, a field against
+/// its motion: physfit finds the field and says in its note that the tracks cannot tell it
+/// from a surface's friction; a ball thrown up that falls back on the same line (which
+/// friction cannot do) gets no such note.
+#[test]
+fn a_straight_deceleration_is_a_field_said_to_be_friction_perhaps() {
+    let note_of = |report: &Value| {
+        report["findings"]
+            .as_array()
+            .and_then(|fs| fs.iter().find(|f| f["effect"] == "gravity"))
+            .and_then(|f| f["note"].as_str())
+            .unwrap_or_default()
+            .to_string()
+    };
+    for seed in [41u64, 42] {
+        let mut s = seed;
+        let a = draw(&mut s, 150.0, 300.0);
+        let speed = draw(&mut s, 400.0, 500.0);
+        let head = head("slowing-puck", 90, 640, 400, seed).replace("fps = 100.0", "fps = 60.0");
+        let scene = format!(
+            "{head}[[particles]]\nid = \"puck\"\nmass = 1.0\nposition = [40.0, 100.0]\nvelocity = [{}, {}]\n[physics]\nsurface_friction = {a}\n",
+            speed * 0.94,
+            speed * 0.34
+        );
+        let dir = tempdir();
+        let (_, _, report, fitted) = diagnose_rendered(dir.path(), &scene);
+        let note = note_of(&report);
+        println!(
+            "slowing puck seed {seed}: a {a:.1}, field {:.3}: {note}",
+            fitted.physics.gravity.norm()
+        );
+        assert!((fitted.physics.gravity.norm() / a - 1.0).abs() < 0.01);
+        assert!(
+            note.contains("cannot tell from the dry friction of a surface"),
+            "{note}"
+        );
+    }
+    let head = head("thrown-up", 120, 400, 400, 43);
+    let scene = format!(
+        "{head}[[particles]]\nid = \"ball\"\nmass = 1.0\nposition = [200.0, 350.0]\nvelocity = [0.0, -600.0]\n[physics]\ngravity = [0.0, 1000.0]\n"
+    );
+    let dir = tempdir();
+    let (_, _, report, _) = diagnose_rendered(dir.path(), &scene);
+    let note = note_of(&report);
+    assert!(!note.contains("dry friction"), "{note}");
+}

@@ -401,6 +401,14 @@ pub fn assemble(inp: Inputs<'_>) -> Outcome {
             }
         }
         let mut identified = unidentified.is_empty();
+        if effect == Effect::Gravity
+            && against_the_motion(inp.obs, &fam.free, Vec2::new(values[0], values[1]))
+        {
+            notes.push(
+                "every free particle moves on a straight line against this field and never turns back: a steady deceleration along the path, which the tracks cannot tell from the dry friction of a surface under the motion (a puck slowing on a table); a stop, and staying stopped, would show friction"
+                    .to_string(),
+            );
+        }
         if !unidentified.is_empty() {
             notes.push(format!(
                 "not identified by the tracks: {} (standard error above the value)",
@@ -615,4 +623,32 @@ fn final_scene(
         ));
     }
     scene
+}
+
+/// Returns true if and only if every one of `free`'s particles moves against `g` in every
+/// frame it moves (central-difference speed above ten velocity noises): the mean cosine of
+/// its velocity with `g` below -0.995, none above 0 (it never turns back), in 10 frames or
+/// more in all. Such a field is a steady deceleration along straight paths.
+fn against_the_motion(obs: &Observations, free: &[usize], g: Vec2) -> bool {
+    let gn = g.norm();
+    if gn == 0.0 || free.is_empty() {
+        return false;
+    }
+    let floor = 10.0 * obs.velocity_noise.max(f64::MIN_POSITIVE);
+    let mut cosines = Vec::new();
+    for &p in free {
+        for k in 1..obs.positions.len().saturating_sub(1) {
+            let (Some(a), Some(b)) = (obs.positions[k - 1][p], obs.positions[k + 1][p]) else {
+                continue;
+            };
+            let v = (b - a) * (0.5 * obs.fps);
+            let speed = v.norm();
+            if speed > floor {
+                cosines.push(v.dot(&g) / (speed * gn));
+            }
+        }
+    }
+    cosines.len() >= 10
+        && cosines.iter().all(|&c| c < 0.0)
+        && cosines.iter().sum::<f64>() / (cosines.len() as f64) < -0.995
 }
