@@ -15,7 +15,7 @@
 
 use anyhow::Context;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
-use physfit_track::{score_tracks, track_folder, TrackOptions};
+use physfit_track::{in_view, score_tracks, track_folder, TrackOptions};
 use physfit_tracks::{TrackPoint, TrackTable};
 
 use super::Scratch;
@@ -110,7 +110,10 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
                 cells += 1;
                 let row = match track_folder(&dir.0, &options, &|_, _| {}) {
                     Ok(t) => {
-                        let s = score_tracks(&t.table, &truth, radius);
+                        // No point of a particle cut by the border is written (nor asked for).
+                        let reach = t.stats.radii.iter().copied().fold(t.stats.radius, f64::max);
+                        let size = (seq.style.width as usize, seq.style.height as usize);
+                        let s = score_tracks(&t.table, &in_view(&truth, size, reach), radius);
                         let switches = s.id_switches + s.name_mismatches.unwrap_or(0);
                         let ok = s.matched_count == s.truth_count
                             && switches == 0

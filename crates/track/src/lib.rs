@@ -30,6 +30,7 @@ mod source;
 mod stack;
 mod track_table;
 mod video;
+mod view;
 
 pub use appearance::{
     Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance, HISTORY, OWN_SPREAD_MIN_CHANGES,
@@ -64,6 +65,7 @@ pub use png_reader::fuzz_read_png;
 pub use score::{score_tracks, TrackScore};
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
+pub use view::{edge_distance, in_view};
 // The track table and other trackers' tables live in physfit-tracks; re-exported so the
 // tracker's users keep one import path for what it returns.
 pub use physfit_tracks::{

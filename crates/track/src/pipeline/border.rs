@@ -8,7 +8,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use crate::{Ambiguity, AmbiguityKind, TrackTable};
+use crate::{edge_distance, Ambiguity, AmbiguityKind, TrackTable};
 
 /// Removes from `table` every point whose centre lies within `radius` (px, the radius in
 /// use, which holds the particle's blurred edge) of the edge of a `size` (width, height px)
@@ -21,11 +21,7 @@ pub(super) fn drop_cut_by_border(
     size: (usize, usize),
 ) -> (Vec<String>, BTreeSet<(String, usize)>) {
     let reach = radius;
-    let (w, h) = (size.0 as f64, size.1 as f64);
-    let inside = |x: f64, y: f64| {
-        let d = (x + 0.5).min(w - 0.5 - x).min(y + 0.5).min(h - 0.5 - y);
-        d >= reach
-    };
+    let inside = |x: f64, y: f64| edge_distance(x, y, size) >= reach;
     let mut cut: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     table.points.retain(|p| {
         let keep = inside(p.x, p.y) || !(p.x.is_finite() && p.y.is_finite());

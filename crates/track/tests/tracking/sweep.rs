@@ -26,7 +26,7 @@ use std::path::Path;
 use physfit_model::{Colour, Recording, RenderSettings, Vec2};
 use physfit_render::render_sequence;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
-use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+use physfit_track::{in_view, score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
 
 use crate::common::TempDir;
 
@@ -205,16 +205,11 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         .iter()
         .copied()
         .fold(outcome.stats.radius, f64::max);
-    let (w, h) = (f64::from(style.width), f64::from(style.height));
-    let in_view = |t: &TrackTable| TrackTable {
-        points: t
-            .points
-            .iter()
-            .filter(|p| (p.x + 0.5).min(w - 0.5 - p.x).min(p.y + 0.5).min(h - 0.5 - p.y) >= reach)
-            .cloned()
-            .collect(),
-    };
-    let (truth, centroid_truth) = (in_view(&truth), in_view(&centroid_truth));
+    let size = (style.width as usize, style.height as usize);
+    let (truth, centroid_truth) = (
+        in_view(&truth, size, reach),
+        in_view(&centroid_truth, size, reach),
+    );
     // A point farther than the smallest true radius from a true centre is on another
     // particle or none.
     let s = score_tracks(&outcome.table, &truth, style.radius);
