@@ -40,11 +40,13 @@ impl Finder {
         self.find(background, frame, params, false)
     }
 
-    /// [`Finder::blobs`], the signal then gain-corrected when `levelled`. Blobs are found in
-    /// the plain signal (the band-pass ignores a flat change of brightness, and a gain is not
-    /// uniform enough over a real frame to correct the component labelling with); centroids
-    /// are measured in the gain-corrected one, since a centroid window integrates any offset
-    /// left in it. The signal is formed row by row as the detector's filters reach it.
+    /// [`Finder::blobs`], the signal then gain-corrected when `levelled`. Against a constant
+    /// background the gain is one offset, taken out of the signal as it is formed row by row
+    /// for the detector's filters; against a per-pixel one a significant gain is taken out
+    /// of the whole signal before the blobs are found (its offset follows the background's
+    /// own unevenness, which the band-pass does not ignore); centroids are measured in the
+    /// gain-corrected signal either way, since a centroid window integrates any offset left
+    /// in it.
     pub(super) fn find(
         &mut self,
         background: &Background,
@@ -60,6 +62,19 @@ impl Finder {
         // measured once either way.
         let gain = (background.model == BackgroundModel::Constant).then(|| background.gain_to_remove(frame));
         let offset = gain.flatten().and_then(|g| background.uniform_gain_offset(g));
+        // Against a per-pixel background a gain is `(g - 1) u . b`, as uneven as the
+        // background: a dark-on-light recording whose exposure rises by a tenth under
+        // vignetting loses every particle of its bright frames in the plain signal (sweep
+        // style 1009: none found in 7 of 15 frames). It is taken out before the blobs are
+        // found, the signal formed whole first.
+        if background.model == BackgroundModel::PerPixel {
+            if let Some(g) = background.gain_to_remove(frame) {
+                background.signal_into(frame, &mut self.signal);
+                background.apply_gain(g, &mut self.signal);
+                let blobs = find_blobs_with_scratch(&self.signal, width, height, params, &mut self.detect);
+                return blobs;
+            }
+        }
         // Two closures, not one that tests the offset: the plain one stays the one the
         // detector's row loop inlines (with the test in it, N = 10 of the speed benchmark
         // took 12 % more instructions).
