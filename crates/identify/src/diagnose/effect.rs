@@ -202,9 +202,33 @@ impl Effect {
 
     /// Returns true if and only if the effect is a smooth force the weak form can screen
     /// (every effect but the walls, bumpers and their friction, which act at contacts, and
-    /// the constraints, which act by projection).
+    /// the constraints, which act by projection): one with a [`WeakShape`].
     pub fn is_smooth(self) -> bool {
-        !self.acts_at_contacts() && !self.is_constraint()
+        self.weak_shape().is_some()
+    }
+
+    /// How the effect's parameters stand against its weak-form columns; `None` for the
+    /// effects that act at contacts or by projection.
+    pub fn weak_shape(self) -> Option<WeakShape> {
+        match self {
+            Effect::Gravity => Some(WeakShape::Field),
+            Effect::Drag
+            | Effect::QuadraticDrag
+            | Effect::SpringDamping
+            | Effect::SpringDashpot { .. }
+            | Effect::BodyDrag
+            | Effect::BodyQuadraticDrag
+            | Effect::SurfaceFriction => Some(WeakShape::Coefficient),
+            Effect::MissingSpring { a, b } => Some(WeakShape::Spring { a, b }),
+            Effect::Tether { particle } => Some(WeakShape::Tether { particle }),
+            Effect::Wall
+            | Effect::WallFriction { .. }
+            | Effect::Bumper
+            | Effect::Rail { .. }
+            | Effect::RailFriction { .. }
+            | Effect::Rope { .. }
+            | Effect::AnchoredRope { .. } => None,
+        }
     }
 
     /// Returns true if and only if the effect is a constraint or acts through one (a rail,
@@ -231,6 +255,29 @@ impl Effect {
     pub fn adds_wall(self) -> bool {
         matches!(self, Effect::Wall | Effect::Bumper)
     }
+}
+
+/// How a smooth effect's parameters stand against its weak-form columns (see
+/// [`Effect::weak_shape`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WeakShape {
+    /// A field: its two components are the coefficients of its two columns, px/s².
+    Field,
+    /// One coefficient (a drag, a dashpot, a friction) of one column, its own parameter.
+    Coefficient,
+    /// A spring `S (d - L)^2` between two particles: columns for `S` and `S L`.
+    Spring {
+        /// First particle index.
+        a: usize,
+        /// Second particle index.
+        b: usize,
+    },
+    /// A spring to a fixed point (anchor, length, stiffness): columns for `S` and `S L` at a
+    /// given anchor.
+    Tether {
+        /// The tethered particle's index.
+        particle: usize,
+    },
 }
 
 /// A wall from its parameters `[normal_angle (rad), offset (px), restitution]`: the line

@@ -16,7 +16,7 @@ use nalgebra::{DMatrix, DVector};
 use physfit_model::Vec2;
 use rayon::prelude::*;
 
-use super::effect::Effect;
+use super::effect::{Effect, WeakShape};
 use super::search::{Context, Current, Proposal};
 
 /// Relative size of the finite-difference perturbation (times the parameter's typical value).
@@ -92,28 +92,25 @@ fn effect_columns(
             .then(|| DVector::from_vec(r))
     };
     let diff = |a: &DVector<f64>, b: &DVector<f64>, h: f64| (a - b) / h;
-    match effect {
-        Effect::Gravity => {
+    let shape = effect.weak_shape()?;
+    match shape {
+        WeakShape::Field => {
             let h = eps[0];
             Some(vec![diff(&run(&[h, 0.0])?, r0, h), diff(&run(&[0.0, h])?, r0, h)])
         }
-        Effect::Drag
-        | Effect::QuadraticDrag
-        | Effect::SpringDamping
-        | Effect::SpringDashpot { .. }
-        | Effect::BodyDrag
-        | Effect::BodyQuadraticDrag
-        | Effect::SurfaceFriction => {
+        WeakShape::Coefficient => {
             let h = eps[0];
             Some(vec![diff(&run(&[h])?, r0, h)])
         }
-        Effect::MissingSpring { .. } | Effect::Tether { .. } => {
+        WeakShape::Spring { .. } | WeakShape::Tether { .. } => {
             // Force 2 S d u - 2 (S L) u: at stiffness h, rest length 0 gives h times the `S`
             // column; rest length 1 minus rest length 0 gives h times the `S L` column.
             let h = *eps.last()?;
-            let prefix: Vec<f64> = match (effect, anchor) {
-                (Effect::Tether { .. }, Some(a)) => vec![a.x, a.y],
-                (Effect::Tether { .. }, None) => return None,
+            let prefix: Vec<f64> = match shape {
+                WeakShape::Tether { .. } => {
+                    let a = anchor?;
+                    vec![a.x, a.y]
+                }
                 _ => Vec::new(),
             };
             let with = |l: f64| {
@@ -125,13 +122,6 @@ fn effect_columns(
             let r_l1 = with(1.0)?;
             Some(vec![diff(&r_l0, r0, h), diff(&r_l1, &r_l0, h)])
         }
-        Effect::Wall
-        | Effect::WallFriction { .. }
-        | Effect::Rail { .. }
-        | Effect::RailFriction { .. }
-        | Effect::Rope { .. }
-        | Effect::Bumper
-        | Effect::AnchoredRope { .. } => None,
     }
 }
 
@@ -148,7 +138,6 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                 _ => None,
             };
             let cols = effect_columns(ctx, current, p.effect, anchor, &nu.r)?;
-            let k = cols.len();
             let c = DMatrix::from_columns(&cols);
             let jtc = nu.js.transpose() * &c;
             let ctc = c.transpose() * &c - jtc.transpose() * &nu.pinv * &jtc;
@@ -157,21 +146,15 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
             let step = -ctc.clone().pseudo_inverse(1e-12 * ctc.norm()).ok()? * &ctr;
             let gain = -(ctr.transpose() * &step)[(0, 0)];
             let mut score = (gain / variance).max(0.0);
-            let values: Vec<f64> = match p.effect {
-                Effect::Gravity => vec![step[0], step[1]],
-                Effect::Drag
-                | Effect::QuadraticDrag
-                | Effect::SpringDamping
-                | Effect::SpringDashpot { .. }
-                | Effect::BodyDrag
-                | Effect::BodyQuadraticDrag
-                | Effect::SurfaceFriction => {
+            let values: Vec<f64> = match p.effect.weak_shape()? {
+                WeakShape::Field => vec![step[0], step[1]],
+                WeakShape::Coefficient => {
                     if step[0] < 0.0 {
                         score = 0.0;
                     }
                     vec![step[0].max(0.0)]
                 }
-                Effect::MissingSpring { .. } | Effect::Tether { .. } => {
+                WeakShape::Spring { .. } | WeakShape::Tether { .. } => {
                     let (s, sl) = (step[0], step[1]);
                     if s <= 0.0 || sl / s <= 0.0 || !(sl / s).is_finite() {
                         score = 0.0;
@@ -182,15 +165,7 @@ pub fn score_tests(ctx: &Context<'_>, current: &Current, proposals: &mut [Propos
                         v
                     }
                 }
-                Effect::Wall
-                | Effect::WallFriction { .. }
-                | Effect::Rail { .. }
-                | Effect::RailFriction { .. }
-                | Effect::Rope { .. }
-                | Effect::Bumper
-                | Effect::AnchoredRope { .. } => return None,
             };
-            let _ = k;
             Some((score, values))
         })
         .collect();

@@ -18,7 +18,7 @@
 
 use physfit_model::{Scene, State, Vec2};
 
-use super::effect::Effect;
+use super::effect::{Effect, WeakShape};
 use super::family::{DataScales, Family};
 use super::jolts::{Jolt, WallGuess};
 use super::oscillation;
@@ -228,17 +228,11 @@ impl Context<'_> {
                 [fallback_length, self.scales.stiffness * 1e-3]
             }
         };
-        match effect {
-            Effect::Gravity => theta.to_vec(),
-            Effect::Drag
-            | Effect::QuadraticDrag
-            | Effect::SpringDamping
-            | Effect::SpringDashpot { .. }
-            | Effect::BodyDrag
-            | Effect::BodyQuadraticDrag
-            | Effect::SurfaceFriction => vec![theta[0].max(0.0)],
-            Effect::MissingSpring { a, b } => spring(theta, self.mean_distance(a, b)).to_vec(),
-            Effect::Tether { particle } => {
+        match effect.weak_shape() {
+            Some(WeakShape::Field) => theta.to_vec(),
+            Some(WeakShape::Coefficient) => vec![theta[0].max(0.0)],
+            Some(WeakShape::Spring { a, b }) => spring(theta, self.mean_distance(a, b)).to_vec(),
+            Some(WeakShape::Tether { particle }) => {
                 let a = anchor.unwrap_or_else(Vec2::zeros);
                 let mean = {
                     let xs: Vec<Vec2> = self.obs.positions.iter().filter_map(|f| f[particle]).collect();
@@ -247,13 +241,7 @@ impl Context<'_> {
                 let [l, s] = spring(theta, (a - mean).norm());
                 vec![a.x, a.y, l, s]
             }
-            Effect::Wall
-            | Effect::WallFriction { .. }
-            | Effect::Rail { .. }
-            | Effect::RailFriction { .. }
-            | Effect::Rope { .. }
-            | Effect::Bumper
-            | Effect::AnchoredRope { .. } => fallback.to_vec(),
+            None => fallback.to_vec(),
         }
     }
 
@@ -1537,24 +1525,11 @@ fn keep_better(best: &mut Option<Current>, b: Option<Current>) {
 /// [`Context::effect_params`]): a field's components; drag and dashpot values; a spring's or
 /// tether's `S` and `S L`; none for a wall.
 fn weak_coefficients(effect: Effect, params: &[f64]) -> Vec<f64> {
-    match effect {
-        Effect::Gravity => params.to_vec(),
-        Effect::Drag
-        | Effect::QuadraticDrag
-        | Effect::SpringDamping
-        | Effect::SpringDashpot { .. }
-        | Effect::BodyDrag
-        | Effect::BodyQuadraticDrag
-        | Effect::SurfaceFriction => params.to_vec(),
-        Effect::MissingSpring { .. } => vec![params[1], params[1] * params[0]],
-        Effect::Tether { .. } => vec![params[3], params[3] * params[2]],
-        Effect::Wall
-        | Effect::WallFriction { .. }
-        | Effect::Rail { .. }
-        | Effect::RailFriction { .. }
-        | Effect::Rope { .. }
-        | Effect::Bumper
-        | Effect::AnchoredRope { .. } => Vec::new(),
+    match effect.weak_shape() {
+        Some(WeakShape::Field | WeakShape::Coefficient) => params.to_vec(),
+        Some(WeakShape::Spring { .. }) => vec![params[1], params[1] * params[0]],
+        Some(WeakShape::Tether { .. }) => vec![params[3], params[3] * params[2]],
+        None => Vec::new(),
     }
 }
 
