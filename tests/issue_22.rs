@@ -55,11 +55,26 @@ seed = {seed}
 /// frames at 100 frames/s.
 fn floor_scene(name: &str, frames: usize, y: f64, vx: f64, e: f64, mu: f64, seed: u64) -> String {
     let friction = if mu > 0.0 {
-        format!("friction = {mu}\n")
+        format!("\nfriction = {mu}")
     } else {
         String::new()
     };
-    let head = head(name, frames, 480, 400, seed);
+    ball_over_floor(
+        name,
+        100.0,
+        frames,
+        y,
+        vx,
+        &format!("restitution = {e}{friction}"),
+        seed,
+    )
+}
+
+/// A ball launched sideways at `vx` px/s from (60, `y`) px over a floor at y = 340 px under a
+/// field of 1000 px/s², `frames` frames at `fps` frames/s: `floor` is the wall's contact keys
+/// (a `restitution` and `friction`, or a bumper's `stiffness` and `damping`).
+fn ball_over_floor(name: &str, fps: f64, frames: usize, y: f64, vx: f64, floor: &str, seed: u64) -> String {
+    let head = head(name, frames, 480, 400, seed).replace("fps = 100.0", &format!("fps = {fps}"));
     format!(
         r#"{head}[[particles]]
 id = "ball"
@@ -71,8 +86,8 @@ gravity = [0.0, 1000.0]
 [[physics.walls]]
 point = [0.0, 340.0]
 normal = [0.0, -1.0]
-restitution = {e}
-{friction}"#
+{floor}
+"#
     )
 }
 
@@ -379,26 +394,9 @@ fn sliding_to_rest_on_a_given_floor_gives_its_friction_within_5_percent_seed_11(
     check_sliding(11, false);
 }
 
-/// A ball dropped from (60, `y`) px with `vx` px/s sideways onto a floor at y = 340 px under a
-/// field of 1000 px/s², at `fps` frames/s for 3 s: `floor` is the wall's contact keys (a
-/// `restitution`, or a bumper's `stiffness` and `damping`).
+/// [`ball_over_floor`] for 3 s: a ball dropped from (60, `y`) px at `fps` frames/s.
 fn drop_scene(name: &str, fps: f64, y: f64, vx: f64, floor: &str, seed: u64) -> String {
-    let frames = (3.0 * fps).round() as usize;
-    let head = head(name, frames, 480, 400, seed).replace("fps = 100.0", &format!("fps = {fps}"));
-    format!(
-        r#"{head}[[particles]]
-id = "ball"
-mass = 1.0
-position = [60.0, {y}]
-velocity = [{vx}, 0.0]
-[physics]
-gravity = [0.0, 1000.0]
-[[physics.walls]]
-point = [0.0, 340.0]
-normal = [0.0, -1.0]
-{floor}
-"#
-    )
+    ball_over_floor(name, fps, (3.0 * fps).round() as usize, y, vx, floor, seed)
 }
 
 /// The report's effect names.
