@@ -626,28 +626,23 @@ fn final_scene(
 }
 
 /// Returns true if and only if every one of `free`'s particles moves against `g` in every
-/// frame it moves (central-difference speed above ten velocity noises): the mean cosine of
-/// its velocity with `g` below -0.995, none above 0 (it never turns back), in 10 frames or
-/// more in all. Such a field is a steady deceleration along straight paths.
+/// frame it moves (its estimated velocity, `Observations::velocities`, above ten velocity
+/// noises): the mean cosine of its velocity with `g` below -0.995, none above 0 (it never
+/// turns back), in 10 frames or more in all. Such a field is a steady deceleration along
+/// straight paths.
 fn against_the_motion(obs: &Observations, free: &[usize], g: Vec2) -> bool {
     let gn = g.norm();
     if gn == 0.0 || free.is_empty() {
         return false;
     }
     let floor = 10.0 * obs.velocity_noise.max(f64::MIN_POSITIVE);
-    let mut cosines = Vec::new();
-    for &p in free {
-        for k in 1..obs.positions.len().saturating_sub(1) {
-            let (Some(a), Some(b)) = (obs.positions[k - 1][p], obs.positions[k + 1][p]) else {
-                continue;
-            };
-            let v = (b - a) * (0.5 * obs.fps);
-            let speed = v.norm();
-            if speed > floor {
-                cosines.push(v.dot(&g) / (speed * gn));
-            }
-        }
-    }
+    let cosines: Vec<f64> = obs
+        .velocities
+        .iter()
+        .flat_map(|frame| free.iter().filter_map(|&p| frame[p]))
+        .filter(|v| v.norm() > floor)
+        .map(|v| v.dot(&g) / (v.norm() * gn))
+        .collect();
     cosines.len() >= 10
         && cosines.iter().all(|&c| c < 0.0)
         && cosines.iter().sum::<f64>() / (cosines.len() as f64) < -0.995
