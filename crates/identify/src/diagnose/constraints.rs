@@ -65,14 +65,10 @@ impl LineFit {
     }
 }
 
-/// The principal line of `points` (the eigenvector of their scatter with the larger
-/// eigenvalue); `None` for fewer than three points.
-pub fn fit_line(points: &[Vec2]) -> Option<LineFit> {
-    if points.len() < 3 {
-        return None;
-    }
-    let n = points.len() as f64;
-    let point = points.iter().sum::<Vec2>() / n;
+/// The mean of `points` (at least one) and the unit direction of their principal axis: the
+/// eigenvector of their scatter `[[sxx, sxy], [sxy, syy]]` with the larger eigenvalue.
+pub fn principal_axis(points: &[Vec2]) -> (Vec2, Vec2) {
+    let point = points.iter().sum::<Vec2>() / points.len() as f64;
     let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
     for p in points {
         let d = p - point;
@@ -80,9 +76,18 @@ pub fn fit_line(points: &[Vec2]) -> Option<LineFit> {
         sxy += d.x * d.y;
         syy += d.y * d.y;
     }
-    // The larger eigenvalue's direction of [[sxx, sxy], [sxy, syy]].
     let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let direction = Vec2::new(angle.cos(), angle.sin());
+    (point, Vec2::new(angle.cos(), angle.sin()))
+}
+
+/// The principal line of `points` (the eigenvector of their scatter with the larger
+/// eigenvalue); `None` for fewer than three points.
+pub fn fit_line(points: &[Vec2]) -> Option<LineFit> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let (point, direction) = principal_axis(points);
     let normal = Vec2::new(-direction.y, direction.x);
     let across: f64 = points.iter().map(|p| (p - point).dot(&normal).powi(2)).sum();
     let along = points.iter().map(|p| (p - point).dot(&direction));

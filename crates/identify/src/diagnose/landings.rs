@@ -14,6 +14,7 @@
 
 use physfit_model::Vec2;
 
+use super::constraints::principal_axis;
 use super::jolts::{deepest_beyond, Jolt, WallGuess};
 use crate::Observations;
 
@@ -118,17 +119,9 @@ fn best_landing(obs: &Observations, p: usize) -> Option<Landing> {
 /// principal line, or the one across the approach where the run barely moves along the wall
 /// (its principal direction is then the chatter's). `None` when the points scatter more.
 fn on_a_line(run: &[Vec2], step: Vec2) -> Option<(Vec2, f64, f64)> {
-    let count = run.len() as f64;
-    let mean = run.iter().sum::<Vec2>() / count;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for x in run {
-        let d = x - mean;
-        sxx += d.x * d.x;
-        sxy += d.x * d.y;
-        syy += d.y * d.y;
-    }
-    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let principal = Vec2::new(-theta.sin(), theta.cos());
+    let (_, axis) = principal_axis(run);
+    // The normal of the principal line.
+    let principal = Vec2::new(-axis.y, axis.x);
     let across_step = -step / step.norm().max(f64::MIN_POSITIVE);
     [principal, across_step]
         .into_iter()
