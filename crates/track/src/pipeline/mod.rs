@@ -18,6 +18,7 @@ mod rims;
 mod samples;
 mod size_class;
 mod skirts;
+mod spikes;
 mod stage;
 mod track_frames;
 mod tracks_background;
