@@ -205,6 +205,9 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         .iter()
         .copied()
         .fold(outcome.stats.radius, f64::max);
+    // The tracker judges its own points, which lean with the centroid: a true centre within
+    // that lean of the line may be either side of it.
+    let reach = reach + offset[0].hypot(offset[1]);
     let size = (style.width as usize, style.height as usize);
     let (truth, centroid_truth) = (
         in_view(&truth, size, reach),
@@ -381,7 +384,7 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (39 of the 48 with [`FOLLOWED_RENDER`]):
+/// The synth styles the tracker follows today (42 of the 48 with [`FOLLOWED_RENDER`]):
 /// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
 /// a ring, textured balls, under uneven light or exposure drift) are followed since each
 /// particle is located again on the signal with the plane fitted just beyond it taken out
@@ -396,10 +399,15 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
 /// against a constant background that does not saturate (`background/gain.rs`); 1009 (dark
 /// discs of 11 and 28 px under vignetting and a saturating exposure drift, none found in 7
 /// of 15 frames before) since the same is done against a per-pixel background
-/// (`pipeline/finder.rs`).
+/// (`pipeline/finder.rs`); 1038 (dark shaded spheres of 9.6 and 24 px under a gradient and
+/// a saturating exposure drift, 0.68 / 0.97 px against 0.51 / 1.18 with a warning before)
+/// since the large one's radius is widened to its silhouette (`pipeline/radius.rs`, read at
+/// 19.1 px before) and a point off its track's path and back within a frame is bridged and
+/// named (`pipeline/spikes.rs`: the small one's frame 2 lay 110 px off, on a fragment of the
+/// large one).
 const FOLLOWED_SYNTH: &[u64] = &[
     1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1018,
-    1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1039,
+    1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1038, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -447,11 +455,9 @@ fn styles_refused_today_are_refused_or_followed() {
 /// The synth styles the tracker follows today but for some particles it names in a
 /// warning: 1019 (dark textured balls of 12 and 30 px under vignetting and a saturating
 /// exposure drift; the large one hovers, and the median over differently exposed samples
-/// leaves uneven arcs round it, 0.13 / 0.20 px RMS against 0.12 / 0.13) and 1038 (the
-/// shaded spheres above, refused until the per-pixel gain was taken out before detection,
-/// now 0.68 / 0.97 px against 0.51 / 1.18, named). Each must be
+/// leaves uneven arcs round it, 0.13 / 0.20 px RMS against 0.12 / 0.13). Each must be
 /// followed, refused, or have every particle beyond its tolerance named in a warning.
-const WARNED_SYNTH: &[u64] = &[1019, 1038];
+const WARNED_SYNTH: &[u64] = &[1019];
 
 #[test]
 fn styles_warned_today_are_warned_refused_or_followed() {
@@ -460,7 +466,7 @@ fn styles_warned_today_are_warned_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 7 of 48 styles fail (rings, saturating exposure, textured balls and spheres under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 6 of 48 styles fail (rings, saturating exposure, textured balls under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
@@ -621,7 +627,11 @@ fn large_rings_are_followed_or_refused() {
 /// centroid's lean with the light that the sweep's tolerance adds: the rim's position does
 /// not lean. Their intensity centroids did (seed 3000 at 20 px, gradient 0.19: 0.07 / 0.33 px
 /// RMS, at 14 px and blur 2.4 px 0.05 / 0.19; seed 3004 at 14 px: 0.11 / 0.11 px; now 0.015 /
-/// 0.024, 0.014 / 0.035 and 0.012 / 0.014). And rings whose centroids scattered about their
+/// 0.024, 0.014 / 0.035 and 0.012 / 0.014). The linker's bridges over frames a ring was not
+/// detected in are placed again from its rim-centred neighbours, and its rim searched for
+/// there (seed 3005 at 14 px and noise 12: 1.77 / 0.87 px RMS with a warning, a bridge 5.7
+/// px off; at 20 px and noise 5, a bridge over the last frame 22.8 px off, without one). And
+/// rings whose centroids scattered about their
 /// rim (seed 3003 at 4 and 6 px and noise 5, a saturating exposure drift: 1.28 / 0.27 and
 /// 1.68 / 1.26 px RMS written without a word) are refused.
 #[test]
@@ -643,6 +653,8 @@ fn rings_are_followed_to_their_rims_centre() {
         (3004, 3, 5.0),
         (3004, 3, 15.0),
         (3005, 2, 5.0),
+        (3005, 3, 15.0),
+        (3005, 4, 5.0),
     ];
     let mut bad = Vec::new();
     for &(seed, i, noise) in cases {
@@ -657,6 +669,76 @@ fn rings_are_followed_to_their_rims_centre() {
         let refused = ring_row(3003, RING_RADII[i], ring_width(3003, i), 5.0);
         if !refused.followed_or_refused() {
             bad.push(refused.line());
+        }
+    }
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+}
+
+/// A recording of up to four shaded spheres of radius `radius` px (bright, 150 over 30, grey,
+/// sharp, even light, steady exposure) on `seed`'s motion and light, under pixel noise
+/// `noise`: the cells of `physfit bench track --sweep`.
+fn sphere_row(seed: u64, radius: f64, noise: f64) -> Row {
+    let mut style = Style::random(seed);
+    style.profile = Profile::all()
+        .into_iter()
+        .find(|p| p.name() == "sphere")
+        .expect("a shaded sphere profile");
+    style.radius = radius;
+    style.mixed = false;
+    style.particle_count = ((48.0 / radius) as usize).clamp(1, 4);
+    style.polarity = Polarity::BrightOnDark;
+    style.colour = false;
+    style.background = [30.0; 3];
+    style.foreground = [180.0; 3];
+    style.blur = 0.0;
+    style.noise = noise;
+    style.gradient = 0.0;
+    style.vignetting = 0.0;
+    style.exposure = 0.0;
+    style.saturating = false;
+    style.speed = 2.0;
+    style.frame_count = 20;
+    style.fit_frame(1.0);
+    let seq = Sequence::new(style);
+    let dir = TempDir::new("sweep-sphere");
+    seq.write_frames(dir.path()).expect("write frames");
+    run("sphere", &seq, dir.path())
+}
+
+/// Shaded spheres (lit from the diagonal, their light gathered towards one side) of 12-48 px
+/// are measured out to their silhouette and followed to their intensity centroid, which leans
+/// towards the light by a fifth of the radius times the light's tilt: within the sweep's
+/// tolerance, and the radius in use from 1.5 px below the true radius (the window, a pixel
+/// wider, then cuts at most the dim rim of the limb) to a pixel beyond it plus the lean.
+/// The radius of gyration reads such a sphere at 0.8 of its radius, and where the window
+/// that small met the border it was not widened to the particle: bench cell seed 7028 at
+/// 24 px was followed 1.31 px off (its centroid's lean 0.78), seed 2 at 32 and 48 px 1.55 and
+/// 2.71 px off (1.03 and 1.55).
+#[test]
+fn shaded_spheres_are_measured_to_their_silhouette_and_followed_to_their_centroid() {
+    let cases: &[(u64, f64, f64)] = &[
+        (1, 12.0, 0.0),
+        (2, 12.0, 10.0),
+        (7028, 24.0, 0.0),
+        (1, 24.0, 10.0),
+        (2, 32.0, 0.0),
+        (1, 32.0, 10.0),
+        (2, 48.0, 0.0),
+        (1, 48.0, 10.0),
+    ];
+    let mut bad = Vec::new();
+    for &(seed, radius, noise) in cases {
+        let row = sphere_row(seed, radius, noise);
+        let lean = row.offset[0].hypot(row.offset[1]);
+        let sized = row.tracker_radius >= radius - 1.5 && row.tracker_radius <= radius + lean + 1.0;
+        if !(row.passed() && sized) {
+            bad.push(format!(
+                "{} (radius in use {:.2} px, wanted {:.2}-{:.2})",
+                row.line(),
+                row.tracker_radius,
+                radius - 1.5,
+                radius + lean + 1.0
+            ));
         }
     }
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
