@@ -174,13 +174,13 @@ const EDGE_STEP: f64 = 0.25;
 
 /// One round of the radius estimate at `radius`: for each particle measured (the blob
 /// nearest each of `starts` in the first estimation frame, or every blob of the frames
-/// [`Estimation::over_frames`] searches; window not cut by the border unless `clipped`), its
-/// [`Measure`] at `radius`.
+/// [`Estimation::over_frames`] searches; window not cut by the border), its [`Measure`] at
+/// `radius`; with `reaches`, windows cut by the border too, and only the reach measured.
 fn measure_round(
     estimation: &Estimation,
     starts: Option<&[[f64; 2]]>,
     radius: f64,
-    clipped: bool,
+    reaches: bool,
 ) -> Vec<Measure> {
     let background = estimation.background;
     let noise = background.noise_sigma;
@@ -193,14 +193,22 @@ fn measure_round(
         };
         chosen
             .iter()
-            .filter(|d| (clipped || !d.clipped) && d.size.is_finite())
+            .filter(|d| (reaches || !d.clipped) && d.size.is_finite())
             .map(|d| {
-                let signal = &finder.signal;
+                let (signal, at) = (&finder.signal, [d.x, d.y]);
+                if reaches {
+                    return Measure {
+                        size: d.size,
+                        cut: None,
+                        edge: None,
+                        reach: reach_about(signal, width, height, at, radius, noise),
+                    };
+                }
                 Measure {
                     size: d.size,
-                    cut: half_maximum_beyond(signal, width, height, [d.x, d.y], radius, noise),
-                    edge: edge_beyond(signal, width, height, [d.x, d.y], radius, noise),
-                    reach: reach_about(signal, width, height, [d.x, d.y], radius, noise),
+                    cut: half_maximum_beyond(signal, width, height, at, radius, noise),
+                    edge: edge_beyond(signal, width, height, at, radius, noise),
+                    reach: None,
                 }
             })
             .collect()
@@ -441,11 +449,13 @@ fn edge_beyond(
     radius: f64,
     noise: f64,
 ) -> Option<f64> {
-    let profile = RingProfile::about(signal, width, height, centre, 2.0 * radius + 4.0, radius);
-    let (band, band_count) = profile.band?;
-    if band <= 3.0 * noise / (band_count as f64).sqrt() || band > profile.core(radius).1? {
+    // The window's edge first (most particles end within it: nothing more to measure).
+    let near = RingProfile::about(signal, width, height, centre, radius + 1.5, radius);
+    let (band, band_count) = near.band?;
+    if band <= 3.0 * noise / (band_count as f64).sqrt() || band > near.core(radius).1? {
         return None;
     }
+    let profile = RingProfile::about(signal, width, height, centre, 2.0 * radius + 4.0, radius);
     let (edge, reach) = foot(&profile, radius, noise)?;
     (edge > radius + 1.0).then_some(reach)
 }
