@@ -39,7 +39,7 @@ use std::collections::BTreeMap;
 #[cfg(doc)]
 use crate::rim::rim_centre;
 use crate::rim::Rim;
-use crate::track_table::{PointFlag, TrackTable};
+use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 
 /// Largest skirt (see the module doc) of a particle whose radius is the one in use.
 pub(crate) const MAX_SKIRT: f64 = 0.6;
@@ -160,6 +160,17 @@ pub(crate) enum Concern {
         /// The largest step between its detected points, px per frame.
         step: f64,
     },
+    /// The change of the track's step from frame to frame itself changes by more than the
+    /// particle's diameter, as a rule: it hops between parts of a larger particle, or between
+    /// objects.
+    Erratic {
+        /// Median over the track of the magnitude of its third differences, px.
+        jerk: f64,
+        /// The radius in use, px.
+        radius: f64,
+        /// Runs of four consecutive detected frames measured.
+        count: usize,
+    },
     /// The particle was detected in fewer than half of its frames.
     MostlyUnseen {
         /// Frames where it was detected.
@@ -239,6 +250,14 @@ impl std::fmt::Display for TrackConcern {
                 frames.1,
                 2.0 * step
             ),
+            Concern::Erratic { jerk, radius, count } => write!(
+                f,
+                "{p}: its positions jump about: how much the change of its step from one frame to the next itself \
+                 changes (its third difference) has a median of {jerk:.1} px over {count} runs of frames, more than its \
+                 diameter and 2 px ({:.1} px at the radius {radius:.2} px in use), where forces change smoothly: the \
+                 track hops between parts of a larger particle or between objects",
+                2.0 * (radius + 1.0)
+            ),
             Concern::MostlyUnseen { detected, frames } => write!(
                 f,
                 "{p}: detected in only {detected} of its {frames} frames (the rest bridged from its motion)"
@@ -284,6 +303,13 @@ pub(crate) fn check_tracks(
             });
             continue;
         }
+        if let Some(concern) = erratic(&points, radius) {
+            out.push(TrackConcern {
+                particle: particle.to_string(),
+                concern,
+            });
+            continue;
+        }
         let Some(measured) = skirts.get(particle).filter(|m| !m.is_empty()) else {
             continue;
         };
@@ -320,6 +346,37 @@ pub(crate) fn check_tracks(
         }
     }
     out
+}
+
+/// Least runs of four consecutive detected frames for [`erratic`] to judge a track.
+const ERRATIC_RUNS: usize = 3;
+
+/// [`Concern::Erratic`] where the median magnitude of the third differences of `points`
+/// (one track, frame order) over consecutive detected frames exceeds the diameter of a
+/// particle of radius `radius` (px) plus 2 px. A particle's image moves with it, and the
+/// forces on it change smoothly: its step changes by its acceleration times the frame
+/// interval squared, which may be large (the shared ball toss at its frame rate: 16.5-19.1 px
+/// a frame, for a ball of 5 px), but that change itself changes little (1.0-2.1 px there);
+/// a bounce or a kick changes it in a frame or two, which the median passes over, and random
+/// walks of 0.5-3 px a frame change it by about 4 px. A track hopping between the arcs of a
+/// ring of 25 px under noise 28 changed it by tens of px a frame at a radius of 6.4 px, and had
+/// been written without a word.
+fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
+    let detected = |p: &TrackPoint| p.flag == PointFlag::Detected;
+    let mut jerks: Vec<f64> = points
+        .windows(4)
+        .filter(|w| w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1))
+        .map(|w| {
+            let third = |c: fn(&TrackPoint) -> f64| c(w[3]) - 3.0 * c(w[2]) + 3.0 * c(w[1]) - c(w[0]);
+            third(|p| p.x).hypot(third(|p| p.y))
+        })
+        .collect();
+    if jerks.len() < ERRATIC_RUNS {
+        return None;
+    }
+    let count = jerks.len();
+    let jerk = physfit_tracks::stats::median(&mut jerks);
+    (jerk > 2.0 * (radius + 1.0)).then_some(Concern::Erratic { jerk, radius, count })
 }
 
 /// [`Concern::OffRim`] where the particle is hollow about its points in most measured
@@ -557,7 +614,6 @@ pub(crate) fn skirts(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::track_table::TrackPoint;
 
     /// A frame of flat discs of `radius` (px), contrast 100, at `centres`.
     fn discs(width: usize, height: usize, centres: &[[f64; 2]], radius: f64) -> Vec<f32> {
@@ -858,5 +914,46 @@ mod tests {
         let mut leaves = track(6.0, &[], false);
         leaves.points.retain(|p| p.frame <= 6);
         assert!(lost_inside(&leaves, 4.0, (100, 100), 11).is_empty());
+    }
+
+    /// A ball of 5 px thrown up and falling back at 30 frames/s (its step changing by 18 px a
+    /// frame, a bounce in frame 6) is one particle; a track hopping 20 px about a centre
+    /// from frame to frame is not, and says by how much.
+    #[test]
+    fn a_thrown_ball_is_smooth_and_a_track_hopping_about_is_erratic() {
+        let track = |name: &str, at: &dyn Fn(usize) -> [f64; 2]| -> Vec<TrackPoint> {
+            (0..12)
+                .map(|k| {
+                    let p = at(k);
+                    TrackPoint::new(k, name.to_string(), p[0], p[1])
+                })
+                .collect()
+        };
+        let thrown = track("ball", &|k| {
+            let t = k as f64;
+            let y = 300.0 - 90.0 * t + 9.0 * t * t;
+            [
+                100.0 + 12.0 * t,
+                if k < 6 {
+                    y
+                } else {
+                    2.0 * (300.0 - 90.0 * 6.0 + 9.0 * 36.0) - y
+                },
+            ]
+        });
+        let points: Vec<&TrackPoint> = thrown.iter().collect();
+        assert_eq!(erratic(&points, 5.0), None);
+        let hops = [[20.0, 0.0], [-20.0, 3.0], [0.0, 20.0], [3.0, -20.0]];
+        let hopping = track("hopper", &|k| {
+            [100.0 + hops[k % 4][0] + k as f64, 100.0 + hops[k % 4][1]]
+        });
+        let points: Vec<&TrackPoint> = hopping.iter().collect();
+        let Some(Concern::Erratic { jerk, count, .. }) = erratic(&points, 5.0) else {
+            panic!("a track hopping 20 px about a centre is erratic");
+        };
+        assert!(
+            jerk > 12.0 && count == 9,
+            "median third difference {jerk:.1} px over {count}"
+        );
     }
 }

@@ -155,7 +155,19 @@ impl Background {
         // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
         // successive frames' samples fall on other columns).
         let stride = (samples.len() * width * height / NOISE_SAMPLES).max(1) | 1;
-        self.direction = colour_direction(samples, self, (6.0 * sigma_t).max(3.0) as f32, stride);
+        // Where no pixel differs by 6 temporal sigmas, the threshold is halved down to 3 grey
+        // levels before bright particles are assumed: an exposure drift counts in the temporal
+        // noise (a light background drifting by 11 % read 12.6), and 75 grey levels were more
+        // than a dark disc's contrast (taken for bright, its crescents in the per-pixel median
+        // were followed 9 px off without a word).
+        let mut threshold = (6.0 * sigma_t).max(3.0) as f32;
+        self.direction = loop {
+            match colour_direction(samples, self, threshold, stride) {
+                Some(direction) => break direction,
+                None if threshold > 3.0 => threshold = (0.5 * threshold).max(3.0),
+                None => break vec![1.0 / (channels as f32).sqrt(); channels],
+            }
+        };
         // The lowest signal a pixel can show: its value at the clip level (0 where particles
         // are brighter in a channel, 255 where darker).
         let clip: Vec<f32> = self
@@ -287,9 +299,14 @@ fn mode_level(image: &[f32], channels: usize, c: usize) -> f32 {
 
 /// The principal direction of the differences from the background over the pixels that
 /// differ by more than `threshold` in some channel, signed so that particles project
-/// positive on average. Every `stride`-th pixel of each sample is looked at (an odd stride,
+/// positive on average; `None` when no pixel differs so. Every `stride`-th pixel of each sample is looked at (an odd stride,
 /// started one pixel later in each successive sample, as the noise sample is taken).
-fn colour_direction(samples: &[FrameView<'_>], bg: &Background, threshold: f32, stride: usize) -> Vec<f32> {
+fn colour_direction(
+    samples: &[FrameView<'_>],
+    bg: &Background,
+    threshold: f32,
+    stride: usize,
+) -> Option<Vec<f32>> {
     let c = bg.channels;
     let mut cov = [[0.0f64; 3]; 3];
     let mut mean = [0.0f64; 3];
@@ -316,7 +333,7 @@ fn colour_direction(samples: &[FrameView<'_>], bg: &Background, threshold: f32, 
         }
     }
     if count == 0 {
-        return vec![1.0 / (c as f32).sqrt(); c];
+        return None;
     }
     // Power iteration from the mean difference (or the grey axis when it cancels).
     let mut v = [0.0f64; 3];
@@ -341,5 +358,5 @@ fn colour_direction(samples: &[FrameView<'_>], bg: &Background, threshold: f32, 
     }
     let proj: f64 = (0..c).map(|i| v[i] * mean[i]).sum();
     let sign = if proj < 0.0 { -1.0 } else { 1.0 };
-    (0..c).map(|i| (sign * v[i]) as f32).collect()
+    Some((0..c).map(|i| (sign * v[i]) as f32).collect())
 }

@@ -271,6 +271,30 @@ fn dark_on_light_gets_negative_direction_and_positive_signal() {
     assert!(s[0].abs() < 1e-3);
 }
 
+/// A dark spot 60 levels below a light background whose exposure drifts by 12 % from sample
+/// to sample: the drift makes the temporal noise read about 10 levels, and no pixel differs by
+/// 6 of those; the colour direction is found at a lower threshold, not assumed bright.
+#[test]
+fn a_dark_spot_under_an_exposure_drift_is_dark_on_light() {
+    let samples: Vec<Frame> = (0..7)
+        .map(|k| {
+            let mut f = frame_with_spot(200.0, 140.0, (5 + 4 * k, 10));
+            let gain = if k % 2 == 0 { 1.06 } else { 0.94 };
+            for v in f.data.iter_mut() {
+                *v = (*v * gain).round();
+            }
+            f
+        })
+        .collect();
+    let bg = estimate_background(&views(&samples), BackgroundChoice::Auto);
+    assert!(
+        bg.temporal_noise * 6.0 > 60.0,
+        "temporal noise {}",
+        bg.temporal_noise
+    );
+    assert!(bg.is_dark_on_light());
+}
+
 #[test]
 fn a_gradient_background_is_modelled_per_pixel() {
     let samples: Vec<Frame> = (0..7)

@@ -743,3 +743,36 @@ fn shaded_spheres_are_measured_to_their_silhouette_and_followed_to_their_centroi
     }
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
+
+/// One profile beyond the sweep's seeds: each seed's own style (size, mixed sizes, polarity,
+/// colour, blur, noise, light, camera) drawn with the profile `PHYSFIT_NEIGHBOURS_PROFILE`
+/// names (`sphere` unless set; `disc`, `gauss`, `ring`, `texture`). Prints the table and how
+/// many fail, and how many of those silently (beyond the tolerance, unnamed in a warning);
+/// asserts nothing (an exploration of a class, `--ignored`). Spheres at the time of writing:
+/// 19 of 24 followed, none wrong without a word.
+#[test]
+#[ignore = "exploration: prints one profile's neighbours' table"]
+fn profile_neighbours_table() {
+    let name = std::env::var("PHYSFIT_NEIGHBOURS_PROFILE").unwrap_or_else(|_| "sphere".to_string());
+    let profile = Profile::all()
+        .into_iter()
+        .find(|p| p.name() == name)
+        .expect("a profile's name");
+    let mut report = format!("{HEADER}\n");
+    let (mut failed, mut silent, mut count) = (0, 0, 0);
+    for seed in 4000..4024u64 {
+        let mut style = Style::random(seed);
+        style.profile = profile;
+        style.fit_frame(1.1);
+        let seq = Sequence::new(style);
+        let dir = TempDir::new("sweep-neighbours");
+        seq.write_frames(dir.path()).expect("write frames");
+        let row = run("neighbour", &seq, dir.path());
+        failed += usize::from(!row.passed());
+        silent += usize::from(!row.followed_refused_or_warned());
+        count += 1;
+        report.push_str(&row.line());
+        report.push('\n');
+    }
+    println!("{report}\n{failed} of {count} {name} styles fail, {silent} of them without a word");
+}
