@@ -283,7 +283,8 @@ fn list(frames: &[usize]) -> String {
 /// skirts of their points measured in some frames (`skirts[particle]`: frame and skirt each,
 /// from [`skirts`]), and the skirts of the points as located (`located`, before rings were
 /// moved to their rims' centres), whose rims say whether the located points agreed with them
-/// ([`Concern::OffRim`]).
+/// ([`Concern::OffRim`]); one concern a track, the first of: mostly unseen, larger than the
+/// radius ([`skirt_concern`]), off its rim, erratic ([`erratic`]).
 pub(crate) fn check_tracks(
     table: &TrackTable,
     radius: f64,
@@ -303,42 +304,10 @@ pub(crate) fn check_tracks(
             });
             continue;
         }
-        if let Some(concern) = erratic(&points, radius) {
-            out.push(TrackConcern {
-                particle: particle.to_string(),
-                concern,
-            });
-            continue;
-        }
-        let Some(measured) = skirts.get(particle).filter(|m| !m.is_empty()) else {
-            continue;
-        };
-        let mut values: Vec<f64> = measured.iter().map(|m| m.1.level).collect();
-        let skirt = physfit_tracks::stats::median_upper(&mut values);
-        let mut sides: Vec<f64> = measured.iter().map(|m| m.1.lopsided).collect();
-        let lopsided = physfit_tracks::stats::median_upper(&mut sides);
-        let mut lines: Vec<f64> = measured.iter().map(|m| m.1.elongated).collect();
-        let elongated = physfit_tracks::stats::median_upper(&mut lines);
-        let mut magnitudes: Vec<f64> = measured.iter().map(|m| m.1.magnitude).collect();
-        let magnitude = physfit_tracks::stats::median_upper(&mut magnitudes);
-        // A ring below the background is as telling as one above it, and parts above and
-        // below it that cancel in the mean as telling as either (see the module doc).
-        let uneven = lopsided > MAX_LOPSIDED || elongated > MAX_ELONGATED;
-        if skirt.abs() > MAX_SKIRT || (skirt.abs().max(magnitude) > LOPSIDED_SKIRT && uneven) {
-            out.push(TrackConcern {
-                particle: particle.to_string(),
-                concern: Concern::Larger {
-                    skirt,
-                    lopsided,
-                    elongated,
-                    magnitude,
-                    radius,
-                    frames: measured.iter().map(|m| m.0).collect(),
-                },
-            });
-            continue;
-        }
-        if let Some(concern) = located.get(particle).and_then(|m| off_rim(m)) {
+        if let Some(concern) = skirt_concern(skirts.get(particle), radius)
+            .or_else(|| located.get(particle).and_then(|m| off_rim(m)))
+            .or_else(|| erratic(&points, radius))
+        {
             out.push(TrackConcern {
                 particle: particle.to_string(),
                 concern,
@@ -346,6 +315,33 @@ pub(crate) fn check_tracks(
         }
     }
     out
+}
+
+/// [`Concern::Larger`] where a track's skirts (`measured`: frame and skirt each, for a
+/// particle of radius `radius` px) say its particle reaches well beyond the radius in use.
+fn skirt_concern(measured: Option<&Vec<(usize, Skirt)>>, radius: f64) -> Option<Concern> {
+    let measured = measured.filter(|m| !m.is_empty())?;
+    let mut values: Vec<f64> = measured.iter().map(|m| m.1.level).collect();
+    let skirt = physfit_tracks::stats::median_upper(&mut values);
+    let mut sides: Vec<f64> = measured.iter().map(|m| m.1.lopsided).collect();
+    let lopsided = physfit_tracks::stats::median_upper(&mut sides);
+    let mut lines: Vec<f64> = measured.iter().map(|m| m.1.elongated).collect();
+    let elongated = physfit_tracks::stats::median_upper(&mut lines);
+    let mut magnitudes: Vec<f64> = measured.iter().map(|m| m.1.magnitude).collect();
+    let magnitude = physfit_tracks::stats::median_upper(&mut magnitudes);
+    // A ring below the background is as telling as one above it, and parts above and
+    // below it that cancel in the mean as telling as either (see the module doc).
+    let uneven = lopsided > MAX_LOPSIDED || elongated > MAX_ELONGATED;
+    (skirt.abs() > MAX_SKIRT || (skirt.abs().max(magnitude) > LOPSIDED_SKIRT && uneven)).then(|| {
+        Concern::Larger {
+            skirt,
+            lopsided,
+            elongated,
+            magnitude,
+            radius,
+            frames: measured.iter().map(|m| m.0).collect(),
+        }
+    })
 }
 
 /// Least runs of four consecutive detected frames for [`erratic`] to judge a track.
