@@ -6,7 +6,7 @@ use super::outcome::{TrackOutcome, TrackStats};
 use super::plane::planes_move_points;
 use super::radius::first_frame_scan;
 use super::samples::{check_size, load_sample, moving_blobs, views};
-use super::size_class::{largest_radius, SizeClass, Sizes};
+use super::size_class::{exclusion_reach, largest_radius, SizeClass, Sizes};
 use super::skirts::particle_contrast;
 use super::stage::{Pass, Stage};
 use super::tracks_background::{
@@ -344,7 +344,7 @@ fn track_frames(
                 &numbers,
                 &pass,
                 largest_radius(&classes),
-                2.0 * largest_radius(&classes) + 1.0,
+                exclusion_reach(&classes),
                 blind_search,
             )
         }) else {

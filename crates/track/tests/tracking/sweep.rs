@@ -744,12 +744,39 @@ fn shaded_spheres_are_measured_to_their_silhouette_and_followed_to_their_centroi
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
 
+/// The style drawn from `seed` with its particles drawn as `profile`, tracked.
+fn profile_row(seed: u64, profile: Profile) -> Row {
+    let mut style = Style::random(seed);
+    style.profile = profile;
+    style.fit_frame(1.1);
+    let seq = Sequence::new(style);
+    let dir = TempDir::new("sweep-neighbours");
+    seq.write_frames(dir.path()).expect("write frames");
+    run("neighbour", &seq, dir.path())
+}
+
+/// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
+/// 0.20 and no noise (style 4006 drawn as spots): the tracked spots are taken out of the
+/// per-pixel median as far as their skirts stand above the noise, not `2R + 1`, and are
+/// followed within the sweep's tolerance (0.35 / 0.49 px RMS with errors of 0.002 px
+/// before, against 0.13 / 0.09).
+#[test]
+fn gaussian_spots_leave_no_skirt_in_the_median() {
+    let gauss = Profile::all()
+        .into_iter()
+        .find(|p| p.name() == "gauss")
+        .expect("a Gaussian profile");
+    let row = profile_row(4006, gauss);
+    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+}
+
 /// One profile beyond the sweep's seeds: each seed's own style (size, mixed sizes, polarity,
 /// colour, blur, noise, light, camera) drawn with the profile `PHYSFIT_NEIGHBOURS_PROFILE`
 /// names (`sphere` unless set; `disc`, `gauss`, `ring`, `texture`). Prints the table and how
 /// many fail, and how many of those silently (beyond the tolerance, unnamed in a warning);
-/// asserts nothing (an exploration of a class, `--ignored`). Spheres at the time of writing:
-/// 19 of 24 followed, none wrong without a word.
+/// asserts nothing (an exploration of a class, `--ignored`). On 2026-11-27, followed (and
+/// written off tolerance without a word): discs 22 (1), Gaussian spots 16 (3), rings 9 (1),
+/// textured balls 23 (1), spheres 19 (1).
 #[test]
 #[ignore = "exploration: prints one profile's neighbours' table"]
 fn profile_neighbours_table() {
@@ -761,13 +788,7 @@ fn profile_neighbours_table() {
     let mut report = format!("{HEADER}\n");
     let (mut failed, mut silent, mut count) = (0, 0, 0);
     for seed in 4000..4024u64 {
-        let mut style = Style::random(seed);
-        style.profile = profile;
-        style.fit_frame(1.1);
-        let seq = Sequence::new(style);
-        let dir = TempDir::new("sweep-neighbours");
-        seq.write_frames(dir.path()).expect("write frames");
-        let row = run("neighbour", &seq, dir.path());
+        let row = profile_row(seed, profile);
         failed += usize::from(!row.passed());
         silent += usize::from(!row.followed_refused_or_warned());
         count += 1;
