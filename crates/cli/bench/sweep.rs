@@ -14,7 +14,7 @@
 //! axis.
 
 use anyhow::Context;
-use physfit_synth::{Polarity, Profile, Sequence, Style};
+use physfit_synth::{Profile, Sequence, Style};
 use physfit_track::{in_view, score_tracks, track_folder, TrackOptions};
 use physfit_tracks::{TrackPoint, TrackTable};
 
@@ -27,29 +27,6 @@ const NOISES: [f64; 3] = [0.0, 5.0, 20.0];
 /// Radii and noise levels of `--quick`.
 const QUICK_RADII: [f64; 3] = [1.5, 6.0, 24.0];
 const QUICK_NOISES: [f64; 2] = [0.0, 20.0];
-
-/// The cell's style: a fixed draw for the motion's seed, then every look set.
-fn cell_style(profile: Profile, radius: f64, noise: f64, seed: u64) -> Style {
-    let mut s = Style::random(seed);
-    s.profile = profile;
-    s.radius = radius;
-    s.mixed = false;
-    s.particle_count = ((48.0 / radius) as usize).clamp(1, 4);
-    s.polarity = Polarity::BrightOnDark;
-    s.colour = false;
-    s.background = [30.0; 3];
-    s.foreground = [180.0; 3];
-    s.blur = 0.0;
-    s.noise = noise;
-    s.gradient = 0.0;
-    s.vignetting = 0.0;
-    s.exposure = 0.0;
-    s.saturating = false;
-    s.speed = 2.0;
-    s.frame_count = 20;
-    s.fit_frame(1.0);
-    s
-}
 
 fn table(names: &[String], points: &[Vec<[f64; 2]>]) -> TrackTable {
     let mut out = Vec::new();
@@ -83,7 +60,7 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         for profile in Profile::all() {
             for &noise in noises {
                 let seed = 7000 + cells as u64;
-                let seq = Sequence::new(cell_style(profile, radius, noise, seed));
+                let seq = Sequence::new(Style::bench_cell(profile, radius, noise, seed));
                 let dir = Scratch::new(&format!("sweep-{cells}"))?;
                 seq.write_frames(&dir.0)
                     .with_context(|| format!("drawing into {}", dir.0.display()))?;

@@ -48,6 +48,11 @@ impl Profile {
         }
     }
 
+    /// The profile of [`Profile::all`] with this [`Profile::name`], if any.
+    pub fn named(name: &str) -> Option<Profile> {
+        Profile::all().into_iter().find(|p| p.name() == name)
+    }
+
     /// The five profiles with typical parameters (ring width 0.3, texture contrast 0.3,
     /// light tilted 10 degrees to the upper left).
     pub fn all() -> [Profile; 5] {
@@ -337,6 +342,33 @@ impl Style {
         let g = 1.0 + self.gradient * (dx * self.gradient_angle.cos() + dy * self.gradient_angle.sin()) / w;
         let corner2 = 0.25 * (w * w + h * h);
         g * (1.0 - self.vignetting * (dx * dx + dy * dy) / corner2)
+    }
+
+    /// A cell of `physfit bench track --sweep`: the style drawn from `seed` (its motion and its
+    /// profile's own draws) with up to four particles of `profile` and radius `radius` px (as
+    /// many as fit 48 px), one size, bright (150 over 30), grey, sharp, under even light and a
+    /// steady exposure, pixel noise `noise` grey levels, walking up to 2 px a frame for 20
+    /// frames, the frame fitted to them.
+    pub fn bench_cell(profile: Profile, radius: f64, noise: f64, seed: u64) -> Style {
+        let mut s = Style::random(seed);
+        s.profile = profile;
+        s.radius = radius;
+        s.mixed = false;
+        s.particle_count = ((48.0 / radius) as usize).clamp(1, 4);
+        s.polarity = Polarity::BrightOnDark;
+        s.colour = false;
+        s.background = [30.0; 3];
+        s.foreground = [180.0; 3];
+        s.blur = 0.0;
+        s.noise = noise;
+        s.gradient = 0.0;
+        s.vignetting = 0.0;
+        s.exposure = 0.0;
+        s.saturating = false;
+        s.speed = 2.0;
+        s.frame_count = 20;
+        s.fit_frame(1.0);
+        s
     }
 
     /// Sets the frame size from the particles' sizes, count, blur and speed: room for the

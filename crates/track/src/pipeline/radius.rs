@@ -136,11 +136,10 @@ fn widen_to_edge(
                 .map(|m| m.edge)
                 .collect();
         }
-        let mut beyond: Vec<f64> = edges.iter().flatten().copied().collect();
-        if edges.is_empty() || 2 * beyond.len() <= edges.len() {
+        let Some(beyond) = majority_median(&edges) else {
             break;
-        }
-        let next = median(&mut beyond).clamp(radius, 200.0);
+        };
+        let next = beyond.clamp(radius, 200.0);
         let step = next - radius;
         radius = next;
         widened = true;
@@ -158,11 +157,14 @@ fn widen_to_edge(
         .into_iter()
         .map(|m| m.reach)
         .collect();
-    let mut found: Vec<f64> = reaches.iter().flatten().copied().collect();
-    if 2 * found.len() <= reaches.len() {
-        return radius;
-    }
-    median(&mut found).clamp(start, radius)
+    majority_median(&reaches).map_or(radius, |reach| reach.clamp(start, radius))
+}
+
+/// The median of the values in `measured` (one a particle, `None` where a particle has none)
+/// when more than half the particles have one.
+fn majority_median(measured: &[Option<f64>]) -> Option<f64> {
+    let mut present: Vec<f64> = measured.iter().flatten().copied().collect();
+    (2 * present.len() > measured.len()).then(|| median(&mut present))
 }
 
 /// Most rounds of [`widen_to_edge`]: each measures about centroids of a wider window, nearer
@@ -257,11 +259,10 @@ fn widen_to_half_maximum(
                 .map(|m| m.cut)
                 .collect();
         }
-        let mut wider: Vec<f64> = cut.iter().flatten().copied().collect();
-        if cut.is_empty() || 2 * wider.len() <= cut.len() {
+        let Some(wider) = majority_median(&cut) else {
             break;
-        }
-        let next = median(&mut wider).clamp(1.0, 200.0);
+        };
+        let next = wider.clamp(1.0, 200.0);
         if next <= radius + 1.0 {
             break;
         }

@@ -674,32 +674,11 @@ fn rings_are_followed_to_their_rims_centre() {
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
 
-/// A recording of up to four shaded spheres of radius `radius` px (bright, 150 over 30, grey,
-/// sharp, even light, steady exposure) on `seed`'s motion and light, under pixel noise
-/// `noise`: the cells of `physfit bench track --sweep`.
+/// A cell of `physfit bench track --sweep` ([`Style::bench_cell`]) of shaded spheres of
+/// radius `radius` px under pixel noise `noise`, on `seed`'s motion, tracked.
 fn sphere_row(seed: u64, radius: f64, noise: f64) -> Row {
-    let mut style = Style::random(seed);
-    style.profile = Profile::all()
-        .into_iter()
-        .find(|p| p.name() == "sphere")
-        .expect("a shaded sphere profile");
-    style.radius = radius;
-    style.mixed = false;
-    style.particle_count = ((48.0 / radius) as usize).clamp(1, 4);
-    style.polarity = Polarity::BrightOnDark;
-    style.colour = false;
-    style.background = [30.0; 3];
-    style.foreground = [180.0; 3];
-    style.blur = 0.0;
-    style.noise = noise;
-    style.gradient = 0.0;
-    style.vignetting = 0.0;
-    style.exposure = 0.0;
-    style.saturating = false;
-    style.speed = 2.0;
-    style.frame_count = 20;
-    style.fit_frame(1.0);
-    let seq = Sequence::new(style);
+    let sphere = Profile::named("sphere").expect("a shaded sphere profile");
+    let seq = Sequence::new(Style::bench_cell(sphere, radius, noise, seed));
     let dir = TempDir::new("sweep-sphere");
     seq.write_frames(dir.path()).expect("write frames");
     run("sphere", &seq, dir.path())
@@ -762,10 +741,7 @@ fn profile_row(seed: u64, profile: Profile) -> Row {
 /// before, against 0.13 / 0.09).
 #[test]
 fn gaussian_spots_leave_no_skirt_in_the_median() {
-    let gauss = Profile::all()
-        .into_iter()
-        .find(|p| p.name() == "gauss")
-        .expect("a Gaussian profile");
+    let gauss = Profile::named("gauss").expect("a Gaussian profile");
     let row = profile_row(4006, gauss);
     assert!(row.passed(), "\n{HEADER}\n{}", row.line());
 }
@@ -781,10 +757,7 @@ fn gaussian_spots_leave_no_skirt_in_the_median() {
 #[ignore = "exploration: prints one profile's neighbours' table"]
 fn profile_neighbours_table() {
     let name = std::env::var("PHYSFIT_NEIGHBOURS_PROFILE").unwrap_or_else(|_| "sphere".to_string());
-    let profile = Profile::all()
-        .into_iter()
-        .find(|p| p.name() == name)
-        .expect("a profile's name");
+    let profile = Profile::named(&name).expect("a profile's name");
     let mut report = format!("{HEADER}\n");
     let (mut failed, mut silent, mut count) = (0, 0, 0);
     for seed in 4000..4024u64 {
