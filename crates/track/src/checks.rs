@@ -359,21 +359,41 @@ const ERRATIC_RUNS: usize = 3;
 /// been written without a word.
 fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
     let detected = |p: &TrackPoint| p.flag == PointFlag::Detected;
-    let mut jerks: Vec<f64> = points
+    let thirds: Vec<[f64; 2]> = points
         .windows(4)
         .filter(|w| w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1))
         .map(|w| {
             let third = |c: fn(&TrackPoint) -> f64| c(w[3]) - 3.0 * c(w[2]) + 3.0 * c(w[1]) - c(w[0]);
-            third(|p| p.x).hypot(third(|p| p.y))
+            [third(|p| p.x), third(|p| p.y)]
         })
         .collect();
-    if jerks.len() < ERRATIC_RUNS {
+    if thirds.len() < ERRATIC_RUNS {
         return None;
     }
-    let count = jerks.len();
+    let count = thirds.len();
+    let mut jerks: Vec<f64> = thirds.iter().map(|d| d[0].hypot(d[1])).collect();
     let jerk = physfit_tracks::stats::median(&mut jerks);
-    (jerk > 2.0 * (radius + 1.0)).then_some(Concern::Erratic { jerk, radius, count })
+    // Along one line they are a motion's, not hops: a ball bouncing on a floor every few
+    // frames changes its step's change at each bounce, always along the floor's normal.
+    // The axial concentration: the magnitudes summed as vectors at twice each direction,
+    // over the sum of magnitudes (1 on one line, about `1 / sqrt(n)` for random directions).
+    let (mut c, mut s, mut total) = (0.0, 0.0, 0.0);
+    for d in &thirds {
+        let m = d[0].hypot(d[1]);
+        if m > 0.0 {
+            let (cos, sin) = (d[0] / m, d[1] / m);
+            c += m * (cos * cos - sin * sin);
+            s += m * 2.0 * cos * sin;
+            total += m;
+        }
+    }
+    let on_a_line = total > 0.0 && c.hypot(s) / total > MAX_ERRATIC_ALIGNMENT;
+    (jerk > 2.0 * (radius + 1.0) && !on_a_line).then_some(Concern::Erratic { jerk, radius, count })
 }
+
+/// Largest axial concentration of an erratic track's third differences (see [`erratic`]):
+/// half way between random directions' (0.2-0.3 over 10-20 runs) and one line's 1.
+const MAX_ERRATIC_ALIGNMENT: f64 = 0.6;
 
 /// [`Concern::OffRim`] where the particle is hollow about its points in most measured
 /// frames (3 at least) and their offsets from its rim's centre scatter beyond
@@ -913,8 +933,8 @@ mod tests {
     }
 
     /// A ball of 5 px thrown up and falling back at 30 frames/s (its step changing by 18 px a
-    /// frame, a bounce in frame 6) is one particle; a track hopping 20 px about a centre
-    /// from frame to frame is not, and says by how much.
+    /// frame, a bounce in frame 6) is one particle, and so is one bouncing every 3 frames; a
+    /// track hopping 20 px about a centre in turning directions is not, and says by how much.
     #[test]
     fn a_thrown_ball_is_smooth_and_a_track_hopping_about_is_erratic() {
         let track = |name: &str, at: &dyn Fn(usize) -> [f64; 2]| -> Vec<TrackPoint> {
@@ -939,9 +959,18 @@ mod tests {
         });
         let points: Vec<&TrackPoint> = thrown.iter().collect();
         assert_eq!(erratic(&points, 5.0), None);
-        let hops = [[20.0, 0.0], [-20.0, 3.0], [0.0, 20.0], [3.0, -20.0]];
+        // A ball of 5 px on a vibrating floor, bouncing 6 px high every 3 frames (at 9 px a
+        // frame): the change of its step jumps by 18 px at every bounce, always vertically.
+        let bouncing = track("bouncer", &|k| {
+            let t = (k % 3) as f64;
+            [100.0 + 0.5 * k as f64, 200.0 - (9.0 * t - 3.0 * t * t)]
+        });
+        let points: Vec<&TrackPoint> = bouncing.iter().collect();
+        assert_eq!(erratic(&points, 5.0), None);
+        // Hops 20 px from a centre, each turned by the golden angle from the last.
         let hopping = track("hopper", &|k| {
-            [100.0 + hops[k % 4][0] + k as f64, 100.0 + hops[k % 4][1]]
+            let a = 2.4 * k as f64;
+            [100.0 + 20.0 * a.cos() + k as f64, 100.0 + 20.0 * a.sin()]
         });
         let points: Vec<&TrackPoint> = hopping.iter().collect();
         let Some(Concern::Erratic { jerk, count, .. }) = erratic(&points, 5.0) else {
