@@ -44,9 +44,9 @@ pub(super) fn hollow_particles(skirts: &BTreeMap<String, Vec<(usize, Skirt)>>) -
 /// about where the motion of its rim-centred neighbours puts it ([`predict_from`]): its
 /// centroid may have settled on part of the rim (seed 3005 of the ring neighbours, rings of
 /// 14 px: a last point left 8.5 px off at its centroid, the ring whole and plain to see).
-/// Points whose rim is still not found are placed from that motion instead
-/// ([`bridge_unrimmed`]), and the linker's bridges over frames the particle was not seen in
-/// likewise ([`replace_bridges`]). Returns how many moved and a warning per particle with
+/// The linker's bridges over frames the particle was not seen in are searched for in the same
+/// pass ([`replace_bridges`]); points whose rim is still not found are placed from that
+/// motion instead ([`bridge_unrimmed`]). Returns how many moved and a warning per particle with
 /// points placed so, naming them.
 pub(super) fn centre_on_rims(
     table: &mut TrackTable,
@@ -71,21 +71,36 @@ pub(super) fn centre_on_rims(
         rim_search(table, &searches, frames, background, reach, workers)?,
         &mut rimmed,
     );
-    // Again about the motion's prediction, where the rim was not found about the point.
+    // Again about the motion's prediction, where the rim was not found about a detected point,
+    // and about the linker's bridges (one decoding of their frames for both).
     let anchors = rim_anchors(table, &rimmed);
+    let predicted = |i: usize| Some((i, predict_from(&anchors, &table.points[i])?));
     let again: Vec<(usize, [f64; 2])> = (0..table.points.len())
         .filter(|&i| !rimmed[i] && detected(&table.points[i]))
-        .filter_map(|i| Some((i, predict_from(&anchors, &table.points[i])?)))
+        .filter_map(predicted)
         .collect();
-    if !again.is_empty() {
-        let found = rim_search(table, &again, frames, background, reach, workers)?;
-        moved += apply_rims(table, found, &mut rimmed);
-    }
+    let bridges: Vec<(usize, [f64; 2])> = (0..table.points.len())
+        .filter(|&i| {
+            let p = &table.points[i];
+            p.flag == PointFlag::Interpolated && hollow.contains(&p.particle)
+        })
+        .filter_map(predicted)
+        .collect();
+    let searches = [again.as_slice(), bridges.as_slice()].concat();
+    let found = if searches.is_empty() {
+        Vec::new()
+    } else {
+        rim_search(table, &searches, frames, background, reach, workers)?
+    };
+    let (found_bridges, found_again): (Vec<_>, Vec<_>) = found
+        .into_iter()
+        .partition(|f| table.points[f.0].flag == PointFlag::Interpolated);
+    moved += apply_rims(table, found_again, &mut rimmed);
     let unrimmed: Vec<usize> = (0..table.points.len())
         .filter(|&i| !rimmed[i] && detected(&table.points[i]))
         .collect();
     let warnings = bridge_unrimmed(table, &unrimmed, &rimmed);
-    replace_bridges(table, hollow, &rimmed, frames, background, reach, workers)?;
+    replace_bridges(table, &bridges, &found_bridges);
     Ok((moved, warnings))
 }
 
@@ -218,45 +233,23 @@ fn bridge_unrimmed(table: &mut TrackTable, unrimmed: &[usize], rimmed: &[bool]) 
         .collect()
 }
 
-/// Places again each point of the particles `hollow` that the linker bridged over a frame it
-/// was not seen in ([`PointFlag::Interpolated`] before the rims were found: from the motion
-/// of centroids, which lean off a ring's centre by up to its rim's width): at its rim's
-/// centre where the rim is found about the motion of its rim-centred neighbours (`rimmed[i]`,
-/// [`predict_from`]), or else at that motion's place. It stays flagged interpolated (the
-/// linker's warning names the frame), and where too few neighbours are near, as bridged.
-/// Seed 3005 of the ring neighbours: rings of 14 px, a bridge 5.7 px off between rim-centred
-/// points 0.1 px off on either side; rings of 20 px, a bridge over the last frame 22.8 px
-/// off.
-fn replace_bridges(
-    table: &mut TrackTable,
-    hollow: &BTreeSet<String>,
-    rimmed: &[bool],
-    frames: &WindowFrames<'_>,
-    background: &Background,
-    reach: f64,
-    workers: &Workers,
-) -> Result<(), TrackError> {
-    let anchors = rim_anchors(table, rimmed);
-    let placed: Vec<(usize, [f64; 2])> = (0..table.points.len())
-        .filter(|&i| {
-            let p = &table.points[i];
-            p.flag == PointFlag::Interpolated && !rimmed[i] && hollow.contains(&p.particle)
-        })
-        .filter_map(|i| Some((i, predict_from(&anchors, &table.points[i])?)))
-        .collect();
-    if placed.is_empty() {
-        return Ok(());
-    }
-    let found = rim_search(table, &placed, frames, background, reach, workers)?;
+/// Places again the points the linker bridged over frames a hollow particle was not seen in
+/// (`bridges`: index and the motion's place from its rim-centred neighbours,
+/// [`predict_from`]; they were placed from the motion of centroids, which lean off a ring's
+/// centre by up to its rim's width): at their rim's centre where `found` holds it, or else at
+/// that place. They stay flagged interpolated (the linker's warning names the frames); those
+/// with too few neighbours stay as bridged. Seed 3005 of the ring neighbours: rings of 14 px,
+/// a bridge 5.7 px off between rim-centred points 0.1 px off on either side; rings of 20 px,
+/// a bridge over the last frame 22.8 px off.
+fn replace_bridges(table: &mut TrackTable, bridges: &[(usize, [f64; 2])], found: &[(usize, [f64; 2], f64)]) {
+    let placed = bridges
+        .iter()
+        .copied()
+        .chain(found.iter().map(|&(i, at, _)| (i, at)));
     for (i, at) in placed {
         table.points[i].x = at[0];
         table.points[i].y = at[1];
     }
-    for (i, at, _) in found {
-        table.points[i].x = at[0];
-        table.points[i].y = at[1];
-    }
-    Ok(())
 }
 
 /// Each particle's rim-centred points (`rimmed[i]`) by frame.
