@@ -374,6 +374,12 @@ fn find_blobs_in_rows(
 /// 16 x 16 grid of points over the disc's bounding square.
 pub(super) fn visible_fraction(x: f64, y: f64, r: f64, width: usize, height: usize) -> f64 {
     const N: usize = 16;
+    // Every grid point lies within the disc's bounding square: where that is in the frame,
+    // so is the whole disc (the common case, the blob's extent touching the border far off).
+    let (w, h) = (width as f64 - 0.5, height as f64 - 0.5);
+    if x - r >= -0.5 && y - r >= -0.5 && x + r <= w && y + r <= h {
+        return 1.0;
+    }
     let (mut inside, mut all) = (0usize, 0usize);
     for i in 0..N {
         for j in 0..N {
@@ -383,7 +389,7 @@ pub(super) fn visible_fraction(x: f64, y: f64, r: f64, width: usize, height: usi
                 continue;
             }
             all += 1;
-            let within = px >= -0.5 && py >= -0.5 && px <= width as f64 - 0.5 && py <= height as f64 - 0.5;
+            let within = px >= -0.5 && py >= -0.5 && px <= w && py <= h;
             inside += usize::from(within);
         }
     }
