@@ -55,7 +55,10 @@ pub(crate) struct Rim {
 /// fit of `r₀ + δx cos θ + δy sin θ` to the radii of the band's pixels, weighted by their
 /// positive signal (soft band edges, a pixel ramp, so the fit varies smoothly with the
 /// point), is iterated from the point (see the module doc). `None` too where the centre
-/// leaves the hollow (the rim's inner half-maximum radius) or the fit is singular.
+/// leaves the hollow (the rim's inner half-maximum radius), where it ends nearer to one of
+/// `others` than to the point (the rim found is that neighbour's: the band follows the
+/// centre, and a point between two rings can be drawn onto the other's rim), or the fit is
+/// singular.
 pub(crate) fn rim_centre(
     signal: &[f32],
     width: usize,
@@ -211,6 +214,13 @@ pub(crate) fn rim_centre(
         spread += (s * r).powi(2) * x * x.transpose();
     });
     let covariance = noise * noise * inverse * spread * inverse;
+    let from_point = (centre[0] - point[0]).hypot(centre[1] - point[1]);
+    if others
+        .iter()
+        .any(|q| (centre[0] - q[0]).hypot(centre[1] - q[1]) < from_point)
+    {
+        return None;
+    }
     Some(Rim {
         offset: [centre[0] - point[0], centre[1] - point[1]],
         error: covariance[(1, 1)].max(covariance[(2, 2)]).max(0.0).sqrt(),

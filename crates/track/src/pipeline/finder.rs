@@ -122,6 +122,48 @@ impl Finder {
         background.remove_gain(frame, &mut self.signal);
     }
 
+    /// The blobs of `frame` nearest each of `starts` (one blob per start, each blob once),
+    /// each located by the centroid in a window of radius `window` (px) of the gain-corrected
+    /// signal, with no other blob's window splitting theirs: the named particles measured
+    /// alone, as the radius estimate wants them.
+    pub(super) fn locate_nearest(
+        &mut self,
+        background: &Background,
+        frame: FrameView<'_>,
+        params: &DetectParameters,
+        window: f64,
+        starts: &[[f64; 2]],
+    ) -> Vec<Detection> {
+        let blobs = self.find(background, frame, params, true).blobs;
+        let mut chosen: Vec<usize> = starts
+            .iter()
+            .filter_map(|s| {
+                (0..blobs.len()).min_by(|&a, &b| {
+                    let d = |i: usize| (blobs[i].x as f64 - s[0]).hypot(blobs[i].y as f64 - s[1]);
+                    d(a).total_cmp(&d(b))
+                })
+            })
+            .collect();
+        chosen.sort_unstable();
+        chosen.dedup();
+        let seeds: Vec<[f64; 2]> = chosen
+            .iter()
+            .map(|&i| [blobs[i].x as f64, blobs[i].y as f64])
+            .collect();
+        let areas: Vec<f64> = chosen.iter().map(|&i| blobs[i].area).collect();
+        let (width, height) = frame.size();
+        refine_centroids_with_scratch(
+            &self.signal,
+            width,
+            height,
+            &seeds,
+            &areas,
+            window,
+            background.noise_sigma,
+            &mut self.locate,
+        )
+    }
+
     /// The particles of `frame`: its [`Finder::blobs`], each located by the centroid in a
     /// window of radius `window` (px) of the gain-corrected signal, estimates that end within
     /// a radius of each other joined as `parts` says, then, with a `plane_reach` (px), each

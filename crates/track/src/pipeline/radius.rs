@@ -1,6 +1,6 @@
 //! The particle radius and expected blob size, estimated from the data.
 
-use super::finder::{Finder, Workers};
+use super::finder::{locate_window, Finder, Workers};
 use super::skirts::{locate_unfiltered, unfiltered};
 use crate::scale::{self, ScaleBlob};
 use crate::{band_noise, Background, Blob, BlobSize, Detection, FrameView};
@@ -187,7 +187,16 @@ fn measure_round(
     let background = estimation.background;
     let noise = background.noise_sigma;
     let measure = |frame: FrameView<'_>, finder: &mut Finder| -> Vec<Measure> {
-        let found = locate_unfiltered(background, frame, radius, finder);
+        let found = match starts {
+            Some(starts) => finder.locate_nearest(
+                background,
+                frame,
+                &unfiltered(background, radius),
+                locate_window(radius),
+                starts,
+            ),
+            None => locate_unfiltered(background, frame, radius, finder),
+        };
         let (width, height) = frame.size();
         let chosen: Vec<&Detection> = match starts {
             Some(starts) => nearest_each(&found, starts, |d| [d.x, d.y]),

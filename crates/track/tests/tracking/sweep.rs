@@ -26,7 +26,7 @@ use std::path::Path;
 use physfit_model::{Colour, Recording, RenderSettings, Vec2};
 use physfit_render::render_sequence;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
-use physfit_track::{in_view, score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+use physfit_track::{in_view, score_tracks, track_folder, PointFlag, TrackOptions, TrackPoint, TrackTable};
 
 use crate::common::TempDir;
 
@@ -259,7 +259,29 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
                 .warnings
                 .iter()
                 .any(|w| w.starts_with(&format!("{name}:")));
-            !(within || named)
+            // Or its detected points are within the tolerance and each point it was given
+            // from its motion lies in a run of frames a warning names it as not seen in (the
+            // CSV flags those points interpolated).
+            let detected = TrackTable {
+                points: own(&outcome.table)
+                    .points
+                    .into_iter()
+                    .filter(|p| p.flag == PointFlag::Detected)
+                    .collect(),
+            };
+            let d = score_tracks(&detected, &own(&truth), style.radius);
+            let bridged_in_named_runs = outcome
+                .table
+                .points
+                .iter()
+                .filter(|p| &p.particle == *name && p.flag != PointFlag::Detected)
+                .all(|p| {
+                    outcome.stats.ambiguities.iter().any(|a| {
+                        a.particles.contains(name) && (a.first_frame..=a.last_frame).contains(&p.frame)
+                    })
+                });
+            let bridged_warned = d.rms_x <= tolerance[0] && d.rms_y <= tolerance[1] && bridged_in_named_runs;
+            !(within || named || bridged_warned)
         })
         .cloned()
         .collect();
@@ -573,21 +595,19 @@ fn rings_beside_neighbours_are_not_split_between_them() {
 }
 
 /// Rings of 14 and 20 px (a third to a half of the sweep's largest particles) beside their
-/// neighbours, noise 5 and 15, each seed's light: every one is followed within the bound or
-/// refused with an error, never tracked wrong without a word. Rings 3 to 6 times the radius
-/// the estimate settles on were followed on their rim; the skirt check did not see it, the
-/// rim running through the point as much on one side as on the other (seed 3004 at 20 px
-/// and noise 15: 11.4 / 5.5 px RMS at radius 3.11 px, a skirt of 0.35 lopsided 0.11 but
-/// elongated 0.65), or the ring lying below a background that held part of the particles
-/// (seed 3005 at 14 px and noise 5: 1.0 / 1.0 px RMS, a skirt of -0.31). Both are refused
-/// now (the skirt's elongation, and its level taken either side of the background). Left
-/// out: seed 3000 at 14 px under noise 15 and at 20 px (0.4-0.9 px RMS under its gradient
-/// and vignetting) and seed 3005 at 14 px under noise 12 and at 20 px (2-9 px, at radii of
-/// 16-22 px), still written wrong (`ring_neighbours_table`). Seed 3005 at 20 px and noise
-/// 15 (8.9 px RMS, 47 % recall at radius 4.6 px) and seed 3003 at 6 px and noise 15 (0.50 /
-/// 0.30 px) had skirts whose parts above and below the background cancelled (-0.1 to 0.1,
-/// lopsided 0.30 and 0.14): their mean magnitude beyond the noise (0.35, 0.12-0.3) refuses
-/// them.
+/// neighbours, noise 5 and 15, each seed's light: every one is followed within the bound,
+/// refused with an error, or warned of (never tracked wrong without a word), and at least 14
+/// of the 20 are followed. Their size was measured on the named particles' blobs among every
+/// blob of the frame, whose centroid windows split each other's: a ring's own rim, answering
+/// the band-pass at the ring's scale, drew its centre's window onto the rim, and the size
+/// settled on the rim's width (3001 at 14 px: 5.7 px, refused). Measured alone, the rings
+/// read 17-26 px and 15 of these 20 are followed (3 before, 17 refused), 4 refused. Seed 3001 at 20 px
+/// and noise 5 is warned of: its two rings near a corner are not found in 7 of 16 frames
+/// (the band-pass answers at the frame's edge too, and the ring's blob, merged with that
+/// answer, is too large), and a point bridged over 5 frames lies 4 px off. Before, rings 3
+/// to 6 times the radius the estimate settled on were followed on their rim, and the
+/// skirt's elongation refuses those (seed 3004 at 20 px and noise 15: 11.4 / 5.5 px RMS at
+/// radius 3.11 px).
 #[test]
 fn large_rings_are_followed_or_refused() {
     let cases: &[(u64, usize, f64)] = &[
@@ -612,13 +632,24 @@ fn large_rings_are_followed_or_refused() {
         (3005, 4, 15.0),
         (3003, 1, 15.0),
     ];
-    let bad: Vec<String> = cases
+    let rows: Vec<Row> = cases
         .iter()
         .map(|&(seed, i, noise)| ring_row(seed, RING_RADII[i], ring_width(seed, i), noise))
-        .filter(|row| !row.followed_or_refused())
+        .collect();
+    let bad: Vec<String> = rows
+        .iter()
+        .filter(|row| !row.followed_refused_or_warned())
         .map(|row| row.line())
         .collect();
     assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
+    let followed = rows.iter().filter(|row| row.passed()).count();
+    let table: Vec<String> = rows.iter().map(Row::line).collect();
+    assert!(
+        followed >= 14,
+        "{followed} of {} followed\n{HEADER}\n{}",
+        rows.len(),
+        table.join("\n")
+    );
 }
 
 /// Rings located by their rim's centre (`crate::rim`): hollow particles of 4-20 px beside
