@@ -122,44 +122,26 @@ impl Finder {
         background.remove_gain(frame, &mut self.signal);
     }
 
-    /// The blobs of `frame` nearest each of `starts` (one blob per start, each blob once),
-    /// each located by the centroid in a window of radius `window` (px) of the gain-corrected
-    /// signal, with no other blob's window splitting theirs: the named particles measured
-    /// alone, as the radius estimate wants them.
-    pub(super) fn locate_nearest(
+    /// Centroid estimates started at `seeds` (px; `areas` their blobs' areas, px²) in the
+    /// last signal [`Finder::find`] left, `size` its width and height, each in a window of
+    /// radius `window` (px), pixels nearer another estimate left out of each (see
+    /// [`refine_centroids_with_scratch`]), under pixel noise `noise` (grey levels).
+    pub(super) fn centroids(
         &mut self,
-        background: &Background,
-        frame: FrameView<'_>,
-        params: &DetectParameters,
+        size: (usize, usize),
+        seeds: &[[f64; 2]],
+        areas: &[f64],
         window: f64,
-        starts: &[[f64; 2]],
+        noise: f64,
     ) -> Vec<Detection> {
-        let blobs = self.find(background, frame, params, true).blobs;
-        let mut chosen: Vec<usize> = starts
-            .iter()
-            .filter_map(|s| {
-                (0..blobs.len()).min_by(|&a, &b| {
-                    let d = |i: usize| (blobs[i].x as f64 - s[0]).hypot(blobs[i].y as f64 - s[1]);
-                    d(a).total_cmp(&d(b))
-                })
-            })
-            .collect();
-        chosen.sort_unstable();
-        chosen.dedup();
-        let seeds: Vec<[f64; 2]> = chosen
-            .iter()
-            .map(|&i| [blobs[i].x as f64, blobs[i].y as f64])
-            .collect();
-        let areas: Vec<f64> = chosen.iter().map(|&i| blobs[i].area).collect();
-        let (width, height) = frame.size();
         refine_centroids_with_scratch(
             &self.signal,
-            width,
-            height,
-            &seeds,
-            &areas,
+            size.0,
+            size.1,
+            seeds,
+            areas,
             window,
-            background.noise_sigma,
+            noise,
             &mut self.locate,
         )
     }
@@ -183,18 +165,8 @@ impl Finder {
         let areas: Vec<f64> = blobs.iter().map(|b| b.area).collect();
         let (width, height) = frame.size();
         let noise = background.noise_sigma;
-        let mut locate = |seeds: &[[f64; 2]], areas: &[f64]| {
-            refine_centroids_with_scratch(
-                &self.signal,
-                width,
-                height,
-                seeds,
-                areas,
-                window,
-                noise,
-                &mut self.locate,
-            )
-        };
+        let mut locate =
+            |seeds: &[[f64; 2]], areas: &[f64]| self.centroids((width, height), seeds, areas, window, noise);
         let mut found = locate(&seeds, &areas);
         if parts == Parts::Keep {
             return found;
