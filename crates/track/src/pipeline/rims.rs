@@ -13,6 +13,7 @@ use super::window_frames::WindowFrames;
 use crate::checks::Skirt;
 use crate::rim::rim_centre;
 use crate::{Background, PointFlag, TrackError, TrackPoint, TrackTable};
+use physfit_tracks::stats::{median, robust_spread};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -36,6 +37,24 @@ pub(super) fn hollow_particles(skirts: &BTreeMap<String, Vec<(usize, Skirt)>>) -
         .map(|(p, _)| p.clone())
         .collect()
 }
+
+/// A rim found about a search start of a track table's point.
+#[derive(Clone, Copy, Debug)]
+struct FoundRim {
+    /// The point's index in the table.
+    index: usize,
+    /// The rim's centre, px.
+    centre: [f64; 2],
+    /// The centre's standard error on one axis, px.
+    error: f64,
+    /// The rim's mean radius about its centre, px.
+    radius: f64,
+}
+
+/// A rim whose radius lies farther than this many of its particle's spread of rim radii
+/// ([`robust_spread`], or the rims' median centre error where larger) from their median is
+/// not the particle's (see [`consistent_rims`]).
+const RIM_RADIUS_SIGMAS: f64 = 5.0;
 
 /// Moves each detected point of the particles `hollow` in `table` to its rim's centre
 /// ([`rim_centre`], searched out to [`RIM_REACH`] times `radius` px and 2 px, about the
@@ -66,11 +85,9 @@ pub(super) fn centre_on_rims(
         .map(|(i, p)| (i, [p.x, p.y]))
         .collect();
     let mut rimmed = vec![false; table.points.len()];
-    let mut moved = apply_rims(
-        table,
-        rim_search(table, &searches, frames, background, reach, workers)?,
-        &mut rimmed,
-    );
+    let first = rim_search(table, &searches, frames, background, reach, workers)?;
+    let radii = rim_radii(table, &first);
+    let mut moved = apply_rims(table, consistent_rims(table, first, &radii), &mut rimmed);
     // Again about the motion's prediction, where the rim was not found about a detected point,
     // and about the linker's bridges (one decoding of their frames for both).
     let anchors = rim_anchors(table, &rimmed);
@@ -92,9 +109,9 @@ pub(super) fn centre_on_rims(
     } else {
         rim_search(table, &searches, frames, background, reach, workers)?
     };
-    let (found_bridges, found_again): (Vec<_>, Vec<_>) = found
+    let (found_bridges, found_again): (Vec<_>, Vec<_>) = consistent_rims(table, found, &radii)
         .into_iter()
-        .partition(|f| table.points[f.0].flag == PointFlag::Interpolated);
+        .partition(|f| table.points[f.index].flag == PointFlag::Interpolated);
     moved += apply_rims(table, found_again, &mut rimmed);
     let unrimmed: Vec<usize> = (0..table.points.len())
         .filter(|&i| !rimmed[i] && detected(&table.points[i]))
@@ -104,8 +121,8 @@ pub(super) fn centre_on_rims(
     Ok((moved, warnings))
 }
 
-/// The rim's centre and its standard error, px, found about each search start
-/// `(point index, [x, y])` of `table` (the frame's other points counted as neighbours).
+/// The rims found about each search start `(point index, [x, y])` of `table` (the frame's
+/// other points counted as neighbours).
 fn rim_search(
     table: &TrackTable,
     searches: &[(usize, [f64; 2])],
@@ -113,7 +130,7 @@ fn rim_search(
     background: &Background,
     reach: f64,
     workers: &Workers,
-) -> Result<Vec<(usize, [f64; 2], f64)>, TrackError> {
+) -> Result<Vec<FoundRim>, TrackError> {
     let first = frames.numbers.first().copied().unwrap_or(0);
     let points = &table.points;
     // Each frame's points (all of them: a neighbour's pixels are its own), by index.
@@ -125,7 +142,7 @@ fn rim_search(
     for &(i, at) in searches {
         starts.entry(points[i].frame).or_default().push((i, at));
     }
-    let found: Vec<Vec<(usize, [f64; 2], f64)>> = starts
+    let found: Vec<Vec<FoundRim>> = starts
         .into_par_iter()
         .map(|(k, wanted)| {
             workers.with(|w| {
@@ -150,7 +167,12 @@ fn rim_search(
                         reach,
                         background.noise_sigma,
                     ) {
-                        out.push((i, [at[0] + rim.offset[0], at[1] + rim.offset[1]], rim.error));
+                        out.push(FoundRim {
+                            index: i,
+                            centre: [at[0] + rim.offset[0], at[1] + rim.offset[1]],
+                            error: rim.error,
+                            radius: rim.radius,
+                        });
                     }
                 }
                 Ok(out)
@@ -160,16 +182,60 @@ fn rim_search(
     Ok(found.into_iter().flatten().collect())
 }
 
-/// Moves the points of `found` (`(index, rim centre, its error)`) there, marking them
+/// Each particle's rim radius among `found` (px): the median, and how far from it a rim of
+/// the particle may lie ([`RIM_RADIUS_SIGMAS`] of their spread); particles with fewer than 3
+/// rims found have none.
+fn rim_radii(table: &TrackTable, found: &[FoundRim]) -> BTreeMap<String, (f64, f64)> {
+    let mut by_particle: BTreeMap<&str, Vec<&FoundRim>> = BTreeMap::new();
+    for f in found {
+        by_particle
+            .entry(table.points[f.index].particle.as_str())
+            .or_default()
+            .push(f);
+    }
+    by_particle
+        .into_iter()
+        .filter(|(_, rims)| rims.len() >= 3)
+        .map(|(particle, rims)| {
+            let mut radii: Vec<f64> = rims.iter().map(|f| f.radius).collect();
+            let middle = median(&mut radii);
+            let mut errors: Vec<f64> = rims.iter().map(|f| f.error).collect();
+            let spread = robust_spread(&mut radii).max(median(&mut errors));
+            (particle.to_string(), (middle, RIM_RADIUS_SIGMAS * spread))
+        })
+        .collect()
+}
+
+/// The rims of `found` whose radius lies within its particle's bound ([`rim_radii`]). A point
+/// between two rings can hold a hollow pattern of its own: the near arcs of both, the
+/// neighbour's pixels left out, read as a rim a pixel or two smaller about a centre between
+/// them (ring neighbour 3009 at 10 px and noise 15: rims of 7.1-7.3 px against the ring's
+/// 8.75, a point left 13 px off with an error of 0.1 px).
+fn consistent_rims(
+    table: &TrackTable,
+    found: Vec<FoundRim>,
+    radii: &BTreeMap<String, (f64, f64)>,
+) -> Vec<FoundRim> {
+    found
+        .into_iter()
+        .filter(|f| {
+            radii
+                .get(&table.points[f.index].particle)
+                .map_or(true, |&(middle, bound)| (f.radius - middle).abs() <= bound)
+        })
+        .collect()
+}
+
+/// Moves the points of `found` to their rim's centre (`ep` its error), marking them
 /// `rimmed`; returns how many.
-fn apply_rims(table: &mut TrackTable, found: Vec<(usize, [f64; 2], f64)>, rimmed: &mut [bool]) -> usize {
+fn apply_rims(table: &mut TrackTable, found: Vec<FoundRim>, rimmed: &mut [bool]) -> usize {
     let count = found.len();
-    for (i, at, ep) in found {
-        let p = &mut table.points[i];
-        p.x = at[0];
-        p.y = at[1];
-        p.ep = ep;
-        rimmed[i] = true;
+    for f in found {
+        let p = &mut table.points[f.index];
+        p.x = f.centre[0];
+        p.y = f.centre[1];
+        p.ep = f.error;
+        rimmed[f.index] = true;
     }
     count
 }
@@ -242,11 +308,11 @@ fn bridge_unrimmed(table: &mut TrackTable, unrimmed: &[usize], rimmed: &[bool]) 
 /// with too few neighbours stay as bridged. Seed 3005 of the ring neighbours: rings of 14 px,
 /// a bridge 5.7 px off between rim-centred points 0.1 px off on either side; rings of 20 px,
 /// a bridge over the last frame 22.8 px off.
-fn replace_bridges(table: &mut TrackTable, bridges: &[(usize, [f64; 2])], found: &[(usize, [f64; 2], f64)]) {
+fn replace_bridges(table: &mut TrackTable, bridges: &[(usize, [f64; 2])], found: &[FoundRim]) {
     let placed = bridges
         .iter()
         .copied()
-        .chain(found.iter().map(|&(i, at, _)| (i, at)));
+        .chain(found.iter().map(|f| (f.index, f.centre)));
     for (i, at) in placed {
         table.points[i].x = at[0];
         table.points[i].y = at[1];
@@ -340,6 +406,45 @@ fn quadratic_at_zero(points: &[(f64, [f64; 2])]) -> Option<[f64; 2]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A ring's rims read 8.75 px give or take 0.03 in nine frames, and 7.2 px in one (the
+    /// near arcs of two rings about a point between them): that one is not the ring's and
+    /// is dropped, the others kept; a particle with two rims found keeps both, whatever
+    /// their radii.
+    #[test]
+    fn a_rim_of_another_radius_is_not_the_particles() {
+        let table = TrackTable {
+            points: (0..10)
+                .map(|k| TrackPoint::new(k, "r", 0.0, 0.0))
+                .chain((0..2).map(|k| TrackPoint::new(k, "s", 50.0, 0.0)))
+                .collect(),
+        };
+        let rim = |index: usize, radius: f64| FoundRim {
+            index,
+            centre: [0.0, 0.0],
+            error: 0.01,
+            radius,
+        };
+        let found: Vec<FoundRim> = (0..10)
+            .map(|k| {
+                rim(
+                    k,
+                    if k == 6 {
+                        7.2
+                    } else {
+                        8.75 + 0.03 * ((k % 3) as f64 - 1.0)
+                    },
+                )
+            })
+            .chain([rim(10, 8.0), rim(11, 5.0)])
+            .collect();
+        let radii = rim_radii(&table, &found);
+        let kept: Vec<usize> = consistent_rims(&table, found, &radii)
+            .iter()
+            .map(|f| f.index)
+            .collect();
+        assert_eq!(kept, [0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11]);
+    }
 
     /// A ring falling along `x = 10 + 2k, y = 20 + k^2 / 2` over frames 0-9, its rim not found
     /// in frames 4 and 9 (located 3 px off there, as a centroid leaning on a neighbour): frame

@@ -596,15 +596,16 @@ fn rings_beside_neighbours_are_not_split_between_them() {
 
 /// Rings of 14 and 20 px (a third to a half of the sweep's largest particles) beside their
 /// neighbours, noise 5 and 15, each seed's light: every one is followed within the bound,
-/// refused with an error, or warned of (never tracked wrong without a word), and at least 14
+/// refused with an error, or warned of (never tracked wrong without a word), and at least 16
 /// of the 20 are followed. Their size was measured on the named particles' blobs among every
 /// blob of the frame, whose centroid windows split each other's: a ring's own rim, answering
 /// the band-pass at the ring's scale, drew its centre's window onto the rim, and the size
 /// settled on the rim's width (3001 at 14 px: 5.7 px, refused). Measured alone, the rings
-/// read 17-26 px and 15 of these 20 are followed (3 before, 17 refused), 4 refused. Seed 3001 at 20 px
-/// and noise 5 is warned of: its two rings near a corner are not found in 7 of 16 frames
-/// (the band-pass answers at the frame's edge too, and the ring's blob, merged with that
-/// answer, is too large), and a point bridged over 5 frames lies 4 px off. Before, rings 3
+/// read 17-26 px and 16 of these 20 are followed (3 before, 17 refused), 4 refused. Seed 3001
+/// at 20 px and noise 5, its two rings near a corner not found in 7 of 16 frames (the
+/// band-pass answers at the frame's edge too, and the ring's blob, merged with that answer,
+/// is too large), is followed through them since a rim of another radius than the ring's is
+/// not taken for its own (`pipeline::rims`): a bridged point 4 px off before. Before, rings 3
 /// to 6 times the radius the estimate settled on were followed on their rim, and the
 /// skirt's elongation refuses those (seed 3004 at 20 px and noise 15: 11.4 / 5.5 px RMS at
 /// radius 3.11 px).
@@ -645,11 +646,22 @@ fn large_rings_are_followed_or_refused() {
     let followed = rows.iter().filter(|row| row.passed()).count();
     let table: Vec<String> = rows.iter().map(Row::line).collect();
     assert!(
-        followed >= 14,
+        followed >= 16,
         "{followed} of {} followed\n{HEADER}\n{}",
         rows.len(),
         table.join("\n")
     );
+}
+
+/// Two rings of 10 px under noise 15 found as one blob between them in a frame (seed 3009,
+/// beyond the ring neighbours' seeds): the rim about that blob's centroid, the near arcs of
+/// both rings with the neighbour's pixels left out, read 7.2 px against the ring's 8.75 and
+/// put the point 13 px off, detected, without a word (0.84 / 1.47 px RMS). A rim of another
+/// radius than the particle's is not its own; the point is placed from its motion.
+#[test]
+fn a_rim_between_two_rings_is_not_taken_for_either() {
+    let row = ring_row(3009, 10.0, 0.25, 15.0);
+    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
 }
 
 /// Rings located by their rim's centre (`crate::rim`): hollow particles of 4-20 px beside
