@@ -56,6 +56,11 @@ pub struct Blob {
     /// noise that holds the peak, divided by the candidates in it, px²: how far the blob
     /// stands out of the noise (a noise peak barely does; a particle's skirt does too).
     pub extent: f64,
+    /// Returns true if and only if the component that gives [`Blob::extent`] holds no other
+    /// candidate and stays off the image border: the extent is this blob's own. (Under an
+    /// uneven light the signal against a constant level is offset over whole regions of the
+    /// frame, and a blob's component there is that region, shared and cut by the border.)
+    pub extent_own: bool,
     /// Returns true if and only if the blob touches the image border.
     pub at_border: bool,
 }

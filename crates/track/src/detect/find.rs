@@ -318,12 +318,13 @@ fn find_blobs_in_rows(
         let seeds = seeds_per[region].max(1);
         let area = regions.area[region] as f64 / f64::from(seeds);
         let at_border = regions.border[region];
-        let (extent, extent_at_border) = match label {
+        let (extent, extent_at_border, extent_own) = match label {
             Some(l) => (
                 comps.area[*l] as f64 / f64::from(seeds_per_comp[*l].max(1)),
                 comps.border[*l],
+                seeds_per_comp[*l] == 1 && !comps.border[*l],
             ),
-            None => (1.0, false),
+            None => (1.0, false, true),
         };
         if let Some(expected) = params.expected {
             // Judge the whole blob, not its share per seed: a large object (a hand, the
@@ -363,6 +364,7 @@ fn find_blobs_in_rows(
             peak: peak.band,
             area,
             extent,
+            extent_own,
             at_border,
         });
     }
