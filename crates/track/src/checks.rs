@@ -33,6 +33,13 @@
 //!   particle was there alone and was not followed. Likewise a track whose particle is lost
 //!   for good, its last detected point farther inside the image than it can travel to the
 //!   border in the frames left.
+//! * **One image, two tracks.** Each size class is linked on its own, so a track of one
+//!   class can take the image another class's track follows. Two tracks of different
+//!   classes whose detected points in a frame lie within a quarter of the smaller radius (at
+//!   least half a pixel) of each other follow one image there: where that holds in at least
+//!   half of the frames in which both were detected (and two or more), one of the particles
+//!   was not followed ([`Concern::SharedImage`], see [`shared_images`]); in fewer frames the
+//!   two overlapped in view, and a warning names them and the frames.
 
 use std::collections::BTreeMap;
 
@@ -174,6 +181,18 @@ pub(crate) enum Concern {
         /// Runs of four consecutive detected frames measured.
         count: usize,
     },
+    /// The track's detected points lie on another size class's track's points (one image
+    /// followed twice) in most frames both were detected in.
+    SharedImage {
+        /// The other track's particle.
+        other: String,
+        /// Frames where the two points lie within `apart` of each other.
+        frames: Vec<usize>,
+        /// Frames where both were detected.
+        both: usize,
+        /// The largest distance between the two points in `frames`, px.
+        apart: f64,
+    },
     /// The particle was detected in fewer than half of its frames.
     MostlyUnseen {
         /// Frames where it was detected.
@@ -260,6 +279,19 @@ impl std::fmt::Display for TrackConcern {
                  diameter and 2 px ({:.1} px at the radius {radius:.2} px in use), where forces change smoothly: the \
                  track hops between parts of a larger particle or between objects",
                 2.0 * (radius + 1.0)
+            ),
+            Concern::SharedImage {
+                other,
+                frames,
+                both,
+                apart,
+            } => write!(
+                f,
+                "{p}: its points lie on {other}'s (within {apart:.2} px) in {} of the {both} frames both were \
+                 detected in (frames {}): the two tracks follow one image, and one of the particles was not \
+                 followed",
+                frames.len(),
+                list(frames)
             ),
             Concern::MostlyUnseen { detected, frames } => write!(
                 f,
@@ -524,6 +556,88 @@ pub(crate) fn lost_inside(
         }
     }
     out
+}
+
+/// Tracks of different size classes that follow one image (see the module doc): `classes`
+/// holds each class's radius (px) and the particles of its tracks in `table`. Returns the
+/// concerns ([`Concern::SharedImage`], on the pair's first particle in `table`'s order) and
+/// the warnings of pairs that share an image in fewer frames.
+pub(crate) fn shared_images(
+    table: &TrackTable,
+    classes: &[(f64, Vec<String>)],
+) -> (Vec<TrackConcern>, Vec<String>) {
+    let class_of: std::collections::HashMap<&str, usize> = classes
+        .iter()
+        .enumerate()
+        .flat_map(|(c, (_, names))| names.iter().map(move |n| (n.as_str(), c)))
+        .collect();
+    let mut by_frame: BTreeMap<usize, Vec<(&TrackPoint, usize)>> = BTreeMap::new();
+    for p in table.points.iter().filter(|p| p.flag == PointFlag::Detected) {
+        if let Some(&c) = class_of.get(p.particle.as_str()) {
+            by_frame.entry(p.frame).or_default().push((p, c));
+        }
+    }
+    // Each pair's frames on one image, and the largest distance there, by the pair's names in
+    // first-seen order.
+    let mut order: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+    for p in &table.points {
+        let next = order.len();
+        order.entry(p.particle.as_str()).or_insert(next);
+    }
+    let mut shared: BTreeMap<(&str, &str), (Vec<usize>, f64)> = BTreeMap::new();
+    for (&frame, points) in &by_frame {
+        let positions: Vec<[f64; 2]> = points.iter().map(|(p, _)| [p.x, p.y]).collect();
+        let grid = crate::point_grid::PointGrid::new(&positions);
+        let most = classes.iter().map(|c| c.0).fold(0.0, f64::max);
+        for (i, &(p, c)) in points.iter().enumerate() {
+            grid.within(&positions[i], (0.25 * most).max(0.5), |j, d2| {
+                let (q, e) = points[j];
+                let d = d2.sqrt();
+                let near = (0.25 * classes[c].0.min(classes[e].0)).max(0.5);
+                if e == c || d > near || order.get(q.particle.as_str()) <= order.get(p.particle.as_str()) {
+                    return;
+                }
+                let entry = shared
+                    .entry((p.particle.as_str(), q.particle.as_str()))
+                    .or_insert((Vec::new(), 0.0));
+                entry.0.push(frame);
+                entry.1 = f64::max(entry.1, d);
+            });
+        }
+    }
+    let detected: BTreeMap<&str, std::collections::BTreeSet<usize>> = by_frame
+        .iter()
+        .flat_map(|(&k, ps)| ps.iter().map(move |(p, _)| (p.particle.as_str(), k)))
+        .fold(BTreeMap::new(), |mut m, (n, k)| {
+            m.entry(n)
+                .or_insert_with(std::collections::BTreeSet::new)
+                .insert(k);
+            m
+        });
+    let (mut concerns, mut warnings) = (Vec::new(), Vec::new());
+    for ((a, b), (mut frames, apart)) in shared {
+        frames.sort_unstable();
+        frames.dedup();
+        let both = detected[a].intersection(&detected[b]).count();
+        if frames.len() >= 2 && 2 * frames.len() >= both {
+            concerns.push(TrackConcern {
+                particle: a.to_string(),
+                concern: Concern::SharedImage {
+                    other: b.to_string(),
+                    frames,
+                    both,
+                    apart,
+                },
+            });
+        } else {
+            warnings.push(format!(
+                "{a}: its points lie on {b}'s (within {apart:.2} px) in frames {}: the two overlap in view there, \
+                 and their points are where the joint image is",
+                list(&frames)
+            ));
+        }
+    }
+    (concerns, warnings)
 }
 
 /// The skirt of each of `points` (px) in one frame's `signal` (`width * height`, grey levels):
@@ -907,6 +1021,54 @@ mod tests {
         let measured = BTreeMap::from([("r".to_string(), pulled(5))]);
         let c = check_tracks(&t, 9.0, &measured, &measured);
         assert!(only_off_rim(&c), "{c:?}");
+    }
+
+    /// A track of a class of radius 14 px on the points of one of radius 6 px (0.1 px off) in
+    /// 5 of the 6 frames both were detected in follows that image: a concern on the first
+    /// track. On it in one frame only (an overlap in view): a warning. The same points in one
+    /// class, or 2 px apart: neither.
+    #[test]
+    fn two_classes_tracks_on_one_image_are_named() {
+        let table = |on: &[usize], apart: f64, b_class: usize| {
+            let mut points = Vec::new();
+            for k in 0..6 {
+                points.push(TrackPoint::new(k, "a", 20.0 + k as f64, 30.0));
+                let x = if on.contains(&k) {
+                    20.0 + k as f64 + apart
+                } else {
+                    80.0
+                };
+                points.push(TrackPoint::new(k, "b", x, 30.0));
+            }
+            let classes = if b_class == 0 {
+                vec![(6.0, vec!["a".to_string(), "b".to_string()])]
+            } else {
+                vec![(6.0, vec!["a".to_string()]), (14.0, vec!["b".to_string()])]
+            };
+            shared_images(&TrackTable { points }, &classes)
+        };
+        let (concerns, warnings) = table(&[1, 2, 3, 4, 5], 0.1, 1);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert_eq!(concerns.len(), 1, "{concerns:?}");
+        assert!(
+            matches!(&concerns[0].concern, Concern::SharedImage { other, frames, both: 6, .. }
+                if other == "b" && frames == &[1, 2, 3, 4, 5]),
+            "{concerns:?}"
+        );
+        let text = concerns[0].to_string();
+        assert!(
+            text.starts_with("a: its points lie on b's (within 0.10 px) in 5 of the 6 frames"),
+            "{text}"
+        );
+        let (concerns, warnings) = table(&[3], 0.1, 1);
+        assert!(concerns.is_empty(), "{concerns:?}");
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with("a: its points lie on b's") && warnings[0].contains("frames 3"),
+            "{warnings:?}"
+        );
+        assert_eq!(table(&[1, 2, 3, 4, 5], 0.1, 0), (Vec::new(), Vec::new()));
+        assert_eq!(table(&[1, 2, 3, 4, 5], 2.0, 1), (Vec::new(), Vec::new()));
     }
 
     /// A track walking 1 px a frame across the middle of a 100 px frame with frames 5-7

@@ -9,7 +9,7 @@ use super::skirts::sample_skirts;
 use super::spikes::bridge_spikes;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
-use crate::checks::{check_tracks, lost_inside};
+use crate::checks::{check_tracks, lost_inside, shared_images};
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -103,6 +103,8 @@ impl Stage<'_> {
         let mut ambiguities = Vec::new();
         let mut relocated = Relocated::default();
         let mut concerns = Vec::new();
+        // Each class's radius and its tracks' particles.
+        let mut class_tracks: Vec<(f64, Vec<String>)> = Vec::with_capacity(classes.len());
         for (class, located) in classes.iter().zip(&by_class) {
             let named = options.named_start.as_deref().map(|n| class.starts(n));
             let linked = link_detections(
@@ -207,8 +209,21 @@ impl Stage<'_> {
             let (border, dropped) = drop_cut_by_border(&mut class_table, class.sizes.radius, size);
             warnings.extend(border);
             forget_dropped_bridges(&mut class_ambiguities, &dropped);
+            class_tracks.push((class.sizes.radius, class_table.particle_ids()));
             table.points.extend(class_table.points);
             ambiguities.extend(class_ambiguities);
+        }
+        if classes.len() > 1 {
+            // Classes are linked apart: a track of one may have taken another's image.
+            let (shared, overlaps) = shared_images(&table, &class_tracks);
+            let radius_of = |name: &str| {
+                class_tracks
+                    .iter()
+                    .find(|(_, names)| names.iter().any(|n| n == name))
+                    .map_or(f64::NAN, |c| c.0)
+            };
+            concerns.extend(shared.iter().map(|c| (c.to_string(), radius_of(&c.particle))));
+            warnings.extend(overlaps);
         }
         if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
             // Frame, then the structure's order, as one class's tracks are.

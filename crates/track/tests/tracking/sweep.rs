@@ -789,6 +789,16 @@ fn dots_under_uneven_light_are_measured_by_their_own_extent() {
     assert!(row.passed(), "\n{HEADER}\n{}", row.line());
 }
 
+/// Two dark rings of 7.5 and 19 px under a gradient, no noise (style 6045, beyond the sweep's
+/// seeds): each size class is linked on its own, and the large ring's track (at 14.4 px, on
+/// its rim) took the small ring's image from frame 2 on, both tracks written on one point for
+/// 20 frames without a word. Followed or refused, never that.
+#[test]
+fn two_classes_tracks_on_one_image_are_refused() {
+    let row = synth_row(6045);
+    assert!(row.followed_or_refused(), "\n{HEADER}\n{}", row.line());
+}
+
 /// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
 /// 0.20 and no noise (style 4006 drawn as spots): the tracked spots are taken out of the
 /// per-pixel median as far as their skirts stand above the noise, not `2R + 1`, and are
