@@ -17,6 +17,10 @@
 //! for a centroid window of radius `W` holding a particle located to `ep` px, the mass's
 //! relative error is about `2 ep / W` (both follow from the same weighted pixel sums), so
 //! its change between two frames has spread `2 √2 ep / W`; the size's is about `√2 ep`.
+//!
+//! A change every particle of a frame shares (the exposure, or light that saturates and trims
+//! every size) is the camera's, not a particle's: it is measured from the unambiguous links
+//! and taken out of every appearance before they are compared ([`AppearanceLevels`]).
 
 use crate::point_grid::PointGrid;
 use physfit_tracks::stats::{robust_spread_upper, MAD_TO_SIGMA};
@@ -102,7 +106,7 @@ impl AppearanceSpread {
     /// Pooled over a recording from unambiguous links (see the module doc); `None` when
     /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist. Frames are visited spread over
     /// the recording until 2 000 links are found (`POOLED_LINKS`).
-    pub fn pooled(frames: &[FrameDetections]) -> Option<AppearanceSpread> {
+    pub fn pooled(frames: &[FrameDetections], levels: &AppearanceLevels) -> Option<AppearanceSpread> {
         let mut dm: Vec<f64> = Vec::new();
         let mut ds: Vec<f64> = Vec::new();
         // Pairs of successive frames visited spread over the recording (every `stride`-th
@@ -115,36 +119,137 @@ impl AppearanceSpread {
                 break;
             }
             let w = &frames[k..k + 2];
-            let (a, b) = (&w[0].detections, &w[1].detections);
-            if a.is_empty() || b.is_empty() || w[1].frame != w[0].frame + 1 {
-                continue;
-            }
-            let pa: Vec<[f64; 2]> = a.iter().map(|d| [d.x, d.y]).collect();
-            let pb: Vec<[f64; 2]> = b.iter().map(|d| [d.x, d.y]).collect();
-            let ta = PointGrid::new(&pa);
-            let tb = PointGrid::new(&pb);
-            let far = |n: Option<(usize, f64)>| n.map_or(f64::INFINITY, |(_, d)| d.sqrt());
-            for (i, p) in pa.iter().enumerate() {
-                let [first, second] = tb.nearest_two(p);
-                let Some((j, d)) = first else { continue };
-                let d1 = d.sqrt();
-                let next_b = far(second);
-                // Back from j: i must be its nearest in frame a, the next far away.
-                let back = ta.nearest_two(&pb[j]);
-                let next_a = far(back[1]);
-                if back[0].map(|(k, _)| k) != Some(i) || d1 > UNAMBIGUOUS_RATIO * next_b.min(next_a) {
-                    continue;
-                }
-                if let (Some(x), Some(y)) = (Appearance::of(&a[i], 1), Appearance::of(&b[j], 1)) {
-                    dm.push(y.ln_mass - x.ln_mass);
-                    ds.push(y.size - x.size);
-                }
+            for (x, y) in unambiguous_links(&w[0], &w[1], usize::MAX) {
+                let (x, y) = (levels.apply(x, w[0].frame), levels.apply(y, w[1].frame));
+                dm.push(y.ln_mass - x.ln_mass);
+                ds.push(y.size - x.size);
             }
         }
         (dm.len() >= OWN_SPREAD_MIN_CHANGES).then(|| AppearanceSpread {
             ln_mass: tail_spread(&mut dm),
             size: tail_spread(&mut ds),
         })
+    }
+}
+
+/// The appearances of the unambiguous links from frame `a` to the next, `b` (see the module
+/// doc): pairs that are each other's nearest neighbour, at most [`UNAMBIGUOUS_RATIO`] of the
+/// distance to the next nearest detection in either frame; of `a`'s first `most` detections.
+/// None when the frames are not successive.
+fn unambiguous_links(a: &FrameDetections, b: &FrameDetections, most: usize) -> Vec<(Appearance, Appearance)> {
+    let (fa, fb) = (&a.detections, &b.detections);
+    if fa.is_empty() || fb.is_empty() || b.frame != a.frame + 1 {
+        return Vec::new();
+    }
+    let pa: Vec<[f64; 2]> = fa.iter().map(|d| [d.x, d.y]).collect();
+    let pb: Vec<[f64; 2]> = fb.iter().map(|d| [d.x, d.y]).collect();
+    let ta = PointGrid::new(&pa);
+    let tb = PointGrid::new(&pb);
+    let far = |n: Option<(usize, f64)>| n.map_or(f64::INFINITY, |(_, d)| d.sqrt());
+    let mut out = Vec::new();
+    for (i, p) in pa.iter().enumerate().take(most) {
+        let [first, second] = tb.nearest_two(p);
+        let Some((j, d)) = first else { continue };
+        let d1 = d.sqrt();
+        let next_b = far(second);
+        // Back from j: i must be its nearest in frame a, the next far away.
+        let back = ta.nearest_two(&pb[j]);
+        let next_a = far(back[1]);
+        if back[0].map(|(k, _)| k) != Some(i) || d1 > UNAMBIGUOUS_RATIO * next_b.min(next_a) {
+            continue;
+        }
+        if let (Some(x), Some(y)) = (Appearance::of(&fa[i], 1), Appearance::of(&fb[j], 1)) {
+            out.push((x, y));
+        }
+    }
+    out
+}
+
+/// The change the links of a pair of frames share (`changes`, one per link): their median
+/// where there are at least [`LEVEL_LINKS_MIN`] and it lies beyond [`LEVEL_SIGMAS`] of its
+/// own standard error, else 0: steps of noise would add up, frame after frame, into a drift
+/// of their own. The error is taken from the changes' standard deviation (`1.2533 sd / √n`),
+/// not a robust spread: links that disagree make it larger, never zero (a robust spread is 0
+/// where more than half of the changes are equal, and would take any median for common).
+fn common_change(mut changes: Vec<f64>) -> f64 {
+    if changes.len() < LEVEL_LINKS_MIN {
+        return 0.0;
+    }
+    let n = changes.len() as f64;
+    let mean = changes.iter().sum::<f64>() / n;
+    let sd = (changes.iter().map(|c| (c - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let mid = physfit_tracks::stats::median(&mut changes);
+    let error = 1.2533 * sd / n.sqrt();
+    if mid.abs() > LEVEL_SIGMAS * error {
+        mid
+    } else {
+        0.0
+    }
+}
+
+/// Standard errors beyond which a frame pair's median change of appearance is taken as
+/// common to the frame (a change of exposure), not noise.
+const LEVEL_SIGMAS: f64 = 3.0;
+
+/// Unambiguous links per pair of successive frames that measure the frame's common change
+/// of appearance ([`AppearanceLevels`]); with fewer, none is measured.
+const LEVEL_LINKS_MIN: usize = 3;
+/// Detections of a frame whose links measure its common change of appearance (the first
+/// ones; a median of this many is as good as of all).
+const LEVEL_LINKS_MOST: usize = 64;
+
+/// Each frame's appearance level: the change of log mass and of size that every particle of
+/// the frame shares, summed from the first frame (a change of exposure scales every mass
+/// alike, and where the light saturates it trims every size alike). Measured as the median
+/// change over the unambiguous links between successive frames, where there are at least
+/// three of them (0 otherwise: a particle alone keeps its own changes). The
+/// appearances linking compares are taken relative to their frame's level, so a particle's
+/// own change is judged against its own spread, not the camera's.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AppearanceLevels {
+    /// The first frame's index.
+    first: usize,
+    /// Each frame's level of log mass (dimensionless), from `first` on.
+    ln_mass: Vec<f64>,
+    /// Each frame's level of size, px, from `first` on.
+    size: Vec<f64>,
+}
+
+impl AppearanceLevels {
+    /// The levels of `frames` (contiguous, in order).
+    pub fn measure(frames: &[FrameDetections]) -> AppearanceLevels {
+        let mut levels = AppearanceLevels {
+            first: frames.first().map_or(0, |f| f.frame),
+            ln_mass: vec![0.0; frames.len()],
+            size: vec![0.0; frames.len()],
+        };
+        for k in 1..frames.len() {
+            let links = unambiguous_links(&frames[k - 1], &frames[k], LEVEL_LINKS_MOST);
+            let m: Vec<f64> = links.iter().map(|(x, y)| y.ln_mass - x.ln_mass).collect();
+            let s: Vec<f64> = links
+                .iter()
+                .map(|(x, y)| y.size - x.size)
+                .filter(|v| v.is_finite())
+                .collect();
+            let (dm, ds) = (common_change(m), common_change(s));
+            levels.ln_mass[k] = levels.ln_mass[k - 1] + dm;
+            levels.size[k] = levels.size[k - 1] + ds;
+        }
+        levels
+    }
+
+    /// Appearance `a` of frame `frame` relative to the frame's level (unchanged outside the
+    /// frames measured).
+    pub fn apply(&self, a: Appearance, frame: usize) -> Appearance {
+        let Some(k) = frame.checked_sub(self.first).filter(|&k| k < self.ln_mass.len()) else {
+            return a;
+        };
+        Appearance {
+            ln_mass: a.ln_mass - self.ln_mass[k],
+            ln_mass_upper: a.ln_mass_upper - self.ln_mass[k],
+            size: a.size - self.size[k],
+            ep: a.ep,
+        }
     }
 }
 
@@ -654,12 +759,54 @@ mod tests {
                 ],
             })
             .collect();
-        let s = AppearanceSpread::pooled(&frames).expect("spread");
+        let s = AppearanceSpread::pooled(&frames, &AppearanceLevels::default()).expect("spread");
         // Changes: ±0.2007 for the first, 0 for the second: median 0 at best, so the
         // spread is that of the mixture about its median.
         assert!(s.ln_mass > 0.0 && s.ln_mass < 0.31, "{s:?}");
         assert!(s.size.abs() < 1e-12, "{s:?}");
         // No pairs: no pooled spread.
-        assert!(AppearanceSpread::pooled(&frames[..1]).is_none());
+        assert!(AppearanceSpread::pooled(&frames[..1], &AppearanceLevels::default()).is_none());
+    }
+    /// Five particles far apart whose masses all drop by a tenth from frame 3 on (an
+    /// exposure change), each with its own wobble of ±1 %: the frames from 3 on sit at a
+    /// level of ln 0.9, and a particle's appearance relative to it is back where it was.
+    /// Wobble alone moves no level (its median steps are within their error), and two
+    /// particles are too few to tell a common change from their own.
+    #[test]
+    fn a_change_every_particle_shares_is_the_frame_level() {
+        let frames = |count: usize, drop: f64| -> Vec<FrameDetections> {
+            (0..8)
+                .map(|k| FrameDetections {
+                    frame: 10 + k,
+                    detections: (0..count)
+                        .map(|i| {
+                            let wobble = if (i + k) % 2 == 0 { 1.01 } else { 0.99 };
+                            let scale = if k >= 3 { drop } else { 1.0 };
+                            det(40.0 * i as f64 + k as f64, 50.0, 1000.0 * wobble * scale, 3.0)
+                        })
+                        .collect(),
+                })
+                .collect()
+        };
+        let levels = AppearanceLevels::measure(&frames(5, 0.9));
+        for k in 0..8 {
+            let expected = if k >= 3 { 0.9f64.ln() } else { 0.0 };
+            assert!(
+                (levels.ln_mass[k] - expected).abs() < 0.021,
+                "frame {k}: {levels:?}"
+            );
+        }
+        let d = det(0.0, 50.0, 900.0, 3.0);
+        let a = levels.apply(Appearance::of(&d, 1).expect("appearance"), 15);
+        assert!((a.ln_mass - 1000f64.ln()).abs() < 0.021, "{a:?}");
+        // Outside the frames measured, unchanged.
+        assert_eq!(
+            levels.apply(Appearance::of(&d, 1).unwrap(), 40),
+            Appearance::of(&d, 1).unwrap()
+        );
+        let still = AppearanceLevels::measure(&frames(5, 1.0));
+        assert!(still.ln_mass.iter().all(|&l| l == 0.0), "{still:?}");
+        let two = AppearanceLevels::measure(&frames(2, 0.9));
+        assert!(two.ln_mass.iter().all(|&l| l == 0.0), "{two:?}");
     }
 }

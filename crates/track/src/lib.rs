@@ -33,7 +33,8 @@ mod video;
 mod view;
 
 pub use appearance::{
-    Appearance, AppearanceHistory, AppearanceSpread, TrackAppearance, HISTORY, OWN_SPREAD_MIN_CHANGES,
+    Appearance, AppearanceHistory, AppearanceLevels, AppearanceSpread, TrackAppearance, HISTORY,
+    OWN_SPREAD_MIN_CHANGES,
 };
 pub use assignment::{match_to_starts, solve_dense, solve_sparse, SparseProblem};
 pub use background::{

@@ -23,7 +23,7 @@ use super::single_particle::SingleParticle;
 use super::step_bound::StepBound;
 use super::track::{point_from, smooth_bridges, speed, start_tracks, Point, Prediction, Track};
 use super::{APPEARANCE_GATE_SIGMAS, GATE_SIGMAS};
-use crate::appearance::{Appearance, AppearanceSpread, TrackAppearance};
+use crate::appearance::{Appearance, AppearanceLevels, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::point_grid::{nearest_other, PointGrid};
@@ -44,6 +44,9 @@ pub(super) struct Linker<'o> {
     crowd: f64,
     /// What one particle's blob looks like in the recording.
     one: SingleParticle,
+    /// Each frame's common change of appearance (exposure), taken out of every appearance
+    /// compared.
+    levels: AppearanceLevels,
     /// Frame-to-frame appearance spreads pooled over unambiguous links.
     pooled: Option<AppearanceSpread>,
     /// Every track started so far, ended ones included.
@@ -88,13 +91,15 @@ impl<'o> Linker<'o> {
     pub(super) fn new(frames: &[FrameDetections], options: &'o LinkOptions) -> Linker<'o> {
         let first = &frames[0];
         let r = options.radius.max(0.5);
+        let levels = AppearanceLevels::measure(frames);
         let mut linker = Linker {
             options,
             r,
             floor: (0.25 * r).max(0.5),
             crowd: 2.0 * r + 2.0,
             one: SingleParticle::measure(frames),
-            pooled: AppearanceSpread::pooled(frames),
+            pooled: AppearanceSpread::pooled(frames, &levels),
+            levels,
             tracks: Vec::new(),
             steps: StepBound::default(),
             named: options.named_start.is_some(),
@@ -110,6 +115,7 @@ impl<'o> Linker<'o> {
             start_tracks(
                 &mut linker.tracks,
                 first,
+                &linker.levels,
                 &taken,
                 linker.floor,
                 options,
@@ -164,7 +170,7 @@ impl<'o> Linker<'o> {
                 track.merged = 1;
             } else if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
                 if let Some(a) = Appearance::of(&dets[j], 1) {
-                    track.apps.push(first.frame, a);
+                    track.apps.push(first.frame, self.levels.apply(a, first.frame));
                 }
             }
             self.tracks.push(track);
@@ -229,7 +235,15 @@ impl<'o> Linker<'o> {
         self.bridge_missing(&view, &missing);
         if !self.named {
             let taken: Vec<bool> = claims.iter().map(|g| !g.is_empty()).collect();
-            start_tracks(&mut self.tracks, fd, &taken, self.floor, self.options, self.crowd);
+            start_tracks(
+                &mut self.tracks,
+                fd,
+                &self.levels,
+                &taken,
+                self.floor,
+                self.options,
+                self.crowd,
+            );
         }
         self.end_frame = fd.frame + 1;
     }
@@ -284,7 +298,8 @@ impl<'o> Linker<'o> {
                     .appearance(view.t, self.pooled, self.r + 1.0)
             })
             .as_ref();
-        let (Some(look), Some(a)) = (look, Appearance::of(&view.dets[j], 1)) else {
+        let a = Appearance::of(&view.dets[j], 1).map(|a| self.levels.apply(a, view.t));
+        let (Some(look), Some(a)) = (look, a) else {
             return Some(0.0);
         };
         // Motion blur changes the size as the speed changes, but gradually enough for the
@@ -466,7 +481,7 @@ impl<'o> Linker<'o> {
         tr.seen += 1;
         tr.points.push(point_from(d, PointFlag::Detected, !clean));
         if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
-            tr.apps.push(view.t, a);
+            tr.apps.push(view.t, self.levels.apply(a, view.t));
         }
     }
 

@@ -2,7 +2,7 @@
 
 use super::options::{diagonal, FrameDetections, LinkOptions};
 use super::{CLEAN_ANCHOR_AGE, GATE_SIGMAS, RESIDUAL_RATE};
-use crate::appearance::{Appearance, AppearanceHistory};
+use crate::appearance::{Appearance, AppearanceHistory, AppearanceLevels};
 use crate::locate::Detection;
 use crate::point_grid::PointGrid;
 use crate::track_table::PointFlag;
@@ -226,9 +226,12 @@ pub(super) fn speed(tr: &Track) -> f64 {
     let (a, b) = (tr.pos(0), tr.pos(1));
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
+/// Starts a track at each detection of `fd` not `taken`, its appearance relative to the
+/// frame's level in `levels`.
 pub(super) fn start_tracks(
     tracks: &mut Vec<Track>,
     fd: &FrameDetections,
+    levels: &AppearanceLevels,
     taken: &[bool],
     floor: f64,
     o: &LinkOptions,
@@ -255,7 +258,7 @@ pub(super) fn start_tracks(
             init.max(floor),
         );
         if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {
-            track.apps.push(fd.frame, a);
+            track.apps.push(fd.frame, levels.apply(a, fd.frame));
         }
         tracks.push(track);
     }
