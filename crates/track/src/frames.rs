@@ -386,6 +386,18 @@ pub enum FrameView<'a> {
 }
 
 impl FrameView<'_> {
+    /// Returns true if and only if pixel `i` (row-major) holds the 8-bit clip level (255) in
+    /// some channel: the light there saturated, and the value says only that it is at least
+    /// that bright.
+    pub fn clipped_at(&self, i: usize) -> bool {
+        match self {
+            FrameView::Grey8 { samples, .. } => samples[i] == u8::MAX,
+            FrameView::Frame(f) => f.data[i * f.channels..(i + 1) * f.channels]
+                .iter()
+                .any(|&v| v >= 254.5),
+        }
+    }
+
     /// Width and height, px.
     pub fn size(&self) -> (usize, usize) {
         match self {

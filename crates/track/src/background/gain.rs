@@ -13,6 +13,11 @@ const GAIN_SAMPLES: usize = 8_192;
 /// background (see [`Background::uniform_gain_offset`]).
 const SATURATED_LIMIT: f64 = 0.05;
 
+/// The largest value a frame holds, grey levels (8-bit white; deeper frames are scaled to it).
+const CLIP_LEVEL: f32 = 255.0;
+/// Values at least this bright are taken as clipped (half a level below [`CLIP_LEVEL`]).
+const CLIPPED: f32 = 254.5;
+
 impl Background {
     /// The brightness gain of `frame` against the background image: the median over a
     /// sample of pixels of `pixel / background` (each pixel dithered over one grey level, so
@@ -68,8 +73,10 @@ impl Background {
         // as much, on every frame); a grey value is its pixel's.
         for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
             let b = if c == 1 { self.pixel(i)[0] } else { self.image[i] };
-            if b >= 16.0 {
-                ratios.push((level(data[i]) + dither(j)) / b);
+            let v = level(data[i]);
+            // A clipped value says only that the pixel is at least that bright.
+            if b >= 16.0 && v < CLIPPED {
+                ratios.push((v + dither(j)) / b);
             }
         }
         if ratios.len() < 16 {
@@ -86,14 +93,15 @@ impl Background {
     /// the median, and only that level's values are ordered.
     fn grey8_gain_on_level(&self, data: &[u8]) -> f64 {
         let (n, stride) = self.gain_sampling(data.len());
-        let count = n.div_ceil(stride);
         let b = self.level[0];
-        if b < 16.0 || count < 16 {
-            return 1.0;
-        }
         let mut histogram = [0usize; 256];
         for &v in data[..n].iter().step_by(stride) {
             histogram[usize::from(v)] += 1;
+        }
+        // Clipped values are left out, as in `gain_of`.
+        let count = n.div_ceil(stride) - histogram[usize::from(u8::MAX)];
+        if b < 16.0 || count < 16 {
+            return 1.0;
         }
         // The rank `quantile(.., 0.5)` selects, and the level holding it.
         let rank = ((count - 1) as f64 * 0.5).round() as usize;
@@ -158,13 +166,30 @@ impl Background {
         Some((g as f32 - 1.0) * ub)
     }
 
-    /// Removes the gain `g` (from [`Background::gain_to_remove`]) from `signal`, in place.
+    /// Removes the gain `g` (from [`Background::gain_to_remove`]) from `signal`, in place. The
+    /// background a frame shows is `g b` up to the clip level (255): where the gain drives it
+    /// beyond, the frame holds 255, and so is the background taken there (a light background
+    /// saturating with the exposure, sweep style 6137: beyond, the clipped background read
+    /// as lighter than the model all round the particles in it, and their skirts as dark
+    /// rings).
     pub fn apply_gain(&self, g: f64, signal: &mut [f32]) {
         let g = g as f32;
+        if f64::from(g) * self.brightest < f64::from(CLIPPED) {
+            for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
+                // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b
+                let ub: f32 = b.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
+                *o -= (g - 1.0) * ub;
+            }
+            return;
+        }
         for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
-            // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b
-            let ub: f32 = b.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
-            *o -= (g - 1.0) * ub;
+            // signal = u . (p - min(g b, 255)) = u . (p - b) - u . (min(g b, 255) - b)
+            let shift: f32 = b
+                .iter()
+                .zip(&self.direction)
+                .map(|(b, u)| u * ((g * b).min(CLIP_LEVEL) - b))
+                .sum();
+            *o -= shift;
         }
     }
 }

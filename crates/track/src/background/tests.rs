@@ -460,3 +460,34 @@ fn a_flat_background_loses_its_exposure_offset() {
         assert_eq!(per_pixel.uniform_gain_offset(1.05), None, "seed {seed}");
     }
 }
+
+/// A light background with a gradient (from 150 to 250 across the frame) under a constant
+/// model, and a frame brighter by 15 %: half of it clips at 255. Its gain is read from the
+/// pixels that did not clip (1.15, not the 1.07 the clipped ones pull the median to), and
+/// with the gain removed the signal is 0 over the whole background, the clipped half
+/// included (it was 255 - 1.15 b there, down to -32 levels, a dark-on-light offset that
+/// reads as light all round the particles in it).
+#[test]
+fn a_gain_that_saturates_half_the_frame_is_read_and_removed_where_the_light_clipped() {
+    let (w, h) = (100usize, 40usize);
+    let ramp = |x: usize| 150.0 + 100.0 * x as f32 / (w - 1) as f32;
+    let frame_at = |g: f32| {
+        let mut f = Frame::filled(w, h, &[0.0]);
+        for (i, v) in f.data.iter_mut().enumerate() {
+            *v = (g * ramp(i % w)).round().min(255.0);
+        }
+        f
+    };
+    let samples: Vec<Frame> = (0..5).map(|_| frame_at(1.0)).collect();
+    let bg = estimate_background(&views(&samples), BackgroundChoice::PerPixel);
+    let bright = frame_at(1.15);
+    let g = bg.gain_to_remove(&bright).expect("a gain");
+    assert!((g - 1.15).abs() < 0.01, "gain {g}");
+    let mut signal = bg.signal(&bright);
+    bg.apply_gain(g, &mut signal);
+    let worst = signal.iter().fold(0.0f32, |m, s| m.max(s.abs()));
+    assert!(
+        worst < 1.5,
+        "background signal up to {worst} levels after the gain"
+    );
+}

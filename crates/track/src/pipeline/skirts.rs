@@ -5,7 +5,7 @@ use super::radius::nearest_each;
 use super::rims::RIM_REACH;
 use super::size_class::Sizes;
 use super::window_frames::WindowFrames;
-use crate::checks::{skirts, Skirt};
+use crate::checks::{clipped_ring, skirts, Skirt};
 use crate::rim::rim_centre;
 use crate::{
     Background, DetectParameters, Detection, FrameView, PointFlag, TrackError, TrackPoint, TrackTable,
@@ -70,6 +70,7 @@ pub(super) fn sample_skirts(
                         continue;
                     };
                     skirt.point_error = points[i].ep;
+                    skirt.clipped = clipped_ring(&frame, at[i], radius);
                     if skirt.inner >= HOLLOW {
                         continue;
                     }

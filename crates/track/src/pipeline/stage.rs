@@ -9,7 +9,7 @@ use super::skirts::sample_skirts;
 use super::spikes::bridge_spikes;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
-use crate::checks::{check_tracks, lost_inside, shared_images};
+use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images};
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -192,6 +192,7 @@ impl Stage<'_> {
             } else {
                 &located
             };
+            warnings.extend(saturated_edges(skirts, class.sizes.radius));
             // Unnamed tracks end once lost (a particle found again starts a new one): only named
             // tracks can be lost and found again.
             let lost = match named {
