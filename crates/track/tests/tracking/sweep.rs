@@ -777,6 +777,11 @@ fn profile_row(seed: u64, profile: Profile) -> Row {
     run("neighbour", &seq, dir.path())
 }
 
+/// Asserts that `row` passed, printing its line of the table.
+fn assert_passed(row: &Row) {
+    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+}
+
 /// Seven dark dots of 1.6 px on a 60 x 56 frame under a gradient (0.09) and a changing
 /// exposure (±0.11), no noise (style 6001, beyond the sweep's seeds): against the constant
 /// level, half the frame stood above the noise mask, and the dots there shared that region as
@@ -785,8 +790,7 @@ fn profile_row(seed: u64, profile: Profile) -> Row {
 /// measured on blobs whose component is their own (17 px²).
 #[test]
 fn dots_under_uneven_light_are_measured_by_their_own_extent() {
-    let row = synth_row(6001);
-    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+    assert_passed(&synth_row(6001));
 }
 
 /// Two dark rings of 7.5 and 19 px under a gradient, no noise (style 6045, beyond the sweep's
@@ -806,8 +810,7 @@ fn two_classes_tracks_on_one_image_are_refused() {
 /// camera's, and appearances are now compared net of it (followed at 0.005 px).
 #[test]
 fn a_change_of_exposure_every_particle_shares_loses_none() {
-    let row = synth_row(6101);
-    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+    assert_passed(&synth_row(6101));
 }
 
 /// Six dark spheres of 6 px on a light background under vignetting (0.20) and an exposure
@@ -819,8 +822,7 @@ fn a_change_of_exposure_every_particle_shares_loses_none() {
 /// background is taken as `min(g b, 255)`.
 #[test]
 fn a_background_saturating_with_the_exposure_is_read_where_it_clipped() {
-    let row = synth_row(6137);
-    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+    assert_passed(&synth_row(6137));
 }
 
 /// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
@@ -831,8 +833,7 @@ fn a_background_saturating_with_the_exposure_is_read_where_it_clipped() {
 #[test]
 fn gaussian_spots_leave_no_skirt_in_the_median() {
     let gauss = Profile::named("gauss").expect("a Gaussian profile");
-    let row = profile_row(4006, gauss);
-    assert!(row.passed(), "\n{HEADER}\n{}", row.line());
+    assert_passed(&profile_row(4006, gauss));
 }
 
 /// One profile beyond the sweep's seeds: each seed's own style (size, mixed sizes, polarity,
