@@ -39,7 +39,8 @@
 //!   least half a pixel) of each other follow one image there: where that holds in at least
 //!   half of the frames in which both were detected (and two or more), one of the particles
 //!   was not followed ([`Concern::SharedImage`], see [`shared_images`]); in fewer frames the
-//!   two overlapped in view, and a warning names them and the frames.
+//!   two overlapped in view, or one track took the other's image for a while, and a warning
+//!   names them and the frames.
 
 use std::collections::BTreeMap;
 
@@ -634,8 +635,9 @@ pub(crate) fn shared_images(
             });
         } else {
             warnings.push(format!(
-                "{a}: its points lie on {b}'s (within {apart:.2} px) in frames {}: the two overlap in view there, \
-                 and their points are where the joint image is",
+                "{a}: its points lie on {b}'s (within {apart:.2} px) in frames {}: the two tracks follow one image \
+                 there (the particles overlap in view, or one track lost its own and took the other's), and \
+                 their points there are the joint image's, not each particle's",
                 list(&frames)
             ));
         }
