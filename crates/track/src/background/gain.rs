@@ -150,7 +150,7 @@ impl Background {
     /// to the signal of every pixel against a [`BackgroundModel::Constant`] background, to be
     /// subtracted from it; `None` for a per-pixel background (where the offset follows the
     /// background's own brightness) and where the exposure saturates the background (more
-    /// than [`SATURATED_LIMIT`] of some sample's values at 255: clipped pixels do not follow
+    /// than 5 % of some sample's values at 255: clipped pixels do not follow
     /// the gain). On a flat background a gain is one offset over the whole frame, so it can
     /// be taken out of the signal the blobs are found in: their noise mask assumes a
     /// background at zero, and an exposure drift of 9 % on a background of 181 levels (sweep
