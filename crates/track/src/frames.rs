@@ -385,6 +385,12 @@ pub enum FrameView<'a> {
     Frame(&'a Frame),
 }
 
+/// The largest value a frame holds, grey levels (8-bit white; deeper frames are scaled to it).
+pub(crate) const CLIP_LEVEL: f32 = 255.0;
+/// Values at least this bright are taken as clipped: half a level below [`CLIP_LEVEL`] (an
+/// 8-bit frame's 255).
+pub(crate) const CLIPPED: f32 = CLIP_LEVEL - 0.5;
+
 impl FrameView<'_> {
     /// Returns true if and only if pixel `i` (row-major) holds the 8-bit clip level (255) in
     /// some channel: the light there saturated, and the value says only that it is at least
@@ -394,7 +400,7 @@ impl FrameView<'_> {
             FrameView::Grey8 { samples, .. } => samples[i] == u8::MAX,
             FrameView::Frame(f) => f.data[i * f.channels..(i + 1) * f.channels]
                 .iter()
-                .any(|&v| v >= 254.5),
+                .any(|&v| v >= CLIPPED),
         }
     }
 

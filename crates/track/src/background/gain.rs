@@ -2,7 +2,7 @@
 
 use super::median::quantile;
 use super::model::{Background, BackgroundModel};
-use crate::frames::FrameView;
+use crate::frames::{FrameView, CLIPPED, CLIP_LEVEL};
 
 /// Pixels a frame's gain is measured on (an even sample): the median ratio is then known to
 /// about 1.4 % of the pixel-to-pixel spread of the ratios, a tenth of a grey level on a
@@ -12,11 +12,6 @@ const GAIN_SAMPLES: usize = 8_192;
 /// Fraction of a sample's values at the clip level above which the exposure saturates the
 /// background (see [`Background::uniform_gain_offset`]).
 const SATURATED_LIMIT: f64 = 0.05;
-
-/// The largest value a frame holds, grey levels (8-bit white; deeper frames are scaled to it).
-const CLIP_LEVEL: f32 = 255.0;
-/// Values at least this bright are taken as clipped (half a level below [`CLIP_LEVEL`]).
-const CLIPPED: f32 = 254.5;
 
 impl Background {
     /// The brightness gain of `frame` against the background image: the median over a
@@ -51,7 +46,7 @@ impl Background {
             }
             FrameView::Frame(f) => {
                 let (n, stride) = self.gain_sampling(f.data.len());
-                count(n, stride, &|i| f.data[i] >= 254.5)
+                count(n, stride, &|i| f.data[i] >= CLIPPED)
             }
         }
     }
