@@ -233,8 +233,8 @@ impl std::fmt::Display for TrackConcern {
                  median over frames {}; under {:.0} %, or under {:.0} % when lopsided or elongated, where the track \
                  follows one particle of this size): the particle is larger than that and was found as parts, or the \
                  track follows other objects",
-                radius + 1.0,
-                2.0 * radius + 1.0,
+                skirt_ring(*radius)[0],
+                skirt_ring(*radius)[1],
                 100.0 * skirt,
                 100.0 * magnitude,
                 100.0 * lopsided,
@@ -575,10 +575,13 @@ pub(crate) fn shared_images(
         .enumerate()
         .flat_map(|(c, (_, names))| names.iter().map(move |n| (n.as_str(), c)))
         .collect();
+    // Each frame's detected points with their classes, and each track's detected frames.
     let mut by_frame: BTreeMap<usize, Vec<(&TrackPoint, usize)>> = BTreeMap::new();
+    let mut detected: BTreeMap<&str, std::collections::BTreeSet<usize>> = BTreeMap::new();
     for p in table.points.iter().filter(|p| p.flag == PointFlag::Detected) {
         if let Some(&c) = class_of.get(p.particle.as_str()) {
             by_frame.entry(p.frame).or_default().push((p, c));
+            detected.entry(p.particle.as_str()).or_default().insert(p.frame);
         }
     }
     // Each pair's frames on one image, and the largest distance there, by the pair's names in
@@ -589,16 +592,19 @@ pub(crate) fn shared_images(
         order.entry(p.particle.as_str()).or_insert(next);
     }
     let mut shared: BTreeMap<(&str, &str), (Vec<usize>, f64)> = BTreeMap::new();
+    let near = |a: f64, b: f64| (0.25 * a.min(b)).max(0.5);
+    let reach = classes.iter().map(|c| near(c.0, c.0)).fold(0.0, f64::max);
     for (&frame, points) in &by_frame {
         let positions: Vec<[f64; 2]> = points.iter().map(|(p, _)| [p.x, p.y]).collect();
         let grid = crate::point_grid::PointGrid::new(&positions);
-        let most = classes.iter().map(|c| c.0).fold(0.0, f64::max);
         for (i, &(p, c)) in points.iter().enumerate() {
-            grid.within(&positions[i], (0.25 * most).max(0.5), |j, d2| {
+            grid.within(&positions[i], reach, |j, d2| {
                 let (q, e) = points[j];
                 let d = d2.sqrt();
-                let near = (0.25 * classes[c].0.min(classes[e].0)).max(0.5);
-                if e == c || d > near || order.get(q.particle.as_str()) <= order.get(p.particle.as_str()) {
+                if e == c
+                    || d > near(classes[c].0, classes[e].0)
+                    || order.get(q.particle.as_str()) <= order.get(p.particle.as_str())
+                {
                     return;
                 }
                 let entry = shared
@@ -609,15 +615,6 @@ pub(crate) fn shared_images(
             });
         }
     }
-    let detected: BTreeMap<&str, std::collections::BTreeSet<usize>> = by_frame
-        .iter()
-        .flat_map(|(&k, ps)| ps.iter().map(move |(p, _)| (p.particle.as_str(), k)))
-        .fold(BTreeMap::new(), |mut m, (n, k)| {
-            m.entry(n)
-                .or_insert_with(std::collections::BTreeSet::new)
-                .insert(k);
-            m
-        });
     let (mut concerns, mut warnings) = (Vec::new(), Vec::new());
     for ((a, b), (mut frames, apart)) in shared {
         frames.sort_unstable();
@@ -645,13 +642,19 @@ pub(crate) fn shared_images(
     (concerns, warnings)
 }
 
+/// The inner and outer radius of the ring round a point of a particle of radius `radius`
+/// (px) whose signal is its skirt: `radius + 1` and `2 radius + 1`, px.
+fn skirt_ring(radius: f64) -> [f64; 2] {
+    [radius + 1.0, 2.0 * radius + 1.0]
+}
+
 /// The fraction of the pixels between `radius + 1` and `2 radius + 1` px from `p` (px) that
 /// `frame` holds at the clip level ([`FrameView::clipped_at`]); 0 where the ring lies outside
 /// the frame.
 pub(crate) fn clipped_ring(frame: &FrameView<'_>, p: [f64; 2], radius: f64) -> f64 {
     let (width, height) = frame.size();
-    let outer = 2.0 * radius + 1.0;
-    let (inner2, outer2) = ((radius + 1.0).powi(2), outer * outer);
+    let [inner, outer] = skirt_ring(radius);
+    let (inner2, outer2) = (inner * inner, outer * outer);
     let x0 = (p[0] - outer).floor().max(0.0) as usize;
     let y0 = (p[1] - outer).floor().max(0.0) as usize;
     let x1 = ((p[0] + outer).ceil().max(0.0) as usize).min(width.saturating_sub(1));
@@ -703,8 +706,8 @@ pub(crate) fn saturated_edges(skirts: &BTreeMap<String, Vec<(usize, Skirt)>>, ra
              positions may lean away from the light",
             list(&frames),
             100.0 * most,
-            radius + 1.0,
-            2.0 * radius + 1.0
+            skirt_ring(radius)[0],
+            skirt_ring(radius)[1]
         ));
     }
     out
@@ -724,8 +727,8 @@ pub(crate) fn skirts(
     radius: f64,
     noise_sigma: f64,
 ) -> Vec<Option<Skirt>> {
-    let outer = 2.0 * radius + 1.0;
-    let (inner2, outer2, radius2) = ((radius + 1.0).powi(2), outer * outer, radius * radius);
+    let [inner, outer] = skirt_ring(radius);
+    let (inner2, outer2, radius2) = (inner * inner, outer * outer, radius * radius);
     // The points sorted by x, so each finds its neighbours within two outer radii by a range.
     let mut by_x: Vec<usize> = (0..points.len()).collect();
     by_x.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
