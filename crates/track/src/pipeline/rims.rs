@@ -454,15 +454,17 @@ mod tests {
     #[test]
     fn points_without_their_rim_are_placed_from_the_motion_or_named() {
         let path = |k: usize| [10.0 + 2.0 * k as f64, 20.0 + 0.5 * (k * k) as f64];
-        let mut table = TrackTable {
-            points: (0..10)
+        // The ring's points in frames 0..n, those of `off_frames` located `off` px off in x.
+        let along = |n: usize, off_frames: &[usize], off: f64| TrackTable {
+            points: (0..n)
                 .map(|k| {
                     let [x, y] = path(k);
-                    let off = if k == 4 || k == 9 { 3.0 } else { 0.0 };
-                    TrackPoint::new(k, "r", x + off, y)
+                    let dx = if off_frames.contains(&k) { off } else { 0.0 };
+                    TrackPoint::new(k, "r", x + dx, y)
                 })
                 .collect(),
         };
+        let mut table = along(10, &[4, 9], 3.0);
         let rimmed: Vec<bool> = (0..10).map(|k| k != 4 && k != 9).collect();
         let warnings = bridge_unrimmed(&mut table, &[4, 9], &rimmed);
         let p = &table.points[4];
@@ -486,15 +488,7 @@ mod tests {
 
         // Rim-centred points in frames 0 and 3 only, within reach of frames 1 and 2 (their
         // rims not found, 17 px off): each is placed on the straight line between them.
-        let mut table = TrackTable {
-            points: (0..4)
-                .map(|k| {
-                    let [x, y] = path(k);
-                    let off = if k == 1 || k == 2 { 17.0 } else { 0.0 };
-                    TrackPoint::new(k, "r", x + off, y)
-                })
-                .collect(),
-        };
+        let mut table = along(4, &[1, 2], 17.0);
         let rimmed = [true, false, false, true];
         let warnings = bridge_unrimmed(&mut table, &[1, 2], &rimmed);
         for k in [1usize, 2] {
