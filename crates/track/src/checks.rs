@@ -25,6 +25,10 @@
 //!   errors; points that scatter about it far more have followed something else in some
 //!   frames (see [`MAX_RIM_SCATTER_SIGMAS`]).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
+//! * **Jumped.** A particle's image moves continuously, so between two detected points the
+//!   track moves, per frame, about as fast as it moves just before and just after: a step
+//!   per frame more than [`JUMP_FACTOR`] times the faster of those two steps plus the
+//!   particle's diameter leaves the particle for another image ([`jumped`]).
 //! * **Lost inside the image.** A track with frames missing between two of its points (the
 //!   particle lost, bridged no farther, and found again) whose points either side lie too far
 //!   inside the image for the particle to have left it and come back in those frames, at
@@ -185,6 +189,19 @@ pub(crate) enum Concern {
         /// Runs of four consecutive detected frames measured.
         count: usize,
     },
+    /// The track moves between two of its detected points far faster than just before and
+    /// just after: it left its particle for another image.
+    Jumped {
+        /// The frames of the two points.
+        frames: (usize, usize),
+        /// The step between them per frame, px.
+        step: f64,
+        /// The faster of the steps between consecutive detected frames just before and just
+        /// after (one at least), px per frame.
+        around: f64,
+        /// The radius in use, px.
+        radius: f64,
+    },
     /// The track's detected points lie on another size class's track's points (one image
     /// followed twice) in most frames both were detected in.
     SharedImage {
@@ -284,6 +301,20 @@ impl std::fmt::Display for TrackConcern {
                  track hops between parts of a larger particle or between objects",
                 2.0 * (radius + 1.0)
             ),
+            Concern::Jumped {
+                frames,
+                step,
+                around,
+                radius,
+            } => write!(
+                f,
+                "{p}: it moves {step:.1} px a frame from frame {} to frame {}, against {around:.1} px a frame just \
+                 before and after; more than {JUMP_FACTOR} times that plus its diameter ({:.1} px at the radius \
+                 {radius:.2} px in use) is no motion of one particle: the track left its particle for another image",
+                frames.0,
+                frames.1,
+                2.0 * radius
+            ),
             Concern::SharedImage {
                 other,
                 frames,
@@ -346,6 +377,7 @@ pub(crate) fn check_tracks(
         if let Some(concern) = skirt_concern(skirts.get(particle), radius)
             .or_else(|| located.get(particle).and_then(|m| off_rim(m)))
             .or_else(|| erratic(&points, radius))
+            .or_else(|| jumped(&points, radius))
         {
             out.push(TrackConcern {
                 particle: particle.to_string(),
@@ -428,6 +460,58 @@ fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
     }
     let on_a_line = total > 0.0 && c.hypot(s) / total > MAX_ERRATIC_ALIGNMENT;
     (jerk > 2.0 * (radius + 1.0) && !on_a_line).then_some(Concern::Erratic { jerk, radius, count })
+}
+
+/// How many times the faster of the neighbouring steps a track's step per frame may exceed
+/// (beyond the particle's diameter) before [`jumped`] calls it a jump.
+pub(crate) const JUMP_FACTOR: f64 = 3.0;
+
+/// [`Concern::Jumped`] at the largest step per frame between two detected points of
+/// `points` (one track, frame order; frames missing between them allowed) that exceeds
+/// [`JUMP_FACTOR`] times the faster of the steps between consecutive detected frames just
+/// before it and just after it (one at least measured), plus the diameter of a particle of
+/// radius `radius` (px). A continuous motion's step over a frame lies between the steps
+/// either side of it, give or take its acceleration: a bounce reverses the step but keeps its
+/// size, a kick from rest is followed by steps as large as the kick's, and a frame lost from
+/// the recording doubles one step. The diameter covers a slow particle's noise and the
+/// detector's changes of mind about its extent. Sweep style 1038 (shaded spheres of 9.6 and
+/// 24 px under a saturating exposure drift): the small sphere's track, lost at frame 11, took
+/// the large one's highlight at frame 12, 125 px away, moving 1.5 and 2.6 px a frame before
+/// and after.
+fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
+    let detected: Vec<&TrackPoint> = points
+        .iter()
+        .copied()
+        .filter(|p| p.flag == PointFlag::Detected)
+        .collect();
+    // The step per frame from detected point `i` to `i + 1`, and whether they are consecutive frames.
+    let step = |i: usize| {
+        let (a, b) = (detected[i], detected[i + 1]);
+        let frames = (b.frame - a.frame) as f64;
+        ((b.x - a.x).hypot(b.y - a.y) / frames, b.frame == a.frame + 1)
+    };
+    let steps: Vec<(f64, bool)> = (0..detected.len().saturating_sub(1)).map(step).collect();
+    let mut worst: Option<Concern> = None;
+    for (i, &(s, _)) in steps.iter().enumerate() {
+        let before = i.checked_sub(1).map(|j| steps[j]).filter(|q| q.1).map(|q| q.0);
+        let after = steps.get(i + 1).filter(|q| q.1).map(|q| q.0);
+        let Some(around) = before.into_iter().chain(after).reduce(f64::max) else {
+            continue;
+        };
+        let larger = match &worst {
+            Some(Concern::Jumped { step, .. }) => s > *step,
+            _ => true,
+        };
+        if s > JUMP_FACTOR * around + 2.0 * radius && larger {
+            worst = Some(Concern::Jumped {
+                frames: (detected[i].frame, detected[i + 1].frame),
+                step: s,
+                around,
+                radius,
+            });
+        }
+    }
+    worst
 }
 
 /// Largest axial concentration of an erratic track's third differences (see [`erratic`]):
@@ -1248,6 +1332,82 @@ mod tests {
         let mut leaves = track(6.0, &[], false);
         leaves.points.retain(|p| p.frame <= 6);
         assert!(lost_inside(&leaves, 4.0, (100, 100), 11).is_empty());
+    }
+
+    /// A track moving 1.5 px a frame that, lost for a frame, goes on 125 px away has left its
+    /// particle, and says where; a thrown ball's bounce, a kick from rest, a frame lost from
+    /// the recording and a random walk of 0.5-3 px a frame at a radius of 1.5 px have not.
+    #[test]
+    fn a_track_taking_another_image_far_off_jumped_and_motions_did_not() {
+        let track = |at: &dyn Fn(usize) -> Option<[f64; 2]>| -> Vec<TrackPoint> {
+            (0..16)
+                .filter_map(|k| at(k).map(|p| TrackPoint::new(k, "p0".to_string(), p[0], p[1])))
+                .collect()
+        };
+        let judged = |points: &[TrackPoint], radius: f64| jumped(&points.iter().collect::<Vec<_>>(), radius);
+        let taken = track(&|k| match k {
+            0..=10 => Some([210.0 + 1.5 * k as f64, 100.0]),
+            11 => None,
+            _ => Some([108.0 + 0.5 * k as f64, 71.0 - 2.0 * k as f64]),
+        });
+        let concern = judged(&taken, 9.3);
+        let Some(Concern::Jumped {
+            frames, step, around, ..
+        }) = concern.clone()
+        else {
+            panic!("{concern:?}");
+        };
+        assert_eq!(frames, (10, 12));
+        assert!(
+            (step - 61.5).abs() < 0.01 && (around - 2.06).abs() < 0.01,
+            "{step} {around}"
+        );
+        let said = TrackConcern {
+            particle: "p0".into(),
+            concern: concern.unwrap(),
+        }
+        .to_string();
+        assert!(said.contains("from frame 10 to frame 12"), "{said}");
+        // The same, lost for two frames more: still a jump (its step per frame is 31 px).
+        let later = track(&|k| match k {
+            0..=10 => Some([210.0 + 1.5 * k as f64, 100.0]),
+            11..=13 => None,
+            _ => Some([108.0 + 0.5 * k as f64, 71.0 - 2.0 * k as f64]),
+        });
+        assert!(matches!(
+            judged(&later, 9.3),
+            Some(Concern::Jumped { frames: (10, 14), .. })
+        ));
+        // A ball of 5 px falling 17 px a frame at 30 frames/s, bouncing back at 15.
+        let bounce = track(&|k| {
+            let t = k as f64;
+            Some([
+                100.0,
+                if k <= 8 {
+                    17.0 * t
+                } else {
+                    136.0 - 15.0 * (t - 8.0)
+                },
+            ])
+        });
+        assert_eq!(judged(&bounce, 5.0), None);
+        // At rest, then kicked to 20 px a frame.
+        let kicked = track(&|k| Some([100.0 + 20.0 * k.saturating_sub(7) as f64, 50.0]));
+        assert_eq!(judged(&kicked, 3.0), None);
+        // 6 px a frame, frame 9 missing from the recording (a step of 12 px).
+        let dropped = track(&|k| Some([6.0 * (k + usize::from(k >= 9)) as f64, 50.0]));
+        assert_eq!(judged(&dropped, 2.0), None);
+        // A random walk of 0.5-3 px a frame (turning by the golden angle) at a radius of 1.5 px.
+        let walk = track(&|k| {
+            let (mut x, mut y) = (50.0, 50.0);
+            for j in 0..k {
+                let (len, a) = (if j % 4 == 3 { 3.0 } else { 0.5 }, 2.4 * j as f64);
+                x += len * a.cos();
+                y += len * a.sin();
+            }
+            Some([x, y])
+        });
+        assert_eq!(judged(&walk, 1.5), None);
     }
 
     /// A ball of 5 px thrown up and falling back at 30 frames/s (its step changing by 18 px a
