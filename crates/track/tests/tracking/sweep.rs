@@ -453,8 +453,9 @@ fn styles_followed_today_stay_followed() {
 /// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
 /// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
 /// 0.51 / 1.18) was written wrong until the skirt's magnitude counted, then followed from
-/// session 24 (0.25 / 0.88 px), and is refused since the frame's gain is read from its
-/// unclipped pixels (the large sphere's radius reads 43.5 px, against 24).
+/// session 24 (0.25 / 0.88 px). Since the frame's gain is read from its unclipped pixels,
+/// its small sphere is lost at frame 11 and its track takes the large one's highlight,
+/// 125 px away: refused as a jump (`checks.rs`).
 const REFUSED_SYNTH: &[u64] = &[1002, 1011, 1025, 1031, 1033, 1038];
 
 /// The table lines of the synth styles `seeds` whose rows are not `ok`, each with the
