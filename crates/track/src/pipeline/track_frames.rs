@@ -350,7 +350,19 @@ fn track_frames(
         }) else {
             break;
         };
-        let second = stage.locate_and_link(&cleaner, &classes, Surround::Ignore, progress)?;
+        // The sizes, unless given, were measured with the particles partly in the median:
+        // they are measured again without them (fresh style 6237, a disc of 34.5 px: 25.9 px
+        // with part of it in the median, 34.2 px without).
+        let remeasured = options
+            .radius
+            .is_none()
+            .then(|| SizeClass::measure_all(&cleaner, &views(&sample_frames), None, starts, None, &workers));
+        let second = stage.locate_and_link(
+            &cleaner,
+            remeasured.as_deref().unwrap_or(&classes),
+            Surround::Ignore,
+            progress,
+        )?;
         // A clean background leaves each particle's integrated signal steady along its
         // track; the particle itself in the median makes it swell and fade.
         if !second.concerns.is_empty() || mass_spread(&second.table) >= mass_spread(&pass.table) {
@@ -358,6 +370,9 @@ fn track_frames(
         }
         pass = second;
         background = cleaner;
+        if let Some(remeasured) = remeasured {
+            classes = remeasured;
+        }
     }
     let background = background;
     // A background the model could not see (under a large particle that hovers, under

@@ -78,6 +78,20 @@ pub(super) fn background_without_tracks(
             points.push((j, p));
         }
     }
+    // A sample a track holds no point in (its particle cut by the border and not written,
+    // or before its first point and after its last) still holds the particle: it is left
+    // out there too, where the track's points either side put it, or its nearest point.
+    // Counted clear, three such samples made a median of their own particle (fresh style
+    // 6237, a disc of 34.5 px near the border in frames 11, 13 and 14: 90 grey levels left
+    // of its 100 where the background is 20, and the disc followed 12 px off its centre).
+    for track in pass.table.by_particle().values() {
+        let held: std::collections::HashSet<usize> = track.iter().map(|p| p.frame).collect();
+        for (&frame, &j) in &index {
+            if !held.contains(&frame) {
+                at[j].push(position_at(track, frame));
+            }
+        }
+    }
     let everywhere: Vec<[f64; 2]> = at.iter().flatten().copied().collect();
     let mut cleaner = background.clone();
     cleaner.exclude_particles(samples, &at, &everywhere, reach, SampleExposure::Matched);
@@ -102,6 +116,21 @@ pub(super) fn background_without_tracks(
     }
     let matters = moves && mass_spread(&predicted) < (1.0 - STEADIER) * mass_spread(&pass.table);
     matters.then_some(cleaner)
+}
+
+/// Where a track (its points in frame order, one at least) puts its particle in `frame`:
+/// linearly between its points either side, or at its nearest point before its first or
+/// after its last, px.
+fn position_at(track: &[&TrackPoint], frame: usize) -> [f64; 2] {
+    let after = track.partition_point(|p| p.frame < frame);
+    match (after.checked_sub(1).map(|i| track[i]), track.get(after).copied()) {
+        (Some(a), Some(b)) => {
+            let f = (frame - a.frame) as f64 / (b.frame - a.frame) as f64;
+            [a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)]
+        }
+        (Some(p), None) | (None, Some(p)) => [p.x, p.y],
+        (None, None) => [f64::NAN, f64::NAN],
+    }
 }
 
 /// How much steadier the masses must come out of a background taken without the tracks for
@@ -160,4 +189,32 @@ fn signal_change(before: &Background, after: &Background, centre: [f64; 2], radi
         }
     }
     (sum, moment[0].hypot(moment[1]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::position_at;
+    use crate::TrackPoint;
+
+    /// Between two points the position is interpolated by frame; before the first and after
+    /// the last it is the nearest point.
+    #[test]
+    fn a_track_puts_its_particle_between_its_points_and_at_its_ends() {
+        let points = [
+            TrackPoint::new(2, "p0", 10.0, 20.0),
+            TrackPoint::new(6, "p0", 30.0, 0.0),
+        ];
+        let track: Vec<&TrackPoint> = points.iter().collect();
+        let near = |frame: usize, want: [f64; 2]| {
+            let got = position_at(&track, frame);
+            assert!(
+                (got[0] - want[0]).abs() < 1e-12 && (got[1] - want[1]).abs() < 1e-12,
+                "{frame}: {got:?}"
+            );
+        };
+        near(3, [15.0, 15.0]);
+        near(0, [10.0, 20.0]);
+        near(9, [30.0, 0.0]);
+        near(6, [30.0, 0.0]);
+    }
 }
