@@ -82,13 +82,13 @@ pub(super) fn background_without_tracks(
     // or before its first point and after its last) still holds the particle: it is left
     // out there too, where the track's points either side put it, or its nearest point.
     // Counted clear, three such samples made a median of their own particle (fresh style
-    // 6237, a disc of 34.5 px near the border in frames 11, 13 and 14: 90 grey levels left
-    // of its 100 where the background is 20, and the disc followed 12 px off its centre).
+    // 6237, a disc of 34.5 px near the border in frames 11, 13 and 14: 90 grey levels where
+    // the background is 12, and the disc followed 12 px off its centre).
     for track in pass.table.by_particle().values() {
         let held: std::collections::HashSet<usize> = track.iter().map(|p| p.frame).collect();
         for (&frame, &j) in &index {
-            if !held.contains(&frame) {
-                at[j].push(position_at(track, frame));
+            if let Some(p) = position_at(track, frame).filter(|_| !held.contains(&frame)) {
+                at[j].push(p);
             }
         }
     }
@@ -118,18 +118,18 @@ pub(super) fn background_without_tracks(
     matters.then_some(cleaner)
 }
 
-/// Where a track (its points in frame order, one at least) puts its particle in `frame`:
-/// linearly between its points either side, or at its nearest point before its first or
-/// after its last, px.
-fn position_at(track: &[&TrackPoint], frame: usize) -> [f64; 2] {
+/// Where a track (its points in frame order) puts its particle in `frame`: linearly between
+/// its points either side, or at its nearest point before its first or after its last, px;
+/// `None` for a track without points.
+fn position_at(track: &[&TrackPoint], frame: usize) -> Option<[f64; 2]> {
     let after = track.partition_point(|p| p.frame < frame);
     match (after.checked_sub(1).map(|i| track[i]), track.get(after).copied()) {
         (Some(a), Some(b)) => {
             let f = (frame - a.frame) as f64 / (b.frame - a.frame) as f64;
-            [a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)]
+            Some([a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)])
         }
-        (Some(p), None) | (None, Some(p)) => [p.x, p.y],
-        (None, None) => [f64::NAN, f64::NAN],
+        (Some(p), None) | (None, Some(p)) => Some([p.x, p.y]),
+        (None, None) => None,
     }
 }
 
@@ -206,7 +206,7 @@ mod tests {
         ];
         let track: Vec<&TrackPoint> = points.iter().collect();
         let near = |frame: usize, want: [f64; 2]| {
-            let got = position_at(&track, frame);
+            let got = position_at(&track, frame).expect("a track with points");
             assert!(
                 (got[0] - want[0]).abs() < 1e-12 && (got[1] - want[1]).abs() < 1e-12,
                 "{frame}: {got:?}"
@@ -216,5 +216,6 @@ mod tests {
         near(0, [10.0, 20.0]);
         near(9, [30.0, 0.0]);
         near(6, [30.0, 0.0]);
+        assert_eq!(position_at(&[], 3), None);
     }
 }
