@@ -464,7 +464,7 @@ fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
 
 /// How many times the faster of the neighbouring steps a track's step per frame may exceed
 /// (beyond the particle's diameter) before [`jumped`] calls it a jump.
-pub(crate) const JUMP_FACTOR: f64 = 3.0;
+const JUMP_FACTOR: f64 = 3.0;
 
 /// [`Concern::Jumped`] at the largest step per frame between two detected points of
 /// `points` (one track, frame order; frames missing between them allowed) that exceeds
@@ -491,27 +491,21 @@ fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
         ((b.x - a.x).hypot(b.y - a.y) / frames, b.frame == a.frame + 1)
     };
     let steps: Vec<(f64, bool)> = (0..detected.len().saturating_sub(1)).map(step).collect();
-    let mut worst: Option<Concern> = None;
-    for (i, &(s, _)) in steps.iter().enumerate() {
+    // Each step beyond its bound, with the faster of its consecutive neighbours.
+    let jumps = steps.iter().enumerate().filter_map(|(i, &(s, _))| {
         let before = i.checked_sub(1).map(|j| steps[j]).filter(|q| q.1).map(|q| q.0);
         let after = steps.get(i + 1).filter(|q| q.1).map(|q| q.0);
-        let Some(around) = before.into_iter().chain(after).reduce(f64::max) else {
-            continue;
-        };
-        let larger = match &worst {
-            Some(Concern::Jumped { step, .. }) => s > *step,
-            _ => true,
-        };
-        if s > JUMP_FACTOR * around + 2.0 * radius && larger {
-            worst = Some(Concern::Jumped {
-                frames: (detected[i].frame, detected[i + 1].frame),
-                step: s,
-                around,
-                radius,
-            });
-        }
-    }
-    worst
+        let around = before.into_iter().chain(after).reduce(f64::max)?;
+        (s > JUMP_FACTOR * around + 2.0 * radius).then_some((i, s, around))
+    });
+    jumps
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, step, around)| Concern::Jumped {
+            frames: (detected[i].frame, detected[i + 1].frame),
+            step,
+            around,
+            radius,
+        })
 }
 
 /// Largest axial concentration of an erratic track's third differences (see [`erratic`]):
