@@ -32,6 +32,13 @@ impl Background {
         }
     }
 
+    /// Whether the exposure saturates the background: more than 5 % of some sample's values
+    /// at the 8-bit clip level (255 or more). Clipped pixels, and the particles' light
+    /// against them, do not follow a frame's gain.
+    pub fn exposure_saturates(&self) -> bool {
+        self.saturated_fraction > SATURATED_LIMIT
+    }
+
     /// The fraction of `frame`'s values at the 8-bit clip level (255 or more), over the
     /// values [`Background::frame_gain`] looks at.
     pub(super) fn saturated_fraction_of(&self, frame: FrameView<'_>) -> f64 {
@@ -154,7 +161,7 @@ impl Background {
     /// measured extent with it) and shrinks it where the frame is bright.
     #[must_use]
     pub fn uniform_gain_offset(&self, g: f64) -> Option<f32> {
-        if self.model != BackgroundModel::Constant || self.saturated_fraction > SATURATED_LIMIT {
+        if self.model != BackgroundModel::Constant || self.exposure_saturates() {
             return None;
         }
         let ub: f32 = self.level.iter().zip(&self.direction).map(|(b, u)| u * b).sum();

@@ -10,7 +10,7 @@ use super::size_class::{exclusion_reach, largest_radius, SizeClass, Sizes};
 use super::skirts::particle_contrast;
 use super::stage::{Pass, Stage};
 use super::tracks_background::{
-    background_without_tracks, hovering_starts, mass_spread, EXCLUSION_ROUNDS, SETTLED_SIZE,
+    background_without_tracks, hovering_starts, mass_spread, SampleGains, EXCLUSION_ROUNDS, SETTLED_SIZE,
 };
 use super::window_frames::WindowFrames;
 use crate::background::STRUCTURED_LIMIT;
@@ -335,13 +335,15 @@ fn track_frames(
     // Named particles that move less than their size over the samples leave part of
     // themselves in the per-pixel median where the first blobs missed them; the tracks say
     // where every particle was in every sample, so the median is taken again without them.
+    // The samples' exposure gains, against which the masses are compared.
+    let gains =
+        starts.map(|_| SampleGains::measure(&background, &views(&sample_frames), &sample_of, &numbers));
     for _ in 0..EXCLUSION_ROUNDS {
-        let Some(cleaner) = starts.and_then(|_| {
+        let Some(cleaner) = gains.as_ref().and_then(|gains| {
             background_without_tracks(
                 &background,
                 &views(&sample_frames),
-                &sample_of,
-                &numbers,
+                gains,
                 &pass,
                 largest_radius(&classes),
                 exclusion_reach(&classes),
@@ -365,7 +367,10 @@ fn track_frames(
         )?;
         // A clean background leaves each particle's integrated signal steady along its
         // track; the particle itself in the median makes it swell and fade.
-        if !second.concerns.is_empty() || mass_spread(&second.table) >= mass_spread(&pass.table) {
+        let steadier = gains
+            .as_ref()
+            .is_some_and(|g| mass_spread(&second.table, g) < mass_spread(&pass.table, g));
+        if !second.concerns.is_empty() || !steadier {
             break;
         }
         pass = second;

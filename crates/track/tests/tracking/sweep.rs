@@ -856,6 +856,21 @@ fn gaussian_spots_are_not_pulled_by_a_neighbours_skirt() {
     assert_passed(&synth_row(6381));
 }
 
+/// Two dark Gaussian spots of 3.9 px hovering under vignetting 0.05 and an exposure drifting
+/// by ±8 %, no noise (style 6248, beyond the sweep's seeds), and six bright spots of 3.2 px
+/// under a gradient, vignetting and a drift of ±9 % (6298): the spots stay partly in the
+/// per-pixel median, and taking it again without their tracks made their plain masses less
+/// steady (the masses follow the exposure), so it was not taken: 0.68 / 0.61 px against a
+/// tolerance of 0.056, and 0.088 against 0.063, without a word. Their masses on each frame's
+/// exposure come out three times steadier, and the spots are followed (0.016 / 0.021 and
+/// 0.015 / 0.008 px).
+#[test]
+fn hovering_spots_under_an_exposure_drift_are_followed() {
+    for seed in [6248, 6298] {
+        assert_passed(&synth_row(seed));
+    }
+}
+
 /// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
 /// 0.20 and no noise (style 4006 drawn as spots): the tracked spots are taken out of the
 /// per-pixel median as far as their skirts stand above the noise, not `2R + 1`, and are
