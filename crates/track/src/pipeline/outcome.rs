@@ -43,6 +43,10 @@ pub struct TrackStats {
     pub dark_on_light: bool,
     /// Median estimated position error `ep` of detected points, px.
     pub median_ep: f64,
+    /// The particle and frame of each point not written because the particle was cut by
+    /// the image border (its centre within the radius in use of the edge: the centroid of
+    /// the part in view leans inward), by particle then frame; a warning names them too.
+    pub cut_by_border: Vec<(String, usize)>,
 }
 
 impl TrackStats {

@@ -16,7 +16,7 @@ use crate::{
     TrackPoint, TrackTable,
 };
 use rayon::prelude::*;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// What one pass of locating and linking found.
 pub(super) struct Pass {
@@ -28,6 +28,9 @@ pub(super) struct Pass {
     pub(super) relocated: Relocated,
     /// Each track's concern, with the radius of its class, px.
     pub(super) concerns: Vec<(String, f64)>,
+    /// The particle and frame of each point not written because the particle was cut by the
+    /// image border (see `border`).
+    pub(super) cut_by_border: BTreeSet<(String, usize)>,
 }
 
 /// The inputs every pass of locating and linking shares.
@@ -103,6 +106,7 @@ impl Stage<'_> {
         let mut ambiguities = Vec::new();
         let mut relocated = Relocated::default();
         let mut concerns = Vec::new();
+        let mut cut_by_border = BTreeSet::new();
         // Each class's radius and its tracks' particles.
         let mut class_tracks: Vec<(f64, Vec<String>)> = Vec::with_capacity(classes.len());
         for (class, located) in classes.iter().zip(&by_class) {
@@ -210,6 +214,7 @@ impl Stage<'_> {
             let (border, dropped) = drop_cut_by_border(&mut class_table, class.sizes.radius, size);
             warnings.extend(border);
             forget_dropped_bridges(&mut class_ambiguities, &dropped);
+            cut_by_border.extend(dropped);
             class_tracks.push((class.sizes.radius, class_table.particle_ids()));
             table.points.extend(class_table.points);
             ambiguities.extend(class_ambiguities);
@@ -243,6 +248,7 @@ impl Stage<'_> {
             warnings,
             relocated,
             concerns,
+            cut_by_border,
         })
     }
 }

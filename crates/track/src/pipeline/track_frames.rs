@@ -406,6 +406,7 @@ fn track_frames(
         warnings: mut pass_warnings,
         relocated,
         concerns,
+        cut_by_border,
     } = pass;
     let total = numbers.len();
     let mut warnings = Vec::new();
@@ -472,6 +473,7 @@ fn track_frames(
         background: background.model,
         dark_on_light: background.is_dark_on_light(),
         median_ep: median(&mut eps),
+        cut_by_border: cut_by_border.into_iter().collect(),
     };
     Ok(TrackOutcome {
         table,

@@ -160,6 +160,25 @@ fn a_particle_leaving_the_image_ends_with_a_warning() {
                 "a warning says particle a left: {:?}",
                 out.warnings
             );
+            // The points not written as `a` left are listed, each where its centre lay
+            // within the radius (and its centroid's inward lean) of the right edge, and
+            // none of them is in the table.
+            let cut = &out.stats.cut_by_border;
+            assert!(!cut.is_empty(), "no point listed as cut by the border");
+            for (name, frame) in cut {
+                let x = truth.frames[*frame][0].x;
+                assert!(
+                    name == "a" && x >= 255.5 - r - 1.0,
+                    "{name} in frame {frame} (true x {x:.1}) listed as cut by the border"
+                );
+                assert!(
+                    !out.table
+                        .points
+                        .iter()
+                        .any(|p| &p.particle == name && p.frame == *frame),
+                    "{name} in frame {frame} is listed as cut and written"
+                );
+            }
         }
     }
 }

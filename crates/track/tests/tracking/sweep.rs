@@ -51,6 +51,10 @@ struct Row {
     /// Particles whose own RMS error lies beyond the tolerance on an axis and that no
     /// warning of the tracker names (`"{particle}: ..."`): tracks wrong without a word.
     unwarned: Vec<String>,
+    /// True centres in view with no point of their particle within the match radius that
+    /// the tracker names neither as cut by the border nor in an ambiguity over that frame
+    /// (not seen and bridged, lost, shared): points missing without a word.
+    unnamed_missing: usize,
 }
 
 impl Row {
@@ -68,9 +72,11 @@ impl Row {
     }
 
     /// Followed, refused, or every particle out of its tolerance named in a warning, every
-    /// point found and under its own name (never tracks wrong without a word).
+    /// point found or its absence named, each under its own name (never tracks wrong
+    /// without a word).
     fn followed_refused_or_warned(&self) -> bool {
-        self.followed_or_refused() || (self.recall >= 1.0 && self.switches == 0 && self.unwarned.is_empty())
+        self.followed_or_refused()
+            || (self.unnamed_missing == 0 && self.switches == 0 && self.unwarned.is_empty())
     }
 
     fn line(&self) -> String {
@@ -174,6 +180,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         tracker_radius: f64::NAN,
         failure: None,
         unwarned: Vec::new(),
+        unnamed_missing: 0,
     };
     let options = TrackOptions {
         named_start: Some(start),
@@ -285,6 +292,24 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         })
         .cloned()
         .collect();
+    row.unnamed_missing = truth
+        .points
+        .iter()
+        .filter(|t| {
+            let found = outcome.table.points.iter().any(|p| {
+                p.frame == t.frame && p.particle == t.particle && (p.x - t.x).hypot(p.y - t.y) <= style.radius
+            });
+            let cut = outcome
+                .stats
+                .cut_by_border
+                .iter()
+                .any(|(name, frame)| *name == t.particle && *frame == t.frame);
+            let ambiguous = outcome.stats.ambiguities.iter().any(|a| {
+                a.particles.contains(&t.particle) && (a.first_frame..=a.last_frame).contains(&t.frame)
+            });
+            !(found || cut || ambiguous)
+        })
+        .count();
     row
 }
 
