@@ -26,9 +26,10 @@
 //!   frames (see [`MAX_RIM_SCATTER_SIGMAS`]).
 //! * **Unseen.** A named particle detected in fewer than half its frames is not followed.
 //! * **Jumped.** A particle's image moves continuously, so between two detected points the
-//!   track moves, per frame, about as fast as it moves just before and just after: a step
-//!   per frame more than [`JUMP_FACTOR`] times the faster of those two steps plus the
-//!   particle's diameter leaves the particle for another image ([`jumped`]).
+//!   track moves, per frame, about as fast as it moves before and after: a move
+//!   over `g` frames longer than `g` times [`JUMP_FACTOR`] times the faster of those two
+//!   steps, plus the particle's diameter, leaves the particle for another image
+//!   ([`jumped`]).
 //! * **Lost inside the image.** A track with frames missing between two of its points (the
 //!   particle lost, bridged no farther, and found again) whose points either side lie too far
 //!   inside the image for the particle to have left it and come back in those frames, at
@@ -189,14 +190,14 @@ pub(crate) enum Concern {
         /// Runs of four consecutive detected frames measured.
         count: usize,
     },
-    /// The track moves between two of its detected points far faster than just before and
-    /// just after: it left its particle for another image.
+    /// The track moves between two of its detected points far faster than before and after:
+    /// it left its particle for another image.
     Jumped {
         /// The frames of the two points.
         frames: (usize, usize),
         /// The step between them per frame, px.
         step: f64,
-        /// The faster of the steps between consecutive detected frames just before and just
+        /// The faster of the nearest steps between consecutive detected frames before and
         /// after (one at least), px per frame.
         around: f64,
         /// The radius in use, px.
@@ -306,15 +307,34 @@ impl std::fmt::Display for TrackConcern {
                 step,
                 around,
                 radius,
-            } => write!(
+            } if frames.1 == frames.0 + 1 => write!(
                 f,
-                "{p}: it moves {step:.1} px a frame from frame {} to frame {}, against {around:.1} px a frame just \
-                 before and after; more than {JUMP_FACTOR} times that plus its diameter ({:.1} px at the radius \
+                "{p}: it moves {step:.1} px a frame from frame {} to frame {}, against {around:.1} px a frame before \
+                 and after; more than {JUMP_FACTOR} times that plus its diameter ({:.1} px at the radius \
                  {radius:.2} px in use) is no motion of one particle: the track left its particle for another image",
                 frames.0,
                 frames.1,
                 2.0 * radius
             ),
+            Concern::Jumped {
+                frames,
+                step,
+                around,
+                radius,
+            } => {
+                let gap = frames.1 - frames.0;
+                write!(
+                    f,
+                    "{p}: it moves {:.1} px from frame {} to frame {} ({step:.1} px a frame over {gap} frames), \
+                     against {around:.1} px a frame before and after; more than {JUMP_FACTOR} times that over \
+                     those frames plus its diameter ({:.1} px at the radius {radius:.2} px in use) is no motion of \
+                     one particle: the track left its particle for another image",
+                    step * gap as f64,
+                    frames.0,
+                    frames.1,
+                    2.0 * radius
+                )
+            }
             Concern::SharedImage {
                 other,
                 frames,
@@ -468,9 +488,9 @@ const JUMP_FACTOR: f64 = 3.0;
 
 /// [`Concern::Jumped`] at the largest step per frame between two detected points of
 /// `points` (one track, frame order; frames missing between them allowed) that exceeds
-/// [`JUMP_FACTOR`] times the faster of the steps between consecutive detected frames just
-/// before it and just after it (one at least measured), plus the diameter of a particle of
-/// radius `radius` (px). A continuous motion's step over a frame lies between the steps
+/// [`JUMP_FACTOR`] times the faster of the nearest steps between consecutive detected frames
+/// before it and after it (one at least measured), plus the diameter of a particle of
+/// radius `radius` (px) spread over the frames between the two points. A continuous motion's step over a frame lies between the steps
 /// either side of it, give or take its acceleration: a bounce reverses the step but keeps its
 /// size, a kick from rest is followed by steps as large as the kick's, and a frame lost from
 /// the recording doubles one step. The diameter covers a slow particle's noise and the
@@ -491,12 +511,20 @@ fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
         ((b.x - a.x).hypot(b.y - a.y) / frames, b.frame == a.frame + 1)
     };
     let steps: Vec<(f64, bool)> = (0..detected.len().saturating_sub(1)).map(step).collect();
-    // Each step beyond its bound, with the faster of its consecutive neighbours.
+    // Each step beyond its bound, with the faster of its consecutive neighbours. Over a gap
+    // of `g` frames the particle may cover `g` such steps, and the diameter once: the
+    // detector's slop does not grow with the gap (fresh style 6165: a spot lost for 11
+    // frames was found again on another image 122 px away, 10 px a frame against 1.2
+    // before, under the bound of 17 px a frame that the diameter alone gave).
     let jumps = steps.iter().enumerate().filter_map(|(i, &(s, _))| {
-        let before = i.checked_sub(1).map(|j| steps[j]).filter(|q| q.1).map(|q| q.0);
-        let after = steps.get(i + 1).filter(|q| q.1).map(|q| q.0);
+        // The nearest steps between consecutive frames on either side: two points found
+        // after a gap on two other images make a step with no consecutive neighbour (fresh
+        // 6165: 39 px in a frame between them, after the spot had moved 0.2-1.8 px a frame).
+        let before = steps[..i].iter().rev().find(|q| q.1).map(|q| q.0);
+        let after = steps[i + 1..].iter().find(|q| q.1).map(|q| q.0);
         let around = before.into_iter().chain(after).reduce(f64::max)?;
-        (s > JUMP_FACTOR * around + 2.0 * radius).then_some((i, s, around))
+        let gap = (detected[i + 1].frame - detected[i].frame) as f64;
+        (s > JUMP_FACTOR * around + 2.0 * radius / gap).then_some((i, s, around))
     });
     jumps
         .max_by(|a, b| a.1.total_cmp(&b.1))
@@ -1329,7 +1357,9 @@ mod tests {
     }
 
     /// A track moving 1.5 px a frame that, lost for a frame, goes on 125 px away has left its
-    /// particle, and says where; a thrown ball's bounce, a kick from rest, a frame lost from
+    /// particle, and says where, and so have one lost for 11 frames and found 124 px away at
+    /// 1.2 px a frame, and one found after a gap on two images 39 px apart in consecutive
+    /// frames; one lost for 8 frames and found on its motion, a thrown ball's bounce, a kick from rest, a frame lost from
     /// the recording and a random walk of 0.5-3 px a frame at a radius of 1.5 px have not.
     #[test]
     fn a_track_taking_another_image_far_off_jumped_and_motions_did_not() {
@@ -1372,6 +1402,46 @@ mod tests {
             judged(&later, 9.3),
             Some(Concern::Jumped { frames: (10, 14), .. })
         ));
+        // Moving 1.2 px a frame, lost for 11 frames and found again on another image 124 px
+        // away: 10.3 px a frame, under the 17.4 px a frame the diameter alone allowed, but
+        // over 12 frames the diameter counts once: a jump.
+        let far = track(&|k| match k {
+            0..=3 => Some([50.0 - 1.2 * k as f64, 72.0]),
+            4..=14 => None,
+            _ => Some([162.0, 117.0]),
+        });
+        let concern = judged(&far, 6.9);
+        assert!(
+            matches!(concern, Some(Concern::Jumped { frames: (3, 15), .. })),
+            "{concern:?}"
+        );
+        let said = TrackConcern {
+            particle: "p0".into(),
+            concern: concern.unwrap(),
+        }
+        .to_string();
+        assert!(said.contains("over 12 frames"), "{said}");
+        // Moving 3 px a frame, lost for 8 frames and found where its motion puts it: none.
+        let hidden = track(&|k| (!(6..=13).contains(&k)).then_some([3.0 * k as f64, 40.0]));
+        assert_eq!(judged(&hidden, 2.0), None);
+        // Moving 0.2-1.8 px a frame, lost for 11 frames, then found on two other images 39 px
+        // apart in consecutive frames: that step has no consecutive neighbour, and the
+        // nearest before it is 1.2 px a frame: a jump.
+        let two_others = track(&|k| match k {
+            0..=4 => Some([52.0 - 1.2 * k as f64, 72.0]),
+            5..=13 => None,
+            14 => Some([162.5, 117.4]),
+            15 => Some([162.9, 78.6]),
+            _ => None,
+        });
+        assert!(
+            matches!(
+                judged(&two_others, 6.9),
+                Some(Concern::Jumped { frames: (14, 15), .. })
+            ),
+            "{:?}",
+            judged(&two_others, 6.9)
+        );
         // A ball of 5 px falling 17 px a frame at 30 frames/s, bouncing back at 15.
         let bounce = track(&|k| {
             let t = k as f64;
