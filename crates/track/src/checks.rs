@@ -1386,12 +1386,15 @@ mod tests {
             (step - 61.5).abs() < 0.01 && (around - 2.06).abs() < 0.01,
             "{step} {around}"
         );
-        let said = TrackConcern {
-            particle: "p0".into(),
-            concern: concern.unwrap(),
-        }
-        .to_string();
-        assert!(said.contains("from frame 10 to frame 12"), "{said}");
+        let said = |concern: Option<Concern>| {
+            TrackConcern {
+                particle: "p0".into(),
+                concern: concern.expect("a concern"),
+            }
+            .to_string()
+        };
+        let message = said(concern);
+        assert!(message.contains("from frame 10 to frame 12"), "{message}");
         // The same, lost for two frames more: still a jump (its step per frame is 31 px).
         let later = track(&|k| match k {
             0..=10 => Some([210.0 + 1.5 * k as f64, 100.0]),
@@ -1415,12 +1418,8 @@ mod tests {
             matches!(concern, Some(Concern::Jumped { frames: (3, 15), .. })),
             "{concern:?}"
         );
-        let said = TrackConcern {
-            particle: "p0".into(),
-            concern: concern.unwrap(),
-        }
-        .to_string();
-        assert!(said.contains("over 12 frames"), "{said}");
+        let message = said(concern);
+        assert!(message.contains("over 12 frames"), "{message}");
         // Moving 3 px a frame, lost for 8 frames and found where its motion puts it: none.
         let hidden = track(&|k| (!(6..=13).contains(&k)).then_some([3.0 * k as f64, 40.0]));
         assert_eq!(judged(&hidden, 2.0), None);
