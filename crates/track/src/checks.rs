@@ -307,29 +307,24 @@ impl std::fmt::Display for TrackConcern {
                 step,
                 around,
                 radius,
-            } if frames.1 == frames.0 + 1 => write!(
-                f,
-                "{p}: it moves {step:.1} px a frame from frame {} to frame {}, against {around:.1} px a frame before \
-                 and after; more than {JUMP_FACTOR} times that plus its diameter ({:.1} px at the radius \
-                 {radius:.2} px in use) is no motion of one particle: the track left its particle for another image",
-                frames.0,
-                frames.1,
-                2.0 * radius
-            ),
-            Concern::Jumped {
-                frames,
-                step,
-                around,
-                radius,
             } => {
+                // Over a gap, the whole move and its rate; between consecutive frames, the step.
                 let gap = frames.1 - frames.0;
+                let (moves, over) = if gap == 1 {
+                    (format!("{step:.1} px a frame"), String::new())
+                } else {
+                    (
+                        format!("{:.1} px", step * gap as f64),
+                        format!(" ({step:.1} px a frame over {gap} frames)"),
+                    )
+                };
+                let those = if gap == 1 { "" } else { " over those frames" };
                 write!(
                     f,
-                    "{p}: it moves {:.1} px from frame {} to frame {} ({step:.1} px a frame over {gap} frames), \
-                     against {around:.1} px a frame before and after; more than {JUMP_FACTOR} times that over \
-                     those frames plus its diameter ({:.1} px at the radius {radius:.2} px in use) is no motion of \
-                     one particle: the track left its particle for another image",
-                    step * gap as f64,
+                    "{p}: it moves {moves} from frame {} to frame {}{over}, against {around:.1} px a frame between \
+                     the consecutive frames nearest it; more than {JUMP_FACTOR} times that{those} plus its diameter \
+                     ({:.1} px at the radius {radius:.2} px in use) is no motion of one particle: the track left its \
+                     particle for another image",
                     frames.0,
                     frames.1,
                     2.0 * radius

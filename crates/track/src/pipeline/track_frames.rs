@@ -335,48 +335,45 @@ fn track_frames(
     // Named particles that move less than their size over the samples leave part of
     // themselves in the per-pixel median where the first blobs missed them; the tracks say
     // where every particle was in every sample, so the median is taken again without them.
-    // The samples' exposure gains, against which the masses are compared.
-    let gains =
-        starts.map(|_| SampleGains::measure(&background, &views(&sample_frames), &sample_of, &numbers));
-    for _ in 0..EXCLUSION_ROUNDS {
-        let Some(cleaner) = gains.as_ref().and_then(|gains| {
-            background_without_tracks(
+    if starts.is_some() && background.model == BackgroundModel::PerPixel {
+        // The samples' exposure gains, against which the masses are compared.
+        let gains = SampleGains::measure(&background, &views(&sample_frames), &sample_of, &numbers);
+        for _ in 0..EXCLUSION_ROUNDS {
+            let Some(cleaner) = background_without_tracks(
                 &background,
                 &views(&sample_frames),
-                gains,
+                &gains,
                 &pass,
                 largest_radius(&classes),
                 exclusion_reach(&classes),
                 blind_search,
-            )
-        }) else {
-            break;
-        };
-        // The sizes, unless given, were measured with the particles partly in the median:
-        // they are measured again without them (fresh style 6237, a disc of 34.5 px: 25.9 px
-        // with part of it in the median, 34.2 px without).
-        let remeasured = options
-            .radius
-            .is_none()
-            .then(|| SizeClass::measure_all(&cleaner, &views(&sample_frames), None, starts, None, &workers));
-        let second = stage.locate_and_link(
-            &cleaner,
-            remeasured.as_deref().unwrap_or(&classes),
-            Surround::Ignore,
-            progress,
-        )?;
-        // A clean background leaves each particle's integrated signal steady along its
-        // track; the particle itself in the median makes it swell and fade.
-        let steadier = gains
-            .as_ref()
-            .is_some_and(|g| mass_spread(&second.table, g) < mass_spread(&pass.table, g));
-        if !second.concerns.is_empty() || !steadier {
-            break;
-        }
-        pass = second;
-        background = cleaner;
-        if let Some(remeasured) = remeasured {
-            classes = remeasured;
+            ) else {
+                break;
+            };
+            // The sizes, unless given, were measured with the particles partly in the median:
+            // they are measured again without them (fresh style 6237, a disc of 34.5 px: 25.9
+            // px with part of it in the median, 34.2 px without).
+            let remeasured = options.radius.is_none().then(|| {
+                SizeClass::measure_all(&cleaner, &views(&sample_frames), None, starts, None, &workers)
+            });
+            let second = stage.locate_and_link(
+                &cleaner,
+                remeasured.as_deref().unwrap_or(&classes),
+                Surround::Ignore,
+                progress,
+            )?;
+            // A clean background leaves each particle's integrated signal steady along its
+            // track; the particle itself in the median makes it swell and fade.
+            if !second.concerns.is_empty()
+                || mass_spread(&second.table, &gains) >= mass_spread(&pass.table, &gains)
+            {
+                break;
+            }
+            pass = second;
+            background = cleaner;
+            if let Some(remeasured) = remeasured {
+                classes = remeasured;
+            }
         }
     }
     let background = background;

@@ -63,11 +63,10 @@ pub(super) fn background_without_tracks(
     {
         return None;
     }
-    let index: HashMap<usize, usize> = gains.by_frame.iter().map(|(&k, &(j, _))| (k, j)).collect();
     let mut at: Vec<Vec<[f64; 2]>> = vec![Vec::new(); samples.len()];
     let mut points: Vec<(usize, &TrackPoint)> = Vec::new();
     for p in &pass.table.points {
-        if let Some(&j) = index.get(&p.frame) {
+        if let Some(j) = gains.sample(p.frame) {
             at[j].push([p.x, p.y]);
             points.push((j, p));
         }
@@ -80,7 +79,7 @@ pub(super) fn background_without_tracks(
     // the background is 12, and the disc followed 12 px off its centre).
     for track in pass.table.by_particle().values() {
         let held: std::collections::HashSet<usize> = track.iter().map(|p| p.frame).collect();
-        for (&frame, &j) in &index {
+        for (&frame, &(j, _)) in &gains.by_frame {
             if let Some(p) = position_at(track, frame).filter(|_| !held.contains(&frame)) {
                 at[j].push(p);
             }
@@ -101,7 +100,7 @@ pub(super) fn background_without_tracks(
     for (point, (_, p)) in predicted
         .points
         .iter_mut()
-        .filter(|q| index.contains_key(&q.frame))
+        .filter(|q| gains.sample(q.frame).is_some())
         .zip(&points)
     {
         let (mass, moment) = signal_change(background, &cleaner, [p.x, p.y], radius);
@@ -144,29 +143,33 @@ pub(super) struct SampleGains {
 
 impl SampleGains {
     /// The gains of `samples` against `background`; `sample_of[i]` is the sample that holds
-    /// frame `numbers[i]`, if one does.
+    /// frame `numbers[i]`, if one does. Where the exposure saturates the background, every
+    /// gain is 1: the particles' light against clipped pixels does not follow the gain.
     pub(super) fn measure(
         background: &Background,
         samples: &[FrameView<'_>],
         sample_of: &[Option<usize>],
         numbers: &[usize],
     ) -> Self {
+        let saturates = background.exposure_saturates();
+        let gain = |j: usize| {
+            if saturates {
+                1.0
+            } else {
+                background.frame_gain(samples[j]) / background.reference_gain
+            }
+        };
         let by_frame = numbers
             .iter()
             .zip(sample_of)
-            .filter_map(|(&k, j)| {
-                j.map(|j| {
-                    // Where the exposure saturates, the particles' light does not follow it.
-                    let gain = if background.exposure_saturates() {
-                        1.0
-                    } else {
-                        background.frame_gain(samples[j]) / background.reference_gain
-                    };
-                    (k, (j, gain))
-                })
-            })
+            .filter_map(|(&k, j)| j.map(|j| (k, (j, gain(j)))))
             .collect();
         Self { by_frame }
+    }
+
+    /// The sample that holds frame `frame`, if one does.
+    fn sample(&self, frame: usize) -> Option<usize> {
+        self.by_frame.get(&frame).map(|&(j, _)| j)
     }
 }
 
