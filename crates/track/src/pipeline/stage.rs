@@ -9,7 +9,7 @@ use super::skirts::sample_skirts;
 use super::spikes::bridge_spikes;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
-use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images};
+use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images, Concern, TrackConcern};
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -26,11 +26,28 @@ pub(super) struct Pass {
     pub(super) ambiguities: Vec<Ambiguity>,
     pub(super) warnings: Vec<String>,
     pub(super) relocated: Relocated,
-    /// Each track's concern, with the radius of its class, px.
-    pub(super) concerns: Vec<(String, f64)>,
+    /// Each track's concern.
+    pub(super) concerns: Vec<PassConcern>,
     /// The particle and frame of each point not written because the particle was cut by the
     /// image border (see `border`).
     pub(super) cut_by_border: BTreeSet<(String, usize)>,
+}
+
+/// A track's concern, worded for the user.
+pub(super) struct PassConcern {
+    pub(super) text: String,
+    /// Whether it is that the particle's signal reaches beyond the radius in use
+    /// ([`Concern::Larger`]), which a particle left in a per-pixel median raises too.
+    pub(super) skirt: bool,
+}
+
+impl PassConcern {
+    fn of(c: &TrackConcern) -> PassConcern {
+        PassConcern {
+            text: c.to_string(),
+            skirt: matches!(c.concern, Concern::Larger { .. }),
+        }
+    }
 }
 
 /// The inputs every pass of locating and linking shares.
@@ -207,7 +224,7 @@ impl Stage<'_> {
                 check_tracks(&class_table, class.sizes.radius, skirts, &located)
                     .iter()
                     .chain(&lost)
-                    .map(|c| (c.to_string(), class.sizes.radius)),
+                    .map(PassConcern::of),
             );
             // Points of particles cut by the image border are not written (see `border`); they
             // served as neighbours and in the checks above.
@@ -222,13 +239,7 @@ impl Stage<'_> {
         if classes.len() > 1 {
             // Classes are linked apart: a track of one may have taken another's image.
             let (shared, overlaps) = shared_images(&table, &class_tracks);
-            let radius_of = |name: &str| {
-                class_tracks
-                    .iter()
-                    .find(|(_, names)| names.iter().any(|n| n == name))
-                    .map_or(f64::NAN, |c| c.0)
-            };
-            concerns.extend(shared.iter().map(|c| (c.to_string(), radius_of(&c.particle))));
+            concerns.extend(shared.iter().map(PassConcern::of));
             warnings.extend(overlaps);
         }
         if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {

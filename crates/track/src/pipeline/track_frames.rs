@@ -429,7 +429,7 @@ fn track_frames(
     if !concerns.is_empty() {
         if options.named_start.is_some() {
             let radii: Vec<String> = classes.iter().map(|c| format!("{:.2}", c.sizes.radius)).collect();
-            let mut concerns: Vec<String> = concerns.into_iter().map(|c| c.0).collect();
+            let mut concerns: Vec<String> = concerns.into_iter().map(|c| c.text).collect();
             concerns.push(format!(
                 "no tracks written: if the particles are larger or smaller than {} px in radius, give it with \
                  --radius; if they are held or hidden in the first frames (a hand), start after that with --window",
@@ -437,7 +437,7 @@ fn track_frames(
             ));
             return Err(TrackError::NotFollowed { concerns });
         }
-        warnings.extend(concerns.into_iter().map(|c| c.0));
+        warnings.extend(concerns.into_iter().map(|c| c.text));
     }
     warnings.extend(
         ambiguities

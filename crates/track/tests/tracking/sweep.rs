@@ -451,10 +451,18 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
 /// silhouette and a point off its track's path bridged, `pipeline/spikes.rs`; it was refused
 /// from session 26, when the frame's gain came to be read from its unclipped pixels, and is
 /// followed again (0.38 / 1.14 px against 0.51 / 1.18) since the radius's edge is the
-/// steepest two-ring fall above the noise, `pipeline/radius.rs`.)
+/// steepest two-ring fall above the noise, `pipeline/radius.rs`.) 1002 (seven bright rings
+/// of 6.5 px under a gradient, no noise; three of them rejected as specks in frames 0-10, the
+/// median extent of the named blobs swollen by the light's offset regions) since the speck
+/// test holds the smallest named blob's extent to half of it (`pipeline/radius.rs`); 1033
+/// (dark textured balls of 3.9 and 9.8 px under a saturating exposure drift; a small one
+/// hovers for ten frames, and against a median holding it its skirt read 26 % of its level)
+/// since a pass refused for skirts alone is located again on the median taken without its
+/// tracks (`pipeline/tracks_background.rs`).
 const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1012, 1013, 1014, 1015, 1016, 1017, 1018,
-    1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1032, 1034, 1035, 1036, 1037, 1038, 1039,
+    1000, 1001, 1002, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1012, 1013, 1014, 1015, 1016, 1017,
+    1018, 1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1032, 1033, 1034, 1035, 1036, 1037,
+    1038, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -475,8 +483,8 @@ fn styles_followed_today_stay_followed() {
     assert!(failed.is_empty(), "\n{HEADER}\n{}", failed.join("\n"));
 }
 
-/// The synth styles the tracker refuses today with an error (rings 1002, 1011 and 1031; a
-/// saturating exposure 1033; noise a third of the contrast 1025): each must be
+/// The synth styles the tracker refuses today with an error (rings 1011 and 1031; noise a
+/// third of the contrast 1025): each must be
 /// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
 /// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
 /// 0.51 / 1.18) was written wrong until the skirt's magnitude counted, then followed from
@@ -484,7 +492,7 @@ fn styles_followed_today_stay_followed() {
 /// unclipped pixels, its small sphere was lost at frame 11 and its track took the large
 /// one's highlight, 125 px away: refused as a jump (`checks.rs`); followed since session 28
 /// (see [`FOLLOWED_SYNTH`]).
-const REFUSED_SYNTH: &[u64] = &[1002, 1011, 1025, 1031, 1033];
+const REFUSED_SYNTH: &[u64] = &[1011, 1025, 1031];
 
 /// The table lines of the synth styles `seeds` whose rows are not `ok`, each with the
 /// particles off their tolerance that no warning names.
@@ -517,7 +525,7 @@ fn styles_warned_today_are_warned_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 6 of 48 styles fail (rings, saturating exposure, a textured ball under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 4 of 48 styles fail (rings, a textured ball under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
