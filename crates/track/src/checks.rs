@@ -120,8 +120,6 @@ pub(crate) struct Skirt {
     pub(crate) rim: Option<Rim>,
     /// The point's own standard error on one axis (its `ep`), px.
     pub(crate) point_error: f64,
-    /// The fraction of the ring's pixels at the clip level in the frame ([`clipped_ring`]).
-    pub(crate) clipped: f64,
 }
 
 /// Why a track does not follow one particle.
@@ -781,21 +779,16 @@ pub(crate) fn clipped_ring(frame: &FrameView<'_>, p: [f64; 2], radius: f64) -> f
 /// is taken as cut off by saturated light ([`saturated_edges`]).
 pub(crate) const CLIPPED_RING: f64 = 0.05;
 
-/// Warnings for the tracks whose particles have saturated light round them in some of the
-/// frames their skirts were measured in (`skirts`, from [`skirts`] with
-/// [`Skirt::clipped`] set): at least [`CLIPPED_RING`] of the ring from `radius + 1` to
-/// `2 radius + 1` px at the clip level. There the particle's edge is cut off where the light
+/// Warnings for the tracks whose particles have saturated light round them in some frames
+/// (`clipping`: by particle, frame and [`clipped_ring`] each): at least [`CLIPPED_RING`] of
+/// the ring from `radius + 1` to `2 radius + 1` px at the clip level. There the particle's edge is cut off where the light
 /// is brightest, so its centroid leans away from the light, by an amount the frames no
 /// longer hold (sweep style 4023 drawn as Gaussian spots, a blurred dark spot on a light
 /// background saturating with the exposure: 0.48 / 0.38 px RMS, tolerance 0.09 / 0.06).
-pub(crate) fn saturated_edges(skirts: &BTreeMap<String, Vec<(usize, Skirt)>>, radius: f64) -> Vec<String> {
+pub(crate) fn saturated_edges(clipping: &BTreeMap<String, Vec<(usize, f64)>>, radius: f64) -> Vec<String> {
     let mut out = Vec::new();
-    for (particle, measured) in skirts {
-        let cut: Vec<(usize, f64)> = measured
-            .iter()
-            .filter(|(_, s)| s.clipped >= CLIPPED_RING)
-            .map(|(k, s)| (*k, s.clipped))
-            .collect();
+    for (particle, measured) in clipping {
+        let cut: Vec<(usize, f64)> = measured.iter().copied().filter(|c| c.1 >= CLIPPED_RING).collect();
         if cut.is_empty() {
             continue;
         }
@@ -919,7 +912,6 @@ pub(crate) fn skirts(
                 },
                 rim: None,
                 point_error: 0.0,
-                clipped: 0.0,
             })
         })
         .collect()
@@ -1079,7 +1071,6 @@ mod tests {
             inner: 1.0,
             rim: None,
             point_error: 0.0,
-            clipped: 0.0,
         };
         let mut skirts = BTreeMap::new();
         skirts.insert(
@@ -1151,7 +1142,6 @@ mod tests {
                         radius: 9.0,
                     }),
                     point_error: 0.04,
-                    clipped: 0.0,
                 },
             )
         };
@@ -1223,23 +1213,10 @@ mod tests {
             height: h,
         };
         assert!(clipped_ring(&unclipped, [20.0, 15.0], 4.0).abs() < 1e-12);
-        let skirt = |clipped: f64| Skirt {
-            level: 0.0,
-            lopsided: 0.0,
-            elongated: 0.0,
-            magnitude: 0.0,
-            inner: 1.0,
-            rim: None,
-            point_error: 0.01,
-            clipped,
-        };
-        let mut skirts = BTreeMap::new();
-        skirts.insert(
-            "a".to_string(),
-            vec![(0, skirt(0.0)), (3, skirt(cut)), (6, skirt(0.01))],
-        );
-        skirts.insert("b".to_string(), vec![(0, skirt(0.0)), (3, skirt(0.0))]);
-        let warnings = saturated_edges(&skirts, 4.0);
+        let mut clipping = BTreeMap::new();
+        clipping.insert("a".to_string(), vec![(0, 0.0), (3, cut), (6, 0.01)]);
+        clipping.insert("b".to_string(), vec![(0, 0.0), (3, 0.0)]);
+        let warnings = saturated_edges(&clipping, 4.0);
         assert_eq!(warnings.len(), 1, "{warnings:?}");
         assert!(
             warnings[0].starts_with("a: the light round it is saturated in frames 3 (up to"),

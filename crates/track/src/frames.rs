@@ -404,6 +404,14 @@ impl FrameView<'_> {
         }
     }
 
+    /// Returns true if and only if some pixel holds the clip level ([`FrameView::clipped_at`]).
+    pub(crate) fn any_clipped(&self) -> bool {
+        match self {
+            FrameView::Grey8 { samples, .. } => samples.contains(&u8::MAX),
+            FrameView::Frame(f) => f.data.iter().any(|&v| v >= CLIPPED),
+        }
+    }
+
     /// Width and height, px.
     pub fn size(&self) -> (usize, usize) {
         match self {

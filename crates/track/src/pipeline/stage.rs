@@ -5,7 +5,7 @@ use super::finder::{Parts, Surround, Workers};
 use super::options::TrackOptions;
 use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
-use super::skirts::sample_skirts;
+use super::skirts::{sample_clipping, sample_skirts};
 use super::spikes::bridge_spikes;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
@@ -213,7 +213,8 @@ impl Stage<'_> {
             } else {
                 &located
             };
-            warnings.extend(saturated_edges(skirts, class.sizes.radius));
+            let clipping = sample_clipping(&class_table, frames, class.sizes.radius);
+            warnings.extend(saturated_edges(&clipping, class.sizes.radius));
             // Unnamed tracks end once lost (a particle found again starts a new one): only named
             // tracks can be lost and found again.
             let lost = match named {

@@ -919,6 +919,18 @@ fn a_large_noisy_sphere_is_measured_to_its_silhouette() {
     assert_passed(&synth_row(6629));
 }
 
+/// Two dark Gaussian spots of 16.6 px under vignetting and an exposure drift of ±0.12 that
+/// saturates the light round them in frames 10 and 11 only, 6-10 % of each ring (style 6171,
+/// beyond the sweep's seeds): their edges there are cut off where the light is brightest, and
+/// their points 0.5 px off, 1.3 times the tolerance. The skirts are measured in frames 0, 3,
+/// 6, 9, 12 and 15, and the saturation warning read them alone: nothing was said. The light
+/// round each point is now read in every sample frame, and both spots are named.
+#[test]
+fn light_saturating_between_the_skirts_frames_is_named() {
+    let row = synth_row(6171);
+    assert!(row.followed_refused_or_warned(), "\n{HEADER}\n{}", row.line());
+}
+
 /// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
 /// 0.20 and no noise (style 4006 drawn as spots): the tracked spots are taken out of the
 /// per-pixel median as far as their skirts stand above the noise, not `2R + 1`, and are
