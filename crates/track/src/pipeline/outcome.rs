@@ -47,6 +47,12 @@ pub struct TrackStats {
     /// the image border (its centre within the radius in use of the edge: the centroid of
     /// the part in view leans inward), by particle then frame; a warning names them too.
     pub cut_by_border: Vec<(String, usize)>,
+    /// The particle and frame of each point of a ring (a hollow particle) whose rim was not
+    /// found in that frame, by particle then frame: placed from the motion of its rim's
+    /// centre in the frames around it (flagged interpolated, `ep` unknown), or, with too few
+    /// such frames, left at its centroid, which can lie the rim's width or more off the
+    /// ring's centre; a warning names them too.
+    pub rim_not_found: Vec<(String, usize)>,
 }
 
 impl TrackStats {

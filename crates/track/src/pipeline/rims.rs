@@ -65,8 +65,7 @@ const RIM_RADIUS_SIGMAS: f64 = 5.0;
 /// 14 px: a last point left 8.5 px off at its centroid, the ring whole and plain to see).
 /// The linker's bridges over frames the particle was not seen in are searched for in the same
 /// pass ([`replace_bridges`]); points whose rim is still not found are placed from that
-/// motion instead ([`bridge_unrimmed`]). Returns how many moved and a warning per particle with
-/// points placed so, naming them.
+/// motion instead ([`bridge_unrimmed`]).
 pub(super) fn centre_on_rims(
     table: &mut TrackTable,
     hollow: &BTreeSet<String>,
@@ -74,9 +73,9 @@ pub(super) fn centre_on_rims(
     background: &Background,
     radius: f64,
     workers: &Workers,
-) -> Result<(usize, Vec<String>), TrackError> {
+) -> Result<RimsCentred, TrackError> {
     if hollow.is_empty() {
-        return Ok((0, Vec::new()));
+        return Ok(RimsCentred::default());
     }
     let reach = RIM_REACH * radius + 2.0;
     let detected = |p: &TrackPoint| p.flag == PointFlag::Detected && hollow.contains(&p.particle);
@@ -116,9 +115,29 @@ pub(super) fn centre_on_rims(
     let unrimmed: Vec<usize> = (0..table.points.len())
         .filter(|&i| !rimmed[i] && detected(&table.points[i]))
         .collect();
+    let not_found = unrimmed
+        .iter()
+        .map(|&i| (table.points[i].particle.clone(), table.points[i].frame))
+        .collect();
     let warnings = bridge_unrimmed(table, &unrimmed, &rimmed);
     replace_bridges(table, &bridges, &found_bridges);
-    Ok((moved, warnings))
+    Ok(RimsCentred {
+        moved,
+        warnings,
+        not_found,
+    })
+}
+
+/// What [`centre_on_rims`] did.
+#[derive(Debug, Default)]
+pub(super) struct RimsCentred {
+    /// Points moved to their rim's centre.
+    pub(super) moved: usize,
+    /// One warning per particle with detected points whose rim was not found, naming them.
+    pub(super) warnings: Vec<String>,
+    /// The particle and frame of each of those points: placed from the motion of its rim's
+    /// centre (flagged interpolated), or left at its centroid, unchecked.
+    pub(super) not_found: Vec<(String, usize)>,
 }
 
 /// The rims found about each search start `(point index, [x, y])` of `table` (the frame's

@@ -31,6 +31,9 @@ pub(super) struct Pass {
     /// The particle and frame of each point not written because the particle was cut by the
     /// image border (see `border`).
     pub(super) cut_by_border: BTreeSet<(String, usize)>,
+    /// The particle and frame of each written point of a ring whose rim was not found there
+    /// (see `rims`).
+    pub(super) rim_not_found: BTreeSet<(String, usize)>,
 }
 
 /// A track's concern, worded for the user.
@@ -124,6 +127,7 @@ impl Stage<'_> {
         let mut relocated = Relocated::default();
         let mut concerns = Vec::new();
         let mut cut_by_border = BTreeSet::new();
+        let mut rim_not_found = BTreeSet::new();
         // Each class's radius and its tracks' particles.
         let mut class_tracks: Vec<(f64, Vec<String>)> = Vec::with_capacity(classes.len());
         for (class, located) in classes.iter().zip(&by_class) {
@@ -197,7 +201,7 @@ impl Stage<'_> {
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
-            let (moved, unrimmed) = centre_on_rims(
+            let rims = centre_on_rims(
                 &mut class_table,
                 &hollow,
                 frames,
@@ -205,9 +209,9 @@ impl Stage<'_> {
                 class.sizes.radius,
                 workers,
             )?;
-            warnings.extend(unrimmed);
+            warnings.extend(rims.warnings);
             let remeasured;
-            let skirts = if moved > 0 {
+            let skirts = if rims.moved > 0 {
                 remeasured = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
                 &remeasured
             } else {
@@ -232,6 +236,7 @@ impl Stage<'_> {
             let (border, dropped) = drop_cut_by_border(&mut class_table, class.sizes.radius, size);
             warnings.extend(border);
             forget_dropped_bridges(&mut class_ambiguities, &dropped);
+            rim_not_found.extend(rims.not_found.into_iter().filter(|p| !dropped.contains(p)));
             cut_by_border.extend(dropped);
             class_tracks.push((class.sizes.radius, class_table.particle_ids()));
             table.points.extend(class_table.points);
@@ -261,6 +266,7 @@ impl Stage<'_> {
             relocated,
             concerns,
             cut_by_border,
+            rim_not_found,
         })
     }
 }

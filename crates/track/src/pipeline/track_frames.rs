@@ -404,6 +404,7 @@ fn track_frames(
         relocated,
         concerns,
         cut_by_border,
+        rim_not_found,
     } = pass;
     let total = numbers.len();
     let mut warnings = Vec::new();
@@ -471,6 +472,7 @@ fn track_frames(
         dark_on_light: background.is_dark_on_light(),
         median_ep: median(&mut eps),
         cut_by_border: cut_by_border.into_iter().collect(),
+        rim_not_found: rim_not_found.into_iter().collect(),
     };
     Ok(TrackOutcome {
         table,
