@@ -820,6 +820,12 @@ fn assert_passed(row: &Row) {
     assert!(row.passed(), "\n{HEADER}\n{}", row.line());
 }
 
+/// Asserts that `row` was followed, refused, or warned of (see
+/// [`Row::followed_refused_or_warned`]), printing its line of the table.
+fn assert_not_silent(row: &Row) {
+    assert!(row.followed_refused_or_warned(), "\n{HEADER}\n{}", row.line());
+}
+
 /// Seven dark dots of 1.6 px on a 60 x 56 frame under a gradient (0.09) and a changing
 /// exposure (±0.11), no noise (style 6001, beyond the sweep's seeds): against the constant
 /// level, half the frame stood above the noise mask, and the dots there shared that region as
@@ -928,8 +934,7 @@ fn a_large_noisy_sphere_is_measured_to_its_silhouette() {
 /// round each point is now read in every sample frame, and both spots are named.
 #[test]
 fn light_saturating_between_the_skirts_frames_is_named() {
-    let row = synth_row(6171);
-    assert!(row.followed_refused_or_warned(), "\n{HEADER}\n{}", row.line());
+    assert_not_silent(&synth_row(6171));
 }
 
 /// Rings of 1.8 px under noise 16.9 (style 6496, beyond the sweep's seeds): in one frame a
@@ -939,8 +944,7 @@ fn light_saturating_between_the_skirts_frames_is_named() {
 /// point is now listed in `TrackStats::rim_not_found` too.
 #[test]
 fn a_ring_point_whose_rim_was_not_found_is_listed() {
-    let row = synth_row(6496);
-    assert!(row.followed_refused_or_warned(), "\n{HEADER}\n{}", row.line());
+    assert_not_silent(&synth_row(6496));
 }
 
 /// Gaussian spots of 12 px (half-maximum radius), dark, blurred by 2.5 px, under vignetting
