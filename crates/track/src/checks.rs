@@ -781,9 +781,9 @@ pub(crate) const CLIPPED_RING: f64 = 0.05;
 
 /// Warnings for the tracks whose particles have saturated light round them in some frames
 /// (`clipping`: by particle, frame and [`clipped_ring`] each): at least [`CLIPPED_RING`] of
-/// the ring from `radius + 1` to `2 radius + 1` px at the clip level. There the particle's edge is cut off where the light
-/// is brightest, so its centroid leans away from the light, by an amount the frames no
-/// longer hold (sweep style 4023 drawn as Gaussian spots, a blurred dark spot on a light
+/// the ring from `radius + 1` to `2 radius + 1` px at the clip level. There the particle's
+/// edge is cut off where the light is brightest, so its centroid leans away from the light,
+/// by an amount the frames no longer hold (sweep style 4023 drawn as Gaussian spots, a blurred dark spot on a light
 /// background saturating with the exposure: 0.48 / 0.38 px RMS, tolerance 0.09 / 0.06).
 pub(crate) fn saturated_edges(clipping: &BTreeMap<String, Vec<(usize, f64)>>, radius: f64) -> Vec<String> {
     let mut out = Vec::new();

@@ -38,6 +38,7 @@ pub(super) struct Pass {
 
 /// A track's concern, worded for the user.
 pub(super) struct PassConcern {
+    /// The concern as the error or warning states it.
     pub(super) text: String,
     /// Whether it is that the particle's signal reaches beyond the radius in use
     /// ([`Concern::Larger`]), which a particle left in a per-pixel median raises too.
