@@ -337,12 +337,21 @@ fn debug_errors(style: &Style, outcome: &physfit_track::TrackOutcome, truth: &ph
                 }
             }
         }
+        let mut eps: Vec<f64> = outcome
+            .table
+            .points
+            .iter()
+            .filter(|p| &p.particle == name && p.ep.is_finite())
+            .map(|p| p.ep)
+            .collect();
+        eps.sort_by(f64::total_cmp);
+        let ep = eps.get(eps.len() / 2).copied().unwrap_or(f64::NAN);
         let n = e.len().max(1) as f64;
         let mean = [0, 1].map(|a| e.iter().map(|v| v[a]).sum::<f64>() / n);
         let sd = [0, 1].map(|a| (e.iter().map(|v| (v[a] - mean[a]).powi(2)).sum::<f64>() / n).sqrt());
         let at = truth.positions[0][i];
         eprintln!(
-            "  {name} at ({:.0}, {:.0}): {} points, mean error {:+.3} / {:+.3}, spread {:.3} / {:.3}",
+            "  {name} at ({:.0}, {:.0}): {} points, mean error {:+.3} / {:+.3}, spread {:.3} / {:.3}, median ep {ep:.3}",
             at[0],
             at[1],
             e.len(),
@@ -459,11 +468,13 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
 /// (dark textured balls of 3.9 and 9.8 px under a saturating exposure drift; a small one
 /// hovers for ten frames, and against a median holding it its skirt read 26 % of its level)
 /// since a pass refused for skirts alone is located again on the median taken without its
-/// tracks (`pipeline/tracks_background.rs`).
+/// tracks (`pipeline/tracks_background.rs`); 1031 (one dark ring of 24.7 px under noise 27.6,
+/// its radius read down to 7.1 px on an arc of its rim) since a named ring's size is read
+/// from its rim where the window falls short of it (`pipeline/radius.rs`).
 const FOLLOWED_SYNTH: &[u64] = &[
     1000, 1001, 1002, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1012, 1013, 1014, 1015, 1016, 1017,
-    1018, 1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1032, 1033, 1034, 1035, 1036, 1037,
-    1038, 1039,
+    1018, 1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1031, 1032, 1033, 1034, 1035, 1036,
+    1037, 1038, 1039,
 ];
 /// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
 const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
@@ -484,8 +495,8 @@ fn styles_followed_today_stay_followed() {
     assert!(failed.is_empty(), "\n{HEADER}\n{}", failed.join("\n"));
 }
 
-/// The synth styles the tracker refuses today with an error (rings 1011 and 1031; noise a
-/// third of the contrast 1025): each must be
+/// The synth styles the tracker refuses today with an error (ring 1011, noise a third of the
+/// contrast 1025): each must be
 /// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
 /// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
 /// 0.51 / 1.18) was written wrong until the skirt's magnitude counted, then followed from
@@ -493,7 +504,7 @@ fn styles_followed_today_stay_followed() {
 /// unclipped pixels, its small sphere was lost at frame 11 and its track took the large
 /// one's highlight, 125 px away: refused as a jump (`checks.rs`); followed since session 28
 /// (see [`FOLLOWED_SYNTH`]).
-const REFUSED_SYNTH: &[u64] = &[1011, 1025, 1031];
+const REFUSED_SYNTH: &[u64] = &[1011, 1025];
 
 /// The table lines of the synth styles `seeds` whose rows are not `ok`, each with the
 /// particles off their tolerance that no warning names.
@@ -526,15 +537,20 @@ fn styles_warned_today_are_warned_refused_or_followed() {
 }
 
 #[test]
-#[ignore = "tracker issue 20: 4 of 48 styles fail (rings, a textured ball under uneven light, noise a third of the contrast), see the table"]
+#[ignore = "tracker issue 20: 3 of 48 styles fail (a faint ring, a textured ball under uneven light, noise a third of the contrast), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
-    // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone.
+    // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone (a seed beyond the render
+    // seeds as a synth style, in or out of the sweep's own).
     let only: Option<Vec<u64>> = std::env::var("PHYSFIT_SWEEP_ONLY")
         .ok()
         .map(|v| v.split(',').filter_map(|s| s.trim().parse().ok()).collect());
     let wanted = |seed: &u64| only.as_ref().is_none_or(|o| o.contains(seed));
-    let mut rows: Vec<Row> = SYNTH_SEEDS.filter(wanted).map(synth_row).collect();
+    let synth: Vec<u64> = match &only {
+        Some(o) => o.iter().copied().filter(|s| !RENDER_SEEDS.contains(s)).collect(),
+        None => SYNTH_SEEDS.collect(),
+    };
+    let mut rows: Vec<Row> = synth.into_iter().map(synth_row).collect();
     let count = (RENDER_SEEDS.end - RENDER_SEEDS.start) as usize;
     rows.extend(
         RENDER_SEEDS
@@ -935,6 +951,25 @@ fn a_large_noisy_sphere_is_measured_to_its_silhouette() {
 #[test]
 fn light_saturating_between_the_skirts_frames_is_named() {
     assert_not_silent(&synth_row(6171));
+}
+
+/// Single rings of 16-56 px, blurred by up to 2.5 px, under noise up to 28.5 and each
+/// style's light (fresh styles beyond the sweep's seeds): a centroid window short of a ring's
+/// rim is drawn onto the rim, and the window there holds an arc of it, so each round of the
+/// radius estimate read a smaller arc: radii of 7.4-22.7 px were read for rings of 16.8-56 px
+/// (6063, a ring of 32.7 px: 14.1 px). Each was refused, its skirt, its motion or its
+/// detections contradicting the radius. A named particle hollow about its
+/// start is now measured by its rim's radius where the window does not reach it, and each is
+/// followed.
+#[test]
+fn rings_whose_window_fell_short_of_their_rim_are_followed() {
+    let bad: Vec<String> = [6021, 6063, 6116, 6302, 6390, 6488, 6585, 6616]
+        .into_iter()
+        .map(synth_row)
+        .filter(|row| !row.passed())
+        .map(|row| row.line())
+        .collect();
+    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
 }
 
 /// Rings of 1.8 px under noise 16.9 (style 6496, beyond the sweep's seeds): in one frame a
