@@ -298,9 +298,12 @@ fn measure_round(
 }
 
 /// For each of `starts` (px) in `image` (signal, width, height; grey levels), the mean
-/// radius of its rim ([`rim_centre`], searched out to `reach` px, the other starts' pixels
-/// left out, pixel noise `noise`) where it is hollow and `window` (px) falls short of that
-/// radius; `None` elsewhere.
+/// radius of its rim ([`rim_centre`], searched out to `reach` px, the pixels nearer to
+/// another start left out, pixel noise `noise`) where it is hollow and `window` (px) falls
+/// short of that radius; `None` elsewhere. The rim's centre stays within its hollow, so
+/// within `reach` of the start, and a pixel within `reach` of it is nearer to another start
+/// only if that start lies within three times `reach`: the others are not looked at (at
+/// N = 1000, each pixel compared with all 999 starts cost 7 % of the tracking).
 fn rims_short_of_window(
     image: (&[f32], usize, usize),
     starts: &[[f64; 2]],
@@ -316,7 +319,7 @@ fn rims_short_of_window(
             let others: Vec<[f64; 2]> = starts
                 .iter()
                 .enumerate()
-                .filter(|&(j, _)| j != i)
+                .filter(|&(j, s)| j != i && (s[0] - start[0]).hypot(s[1] - start[1]) < 3.0 * reach)
                 .map(|(_, s)| *s)
                 .collect();
             rim_centre(signal, width, height, start, &others, reach, noise)
