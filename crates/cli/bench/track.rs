@@ -82,19 +82,28 @@ fn scattered(count: usize, frames: usize) -> Recording {
 
 /// 100 isolated particles, one per cell of a 10x10 grid, each kept 10 px inside its cell.
 fn isolated(frames: usize) -> Recording {
-    let cell = SIZE as f64 / 10.0;
-    let mut rng = Uniform(0xacc);
+    caged(100, frames, 0xacc)
+}
+
+/// `count` particles, one per cell of the smallest square grid that holds them (filled row
+/// by row), each kept inside its cell by 10 px or, in cells under 26 px, by 3 px less than
+/// half the cell: discs of radius 4 px in neighbouring cells stay 2 px apart at least, so
+/// that every particle can be followed under its own name.
+fn caged(count: usize, frames: usize, seed: u64) -> Recording {
+    let side = (count as f64).sqrt().ceil().max(1.0) as usize;
+    let cell = SIZE as f64 / side as f64;
+    let inset = (0.5 * cell - 3.0).min(10.0);
+    let mut rng = Uniform(seed);
     let mut start = Vec::new();
     let mut bounds = Vec::new();
-    for r in 0..10 {
-        for c in 0..10 {
-            let lo = Vec2::new(c as f64 * cell + 10.0, r as f64 * cell + 10.0);
-            let hi = lo + Vec2::new(cell - 20.0, cell - 20.0);
-            start.push(lo + Vec2::new((hi.x - lo.x) * rng.next(), (hi.y - lo.y) * rng.next()));
-            bounds.push((lo, hi));
-        }
+    for i in 0..count {
+        let (r, c) = (i / side, i % side);
+        let lo = Vec2::new(c as f64 * cell + inset, r as f64 * cell + inset);
+        let hi = lo + Vec2::new(cell - 2.0 * inset, cell - 2.0 * inset);
+        start.push(lo + Vec2::new((hi.x - lo.x) * rng.next(), (hi.y - lo.y) * rng.next()));
+        bounds.push((lo, hi));
     }
-    walk(start, &bounds, frames, 0xacc)
+    walk(start, &bounds, frames, seed)
 }
 
 fn settings(noise: f64) -> RenderSettings {
@@ -138,10 +147,16 @@ fn decode_seconds(dir: &Path) -> anyhow::Result<f64> {
     Ok(start.elapsed().as_secs_f64())
 }
 
-/// Seconds to track `dir` end to end with `threads` worker threads.
-fn track_seconds(dir: &Path, threads: usize) -> anyhow::Result<(f64, usize)> {
+/// Seconds to track `dir` end to end with `threads` worker threads, following only the
+/// `named` particles (name and position in the first frame, px) when given.
+fn track_seconds(
+    dir: &Path,
+    threads: usize,
+    named: Option<&[(String, [f64; 2])]>,
+) -> anyhow::Result<(f64, usize)> {
     let options = TrackOptions {
         threads: Some(threads),
+        named_start: named.map(<[_]>::to_vec),
         ..TrackOptions::default()
     };
     let start = Instant::now();
@@ -151,6 +166,13 @@ fn track_seconds(dir: &Path, threads: usize) -> anyhow::Result<(f64, usize)> {
 
 /// Timed runs per figure of the speed table (the fastest counts).
 const REPEATS: usize = 3;
+
+/// The fastest of [`REPEATS`] runs of `seconds`: on a shared machine a run is only ever
+/// slowed by the others' work, so the fastest of a few is the closest to the code's own
+/// speed.
+fn best_of(seconds: &dyn Fn() -> anyhow::Result<f64>) -> anyhow::Result<f64> {
+    (0..REPEATS).try_fold(f64::INFINITY, |b, _| Ok(b.min(seconds()?)))
+}
 
 /// Runs the tracking benchmark and returns Markdown tables: frames/s for 10, 100 and 1000
 /// particles (decode only, end to end on one and two threads) and RMS error per axis at
@@ -168,15 +190,11 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         let dir = Scratch::new(&format!("track-n{count}"))?;
         render(&scattered(count, frames), 5.0, &dir.0)?;
         // One untimed run warms the file cache, then the timed runs, each the best of
-        // REPEATS: on a shared machine a run is only ever slowed by the others' work, so the
-        // fastest of a few is the closest to the code's own speed.
-        track_seconds(&dir.0, 1)?;
-        let best = |seconds: &dyn Fn() -> anyhow::Result<f64>| -> anyhow::Result<f64> {
-            (0..REPEATS).try_fold(f64::INFINITY, |b, _| Ok(b.min(seconds()?)))
-        };
-        let decode = best(&|| decode_seconds(&dir.0))?;
-        let one = best(&|| Ok(track_seconds(&dir.0, 1)?.0))?;
-        let two = best(&|| Ok(track_seconds(&dir.0, 2)?.0))?;
+        // REPEATS.
+        track_seconds(&dir.0, 1, None)?;
+        let decode = best_of(&|| decode_seconds(&dir.0))?;
+        let one = best_of(&|| Ok(track_seconds(&dir.0, 1, None)?.0))?;
+        let two = best_of(&|| Ok(track_seconds(&dir.0, 2, None)?.0))?;
         let fps = |s: f64| frames as f64 / s.max(1e-9);
         out.push_str(&format!(
             "| {count} | {frames} | {:.0} | {:.0} | {:.0} | {trackpy:.0} | {:.1}x | {:.0} % |\n",
@@ -185,6 +203,32 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
             fps(two),
             fps(one) / trackpy,
             100.0 * decode / one
+        ));
+    }
+    out.push_str(
+        "\n### Named tracking: every particle named from its first position (as `--structure` does), walks kept apart in a grid of cells, noise sigma 5, one thread\n\n",
+    );
+    out.push_str("| particles | frames | unnamed (frames/s) | named (frames/s) | named / unnamed time |\n");
+    out.push_str("|---:|---:|---:|---:|---:|\n");
+    for (count, _) in TRACKPY_FPS {
+        let dir = Scratch::new(&format!("track-named{count}"))?;
+        let rec = caged(count, frames, 0xca6e + count as u64);
+        render(&rec, 5.0, &dir.0)?;
+        let named: Vec<(String, [f64; 2])> = rec
+            .frame(0)
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (format!("p{i}"), [p.x, p.y]))
+            .collect();
+        track_seconds(&dir.0, 1, Some(&named))?;
+        let unnamed = best_of(&|| Ok(track_seconds(&dir.0, 1, None)?.0))?;
+        let with_names = best_of(&|| Ok(track_seconds(&dir.0, 1, Some(&named))?.0))?;
+        let fps = |s: f64| frames as f64 / s.max(1e-9);
+        out.push_str(&format!(
+            "| {count} | {frames} | {:.0} | {:.0} | {:.2} |\n",
+            fps(unnamed),
+            fps(with_names),
+            with_names / unnamed
         ));
     }
     let acc_frames = if quick { 10 } else { 40 };
@@ -206,4 +250,34 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         ));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The named-tracking frames keep discs of radius 4 px 2 px apart at least in every frame,
+    /// inside the frame, at every count the bench draws.
+    #[test]
+    fn caged_walks_keep_apart() {
+        for (count, _) in TRACKPY_FPS {
+            let rec = caged(count, 30, 0xca6e + count as u64);
+            for k in 0..rec.frame_count() {
+                let at = rec.frame(k);
+                assert_eq!(at.len(), count);
+                for (i, p) in at.iter().enumerate() {
+                    assert!(
+                        (4.0..=SIZE as f64 - 5.0).contains(&p.x) && (4.0..=SIZE as f64 - 5.0).contains(&p.y),
+                        "count {count}, frame {k}: particle {i} at {p:?}"
+                    );
+                    for q in &at[i + 1..] {
+                        assert!(
+                            (p - q).norm() >= 10.0,
+                            "count {count}, frame {k}: {p:?} and {q:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
