@@ -533,9 +533,18 @@ fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
 /// half way between random directions' (0.2-0.3 over 10-20 runs) and one line's 1.
 const MAX_ERRATIC_ALIGNMENT: f64 = 0.6;
 
+/// The least standard error of each axis of a point's offset from its rim's centre, px,
+/// whatever the noise: the pixel sampling's own error, which no noise estimate holds. The
+/// noise-free rings the sweep tables follow are 0.0007-0.10 px RMS per axis off their
+/// centres, 0.011 the median and about 0.02 the upper quartile (19 styles, session 30).
+/// Without it, errors under 0.005 px under no noise refused rings whose offsets scattered
+/// 7.2-12.6 times as much as those allow (fresh 6045 and 6551, ring neighbour 4006), followed
+/// since within their tolerance.
+const RIM_OFFSET_FLOOR: f64 = 0.02;
+
 /// [`Concern::OffRim`] where the particle is hollow about its points in most measured
 /// frames (3 at least) and their offsets from its rim's centre scatter beyond
-/// [`MAX_RIM_SCATTER_SIGMAS`].
+/// [`MAX_RIM_SCATTER_SIGMAS`] (each offset's error at least [`RIM_OFFSET_FLOOR`]).
 fn off_rim(measured: &[(usize, Skirt)]) -> Option<Concern> {
     let rims: Vec<(usize, Rim, f64)> = measured
         .iter()
@@ -557,7 +566,7 @@ fn off_rim(measured: &[(usize, Skirt)]) -> Option<Concern> {
     let mut chi2: Vec<f64> = rims
         .iter()
         .map(|r| {
-            let v = r.1.error.powi(2) + r.2.powi(2);
+            let v = r.1.error.powi(2) + r.2.powi(2) + RIM_OFFSET_FLOOR.powi(2);
             ((r.1.offset[0] - typical[0]).powi(2) + (r.1.offset[1] - typical[1]).powi(2)) / v.max(1e-12)
         })
         .collect();
