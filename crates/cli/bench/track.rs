@@ -179,6 +179,7 @@ fn best_of(seconds: &dyn Fn() -> anyhow::Result<f64>) -> anyhow::Result<f64> {
 /// noise 0, 5 and 20, each beside trackpy 0.7's figure. `quick` uses few frames.
 pub fn run(quick: bool) -> anyhow::Result<String> {
     let frames = if quick { 30 } else { 200 };
+    let fps = |s: f64| frames as f64 / s.max(1e-9);
     let mut out = String::new();
     out.push_str(&format!(
         "### Tracker: {SIZE}x{SIZE} 8-bit PNG frames, discs of radius 4 px, amplitude 200 over 30, random walks up to 3 px/frame, noise sigma 5\n\n"
@@ -195,7 +196,6 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         let decode = best_of(&|| decode_seconds(&dir.0))?;
         let one = best_of(&|| Ok(track_seconds(&dir.0, 1, None)?.0))?;
         let two = best_of(&|| Ok(track_seconds(&dir.0, 2, None)?.0))?;
-        let fps = |s: f64| frames as f64 / s.max(1e-9);
         out.push_str(&format!(
             "| {count} | {frames} | {:.0} | {:.0} | {:.0} | {trackpy:.0} | {:.1}x | {:.0} % |\n",
             fps(decode),
@@ -223,7 +223,6 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
         track_seconds(&dir.0, 1, Some(&named))?;
         let unnamed = best_of(&|| Ok(track_seconds(&dir.0, 1, None)?.0))?;
         let with_names = best_of(&|| Ok(track_seconds(&dir.0, 1, Some(&named))?.0))?;
-        let fps = |s: f64| frames as f64 / s.max(1e-9);
         out.push_str(&format!(
             "| {count} | {frames} | {:.0} | {:.0} | {:.2} |\n",
             fps(unnamed),

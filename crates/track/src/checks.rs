@@ -567,7 +567,7 @@ fn off_rim(measured: &[(usize, Skirt)]) -> Option<Concern> {
         .iter()
         .map(|r| {
             let v = r.1.error.powi(2) + r.2.powi(2) + RIM_OFFSET_FLOOR.powi(2);
-            ((r.1.offset[0] - typical[0]).powi(2) + (r.1.offset[1] - typical[1]).powi(2)) / v.max(1e-12)
+            ((r.1.offset[0] - typical[0]).powi(2) + (r.1.offset[1] - typical[1]).powi(2)) / v
         })
         .collect();
     let scatter = physfit_tracks::stats::median(&mut chi2) / (2.0 * std::f64::consts::LN_2);

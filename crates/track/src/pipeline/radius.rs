@@ -1,6 +1,7 @@
 //! The particle radius and expected blob size, estimated from the data.
 
 use super::finder::{locate_window, Finder, Workers};
+use super::neighbours::Neighbours;
 use super::rims::RIM_REACH;
 use super::skirts::{locate_unfiltered, unfiltered};
 use crate::rim::rim_centre;
@@ -313,16 +314,12 @@ fn rims_short_of_window(
     window: f64,
 ) -> Vec<Option<f64>> {
     let (signal, width, height) = image;
+    let grid = Neighbours::new(starts);
     starts
         .iter()
         .enumerate()
         .map(|(i, &start)| {
-            let others: Vec<[f64; 2]> = starts
-                .iter()
-                .enumerate()
-                .filter(|&(j, s)| j != i && (s[0] - start[0]).hypot(s[1] - start[1]) < 3.0 * reach)
-                .map(|(_, s)| *s)
-                .collect();
+            let (_, others) = grid.near(i, 3.0 * reach);
             rim_centre(signal, width, height, start, &others, reach, noise)
                 .map(|rim| rim.radius)
                 .filter(|&rim| window < rim)

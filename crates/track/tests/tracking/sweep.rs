@@ -344,8 +344,7 @@ fn debug_errors(style: &Style, outcome: &physfit_track::TrackOutcome, truth: &ph
             .filter(|p| &p.particle == name && p.ep.is_finite())
             .map(|p| p.ep)
             .collect();
-        eps.sort_by(f64::total_cmp);
-        let ep = eps.get(eps.len() / 2).copied().unwrap_or(f64::NAN);
+        let ep = physfit_tracks::stats::median_upper(&mut eps);
         let n = e.len().max(1) as f64;
         let mean = [0, 1].map(|a| e.iter().map(|v| v[a]).sum::<f64>() / n);
         let sd = [0, 1].map(|a| (e.iter().map(|v| (v[a] - mean[a]).powi(2)).sum::<f64>() / n).sqrt());
