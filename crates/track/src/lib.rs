@@ -63,7 +63,7 @@ pub use naming::name_tracks_by_position;
 pub use pipeline::{track_folder, track_source, TrackOptions, TrackOutcome, TrackStats};
 #[doc(hidden)]
 pub use png_reader::fuzz_read_png;
-pub use score::{score_tracks, TrackScore};
+pub use score::{rms_offset, score_tracks, TrackScore};
 pub use source::{FrameSource, FrameWindow};
 pub use stack::{is_tiff, TiffStack, TIFF_EXTENSIONS};
 pub use view::{edge_distance, in_view};

@@ -389,13 +389,18 @@ fn track_frames(
         &classes,
         &workers,
     );
+    let mut located_again = false;
     if surround.moves {
         let corrected = stage.locate_and_link(&background, &classes, Surround::Plane, progress)?;
         if corrected.concerns.len() <= pass.concerns.len() {
             pass = corrected;
+            located_again = true;
         }
     }
     pass.warnings.extend(surround.uneven);
+    if !located_again {
+        pass.warnings.extend(surround.unmoved);
+    }
     let Pass {
         located: by_class,
         table,

@@ -26,7 +26,9 @@ use std::path::Path;
 use physfit_model::{Colour, Recording, RenderSettings, Vec2};
 use physfit_render::render_sequence;
 use physfit_synth::{Polarity, Profile, Sequence, Style};
-use physfit_track::{in_view, score_tracks, track_folder, PointFlag, TrackOptions, TrackPoint, TrackTable};
+use physfit_track::{
+    in_view, rms_offset, score_tracks, track_folder, PointFlag, TrackOptions, TrackPoint, TrackTable,
+};
 
 use crate::common::TempDir;
 
@@ -166,7 +168,8 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     } else {
         0.10 + 0.02 * style.noise
     };
-    let tolerance = [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+    let tolerance_for = |offset: [f64; 2]| [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+    let tolerance = tolerance_for(offset);
     let mut row = Row {
         source,
         style: style.clone(),
@@ -216,10 +219,14 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     // that lean of the line may be either side of it.
     let reach = reach + offset[0].hypot(offset[1]);
     let size = (style.width as usize, style.height as usize);
-    let (truth, centroid_truth) = (
-        in_view(&truth, size, reach),
-        in_view(&centroid_truth, size, reach),
-    );
+    let truth = in_view(&truth, size, reach);
+    // The lean allowed is the RMS over the points scored, as the error is: a particle left
+    // out near the border takes its lean with it (style 6644: a sphere of 18 px, leaning
+    // 0.36 px, left out beside one of 45 px leaning 0.93 px, which was then held to the
+    // pair's RMS of 0.70 px).
+    row.offset = rms_offset(&truth, &centroid_truth);
+    row.tolerance = tolerance_for(row.offset);
+    let tolerance = row.tolerance;
     // A point farther than the smallest true radius from a true centre is on another
     // particle or none.
     let s = score_tracks(&outcome.table, &truth, style.radius);
@@ -227,7 +234,11 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
     if std::env::var("PHYSFIT_SWEEP_DEBUG").is_ok() {
         debug_errors(&style, &outcome, &seq.truth);
     }
-    let c = score_tracks(&outcome.table, &centroid_truth, style.radius);
+    let c = score_tracks(
+        &outcome.table,
+        &in_view(&centroid_truth, size, reach),
+        style.radius,
+    );
     row.recall = s.matched_count as f64 / s.truth_count.max(1) as f64;
     row.rms = [s.rms_x, s.rms_y];
     row.rms_centroid = [c.rms_x, c.rms_y];
@@ -260,6 +271,9 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
                     .collect(),
             };
             let s = score_tracks(&own(&outcome.table), &own(&truth), style.radius);
+            // Each particle is held to its own lean (a large sphere leans farther than a
+            // small one beside it).
+            let tolerance = tolerance_for(rms_offset(&own(&truth), &centroid_truth));
             // NaN (no point matched) counts as beyond the tolerance.
             let within = s.rms_x <= tolerance[0] && s.rms_y <= tolerance[1];
             let named = outcome
@@ -1058,4 +1072,23 @@ fn fresh_styles_table() {
     println!(
         "{report}\nseeds {a}..{b}: {followed} followed, {refused} refused, {warned} warned, {silent} wrong without a word"
     );
+}
+
+/// A textured ball of 39.5 px under noise 30, a gradient of 0.19 and vignetting of 0.18
+/// (fresh style 6646), tracked against a constant background: the plane around it would move
+/// it 1.1-2.5 px in 5 of the 6 samples read, its ring even in 3 of them and curved by the
+/// vignetting in 2, so neither count made a majority; it was written 2.9 / 2.7 px off without
+/// a word. It is now named in a warning that gives the frames and the move.
+#[test]
+fn a_ball_the_local_plane_would_move_in_most_samples_is_named() {
+    assert_not_silent(&synth_row(6646));
+}
+
+/// Shaded spheres of 18 and 45 px (fresh style 6644, no noise) whose small one lies at the
+/// border, where it is not scored: the large one, followed to 0.02 px of its intensity
+/// centroid, was held to the pair's RMS lean (0.70 px) instead of its own (0.93 px). The
+/// tolerance now takes the lean over the points scored, as the error is.
+#[test]
+fn the_lean_allowed_is_taken_over_the_points_scored() {
+    assert_passed(&synth_row(6644));
 }
