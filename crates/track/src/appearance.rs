@@ -593,6 +593,7 @@ mod tests {
             mass,
             size,
             ep: 0.01,
+            follow: 0.0,
             area: 50.0,
             clipped: false,
         }

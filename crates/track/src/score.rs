@@ -259,7 +259,9 @@ mod tests {
         let [x, y] = rms_offset(&from, &to);
         assert!((x - ((0.09 + 0.01) / 2.0f64).sqrt()).abs() < 1e-12, "{x}");
         assert!((y - (0.16 / 2.0f64).sqrt()).abs() < 1e-12, "{y}");
-        assert!(rms_offset(&TrackTable::default(), &to).iter().all(|v| v.abs() < 1e-12));
+        assert!(rms_offset(&TrackTable::default(), &to)
+            .iter()
+            .all(|v| v.abs() < 1e-12));
     }
 
     #[test]

@@ -213,7 +213,7 @@ pub(super) fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point
         y: d.y,
         mass: d.mass,
         size: d.size,
-        ep: d.ep,
+        ep: d.fixed_point_error(),
         flag,
         emit: true,
         clean: !crowded,

@@ -10,6 +10,7 @@ fn detection(x: f64, y: f64, mass: f64) -> Detection {
         mass,
         size: 1.0,
         ep: 0.01,
+        follow: 0.0,
         area: 10.0,
         clipped: false,
     }

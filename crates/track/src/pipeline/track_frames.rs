@@ -429,7 +429,7 @@ fn track_frames(
     let mut eps: Vec<f64> = by_class
         .iter()
         .flatten()
-        .flat_map(|f| f.detections.iter().map(|d| d.ep))
+        .flat_map(|f| f.detections.iter().map(crate::Detection::fixed_point_error))
         .filter(|e| e.is_finite())
         .collect();
     if !concerns.is_empty() {

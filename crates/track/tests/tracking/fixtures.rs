@@ -25,10 +25,13 @@ fn gaussian_spots_from_another_renderer_are_located_to_their_noise() {
     assert_eq!(s.id_switches, 0);
     // The spots hover: a plain per-pixel median keeps up to 17 grey levels of them and the
     // error was 0.09 px, 2.5 times the estimate. Measured without them: 0.053, 1.45 times
-    // (the centroid window cuts the Gaussian's tails, which the estimate does not count).
+    // the window's own error (the centroid window cuts the Gaussian's tails and follows
+    // itself); the fixed point's error counts that: 0.0552 against 0.053 / 0.058.
     let ep = out.stats.median_ep;
     assert!(
-        s.rms_x < 1.6 * ep && s.rms_y < 1.6 * ep,
+        [s.rms_x, s.rms_y]
+            .iter()
+            .all(|rms| (0.8 * ep..1.25 * ep).contains(rms)),
         "rms {:.4} {:.4} px against the tracker's own estimate {ep:.4}",
         s.rms_x,
         s.rms_y
