@@ -704,8 +704,8 @@ pub(super) fn planes_move_points(
                 "{name}: the background around it is not the one the model took out (a slope or \
                  curve of uneven light, or the particle held in the background) in frames {frames}, \
                  and it would move {least:.2}-{most:.2} px, over {UNEVEN_MOVE} standard errors, with \
-                 the plane fitted around it taken out; too few frames agreed for it to be located \
-                 again so: its positions may be off by as much"
+                 the plane fitted around it taken out; the frames were not located again so: its \
+                 positions may be off by as much"
             )
         })
         .collect();
