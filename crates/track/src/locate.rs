@@ -21,9 +21,9 @@
 //! `j = ∂f/∂c` is how far the centroid follows its window: the signal on the window's edge
 //! ramp, `Σ_ramp s r / (2 Σ w s)` (each axis's derivative, averaged). A window short of
 //! its particle (a Gaussian spot's skirt, a large ball's soft edge) holds a nearly flat
-//! part of it and follows itself: sweep style 4001's spots of 26.6 px, windowed at 21.7 px,
-//! read `j` = 0.75 and scattered 0.54 px about their centres where the window's error said
-//! 0.107. The fixed point's error is the window's over `1 − j` (`j` in `[0, MAX_FOLLOW]`),
+//! part of it and follows itself: profile neighbour 4001's Gaussian spot of 26.6 px,
+//! windowed at 21.7 px, reads `j` = 0.75 and scattered 0.54 px about its centre where the
+//! window's error said 0.107. The fixed point's error is the window's over `1 − j` (`j` in `[0, MAX_FOLLOW]`),
 //! averaged over both axes: the `ep` of the track table ([`Detection::fixed_point_error`]).
 //! A detection's own `ep` stays the window's error, the unit in which the checks judge how
 //! far a second estimate of the same image (the local plane taken out) moves it: both share
