@@ -594,13 +594,7 @@ pub(super) fn planes_move_points(
                 .push((p.particle.as_str(), [p.x, p.y]));
         }
     }
-    // Per track: samples where its detection was measured, where it moved, where its
-    // uneven ring would have moved it, and where the plane would move it beyond
-    // `UNEVEN_MOVE` standard errors (ring even or not); the frames and moves of the latter
-    // two.
-    let mut counts: BTreeMap<&str, [usize; 4]> = BTreeMap::new();
-    let mut uneven_at: BTreeMap<&str, Vec<(usize, [f64; 2])>> = BTreeMap::new();
-    let mut far_at: BTreeMap<&str, Vec<(usize, [f64; 2])>> = BTreeMap::new();
+    let mut read_of: BTreeMap<&str, TrackSurround> = BTreeMap::new();
     let read: Vec<(usize, usize)> = sample_of
         .iter()
         .enumerate()
@@ -638,10 +632,8 @@ pub(super) fn planes_move_points(
                     let Some(k) = at.first_within(p, 1.0) else {
                         continue;
                     };
-                    // A track that stayed, with an even ring, in half the samples read
-                    // can neither move nor be uneven in most.
-                    let count = counts.entry(name).or_default();
-                    if (1..4).all(|c| 2 * (count[0] - count[c]) >= read_count) {
+                    let track = read_of.entry(name).or_default();
+                    if track.settled(read_count) {
                         continue;
                     }
                     let d = &f.detections[k];
@@ -649,8 +641,8 @@ pub(super) fn planes_move_points(
                     let assessed = corrected_position(&image, &at, k, window, most, noise, Spread::Checked);
                     let moved =
                         matches!(assessed, Some(Ok(c)) if (c[0] - d.x).hypot(c[1] - d.y) > 0.5 * d.ep);
-                    count[0] += 1;
-                    count[1] += usize::from(moved);
+                    track.seen += 1;
+                    track.moved += usize::from(moved);
                     let far = |c: [f64; 2]| {
                         Some([c[0] - d.x, c[1] - d.y]).filter(|m| m[0].hypot(m[1]) > UNEVEN_MOVE * d.ep)
                     };
@@ -661,8 +653,7 @@ pub(super) fn planes_move_points(
                                     .and_then(Result::ok)
                                     .and_then(far);
                             if let Some(shift) = shift {
-                                count[2] += 1;
-                                uneven_at.entry(name).or_default().push((f.frame, shift));
+                                track.uneven.push((f.frame, shift));
                             }
                             shift
                         }
@@ -670,21 +661,17 @@ pub(super) fn planes_move_points(
                         None => None,
                     };
                     if let Some(shift) = shift {
-                        count[3] += 1;
-                        far_at.entry(name).or_default().push((f.frame, shift));
+                        track.far.push((f.frame, shift));
                     }
                 }
             }
         }
     });
-    let most_of = |n: usize, seen: usize| n >= GATE_SAMPLES_MOVED && 2 * n > seen;
-    let is_uneven =
-        |name: &str, &[seen, _, uneven, _]: &[usize; 4]| most_of(uneven, seen) && one_way(&uneven_at[name]);
-    let uneven = counts
+    let uneven = read_of
         .iter()
-        .filter(|(name, count)| is_uneven(name, count))
-        .map(|(name, _)| {
-            let (frames, least, most) = frames_and_range(&uneven_at[name]);
+        .filter(|(_, track)| track.is_uneven())
+        .map(|(name, track)| {
+            let (frames, least, most) = frames_and_range(&track.uneven);
             format!(
                 "{name}: the background left around it is uneven in frames {frames} (more than a \
                  plane and the noise), and it would move {least:.2}-{most:.2} px, over {UNEVEN_MOVE} \
@@ -693,13 +680,11 @@ pub(super) fn planes_move_points(
             )
         })
         .collect();
-    let unmoved = counts
+    let unmoved = read_of
         .iter()
-        .filter(|(name, count)| {
-            !is_uneven(name, count) && most_of(count[3], count[0]) && one_way(&far_at[*name])
-        })
-        .map(|(name, _)| {
-            let (frames, least, most) = frames_and_range(&far_at[name]);
+        .filter(|(_, track)| !track.is_uneven() && track.in_most(track.far.len()) && one_way(&track.far))
+        .map(|(name, track)| {
+            let (frames, least, most) = frames_and_range(&track.far);
             format!(
                 "{name}: the background around it is not the one the model took out (a slope or \
                  curve of uneven light, or the particle held in the background) in frames {frames}, \
@@ -710,9 +695,45 @@ pub(super) fn planes_move_points(
         })
         .collect();
     SurroundReading {
-        moves: counts.values().any(|&[seen, moved, _, _]| most_of(moved, seen)),
+        moves: read_of.values().any(|track| track.in_most(track.moved)),
         uneven,
         unmoved,
+    }
+}
+
+/// What the samples read of one track's surroundings ([`planes_move_points`]).
+#[derive(Debug, Default)]
+struct TrackSurround {
+    /// Samples where its detection was measured.
+    seen: usize,
+    /// Samples where the plane around it, its ring even, moved it by half its `ep` or more.
+    moved: usize,
+    /// Frame and move, px, where its ring was uneven and the plane would move it beyond
+    /// [`UNEVEN_MOVE`] standard errors.
+    uneven: Vec<(usize, [f64; 2])>,
+    /// Frame and move, px, where the plane would move it beyond [`UNEVEN_MOVE`] standard
+    /// errors, its ring even or not (`uneven` among them).
+    far: Vec<(usize, [f64; 2])>,
+}
+
+impl TrackSurround {
+    /// Returns true if and only if `n` samples are most of those seen, and
+    /// [`GATE_SAMPLES_MOVED`] at least.
+    fn in_most(&self, n: usize) -> bool {
+        n >= GATE_SAMPLES_MOVED && 2 * n > self.seen
+    }
+
+    /// Returns true if and only if the track stayed, with an even ring, in half of the
+    /// `read` samples: it can then neither move nor be uneven nor far in most.
+    fn settled(&self, read: usize) -> bool {
+        [self.moved, self.uneven.len(), self.far.len()]
+            .iter()
+            .all(|&n| 2 * (self.seen - n) >= read)
+    }
+
+    /// Returns true if and only if its uneven ring would move it in most samples, one way.
+    fn is_uneven(&self) -> bool {
+        self.in_most(self.uneven.len()) && one_way(&self.uneven)
     }
 }
 
