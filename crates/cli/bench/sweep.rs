@@ -79,12 +79,7 @@ pub fn run(quick: bool) -> anyhow::Result<String> {
                 };
                 let crb = seq.bound().sigma();
                 let offset = seq.truth.centroid_offset_rms();
-                let base: f64 = if radius >= 3.0 {
-                    0.05 + 0.01 * noise
-                } else {
-                    0.10 + 0.02 * noise
-                };
-                let tolerance = |offset: [f64; 2]| [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+                let tolerance = |lean: [f64; 2]| seq.style.tolerance(crb, lean);
                 cells += 1;
                 let row = match track_folder(&dir.0, &options, &|_, _| {}) {
                     Ok(t) => {

@@ -143,6 +143,23 @@ fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
 }
 
 impl Style {
+    /// The RMS error per axis, px, the tracker is held to on this style (tracker issue 20):
+    /// `max(0.05 + 0.01 σ, 2 crb) + lean`, with `0.10 + 0.02 σ` in place of the first term
+    /// when the smallest radius is under 3 px (a sharp 1.5 px disc's pixel-integrated image
+    /// has its own centroid up to 0.01 px off its centre, and its window holds more
+    /// background per unit of signal). σ is the pixel noise (grey levels), `crb` the
+    /// Cramér-Rao bound per axis (px, [`crate::Sequence::bound`]) and `lean` the RMS offset
+    /// per axis (px) of the particles' intensity centroids from their centres over the
+    /// points scored (a centroid cannot know the centre of a lopsided image).
+    pub fn tolerance(&self, crb: [f64; 2], lean: [f64; 2]) -> [f64; 2] {
+        let base = if self.radius >= 3.0 {
+            0.05 + 0.01 * self.noise
+        } else {
+            0.10 + 0.02 * self.noise
+        };
+        [0, 1].map(|a| base.max(2.0 * crb[a]) + lean[a])
+    }
+
     /// Draws a style from `seed`, over the whole range: any profile; radius 1.5-60 px
     /// (log-uniform; a quarter of the styles mix two sizes, 1.5-24 px and 2.5 times that);
     /// 1-8 particles (fewer as they grow, so frames stay small); either polarity, grey or
@@ -454,6 +471,19 @@ impl fmt::Display for Style {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_tolerance_is_the_noise_floor_or_twice_the_bound_plus_the_lean() {
+        let mut style = Style::random(3);
+        style.noise = 10.0;
+        style.radius = 4.0;
+        let close = |a: [f64; 2], b: [f64; 2]| (0..2).all(|k| (a[k] - b[k]).abs() < 1e-12);
+        // 0.05 + 0.1 = 0.15 against 2 x 0.05 and 2 x 0.2.
+        assert!(close(style.tolerance([0.05, 0.2], [0.1, 0.0]), [0.25, 0.4]));
+        // Below 3 px the floor is 0.10 + 0.2 = 0.3.
+        style.radius = 2.0;
+        assert!(close(style.tolerance([0.05, 0.2], [0.0, 0.3]), [0.3, 0.7]));
+    }
 
     #[test]
     fn random_styles_cover_the_whole_range() {

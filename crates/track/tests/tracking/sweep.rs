@@ -163,12 +163,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
         .collect();
     let crb = seq.bound().sigma();
     let offset = seq.truth.centroid_offset_rms();
-    let base: f64 = if style.radius >= 3.0 {
-        0.05 + 0.01 * style.noise
-    } else {
-        0.10 + 0.02 * style.noise
-    };
-    let tolerance_for = |offset: [f64; 2]| [0, 1].map(|a| base.max(2.0 * crb[a]) + offset[a]);
+    let tolerance_for = |lean: [f64; 2]| style.tolerance(crb, lean);
     let tolerance = tolerance_for(offset);
     let mut row = Row {
         source,
