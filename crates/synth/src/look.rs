@@ -243,8 +243,9 @@ fn bilinear(grid: &[f64], n: usize, u: f64, v: f64) -> f64 {
 
 /// Adds the pixel integral of `look` centred at `centre` (px) to the `width x height` plane
 /// `plane` (nothing is drawn when `plane` is empty). Returns the sums `[Σ w s, Σ x w s,
-/// Σ y w s]` over the sub-samples (times the sub-sample area) with `w = weight(x, y)` (the
-/// illumination), from which the intensity centroid of the lit particle follows.
+/// Σ y w s, Σ s, Σ x s, Σ y s]` over the sub-samples (times the sub-sample area) with
+/// `w = weight(x, y)` (the illumination), from which the intensity centroids of the lit
+/// particle and of the particle under even light follow.
 pub fn add_particle(
     plane: &mut [f64],
     width: usize,
@@ -252,7 +253,7 @@ pub fn add_particle(
     look: &ParticleLook,
     centre: [f64; 2],
     weight: &dyn Fn(f64, f64) -> f64,
-) -> [f64; 3] {
+) -> [f64; 6] {
     let n = samples_per_axis(look.radius);
     let h = 1.0 / n as f64;
     let reach = look.reach() + h;
@@ -261,7 +262,7 @@ pub fn add_particle(
     let x1 = ((centre[0] + reach).ceil().max(0.0) as usize).min(width.saturating_sub(1));
     let y1 = ((centre[1] + reach).ceil().max(0.0) as usize).min(height.saturating_sub(1));
     let area = h * h;
-    let mut sums = [0.0; 3];
+    let mut sums = [0.0; 6];
     if width == 0 || height == 0 {
         return sums;
     }
@@ -279,6 +280,9 @@ pub fn add_particle(
                         sums[0] += ws;
                         sums[1] += x * ws;
                         sums[2] += y * ws;
+                        sums[3] += s * area;
+                        sums[4] += x * s * area;
+                        sums[5] += y * s * area;
                     }
                 }
             }

@@ -47,7 +47,7 @@ const NOISE_SALT: u64 = 0x6e01_5e5e;
 
 impl Sequence {
     /// Draws the paths and looks of `style` and the truth (centres and the intensity
-    /// centroids of the noise-free, lit particles).
+    /// centroids of the noise-free particles, lit and under even light).
     pub fn new(style: Style) -> Sequence {
         let looks: Vec<ParticleLook> = style
             .radii()
@@ -57,26 +57,42 @@ impl Sequence {
             .collect();
         let positions = draw_paths(&style);
         let (w, h) = (style.width as usize, style.height as usize);
-        let light = |x: f64, y: f64| style.light(x, y);
-        let centroids = positions
+        // Light on the background alone leaves the particles' images even.
+        let light = |x: f64, y: f64| {
+            if style.additive_light {
+                1.0
+            } else {
+                style.light(x, y)
+            }
+        };
+        let sums: Vec<Vec<[f64; 6]>> = positions
             .iter()
             .map(|frame| {
                 frame
                     .iter()
                     .zip(&looks)
-                    .map(|(&p, look)| {
-                        let s = add_particle(&mut [], w, h, look, p, &light);
-                        [s[1] / s[0], s[2] / s[0]]
-                    })
+                    .map(|(&p, look)| add_particle(&mut [], w, h, look, p, &light))
                     .collect()
             })
             .collect();
+        let centroid = |at: usize| -> Vec<Vec<[f64; 2]>> {
+            sums.iter()
+                .map(|frame| {
+                    frame
+                        .iter()
+                        .map(|s| [s[at + 1] / s[at], s[at + 2] / s[at]])
+                        .collect()
+                })
+                .collect()
+        };
+        let (centroids, even_centroids) = (centroid(0), centroid(3));
         let names = (0..style.particle_count).map(|i| format!("p{i}")).collect();
         Sequence {
             truth: Truth {
                 names,
                 positions,
                 centroids,
+                even_centroids,
             },
             style,
             looks,
@@ -109,10 +125,17 @@ impl Sequence {
         let mut bytes = Vec::with_capacity(w * h * channels);
         for y in 0..h {
             for x in 0..w {
-                let lit = gain * s.light(x as f64, y as f64);
+                let light = s.light(x as f64, y as f64);
+                let lit = gain * light;
                 let p = plane[y * w + x];
                 for c in 0..channels {
-                    let clean = lit * (s.background[c] + (s.foreground[c] - s.background[c]) * p);
+                    let contrast = (s.foreground[c] - s.background[c]) * p;
+                    let clean = if s.additive_light {
+                        // The light's unevenness on the background alone.
+                        lit * s.background[c] + gain * contrast
+                    } else {
+                        lit * (s.background[c] + contrast)
+                    };
                     let noisy = if s.noise > 0.0 {
                         clean + s.noise * normal(&mut rng)
                     } else {

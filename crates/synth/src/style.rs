@@ -118,6 +118,12 @@ pub struct Style {
     pub gradient_angle: f64,
     /// Relative loss of light at the frame's corners, `1 - vignetting (r / r_corner)²` (0-0.25).
     pub vignetting: f64,
+    /// True if and only if the gradient and vignetting light the background alone (a haze,
+    /// a lamp on the backdrop, a renderer's ramp): a pixel is then
+    /// `gain(k) * (light(x, y) * background + (foreground - background) * P(x, y))`, the
+    /// particles' contrast the same everywhere. False in every drawn style: light falls on
+    /// particles and background alike.
+    pub additive_light: bool,
     /// Amplitude of the per-frame gain (0-0.15).
     pub exposure: f64,
     /// Period of the per-frame gain, frames.
@@ -296,6 +302,7 @@ impl Style {
             gradient,
             gradient_angle,
             vignetting,
+            additive_light: false,
             exposure,
             exposure_period,
             exposure_phase,
@@ -453,6 +460,9 @@ impl fmt::Display for Style {
         }
         if self.vignetting > 0.0 {
             write!(f, " vignetting {:.2}", self.vignetting)?;
+        }
+        if self.additive_light && (self.gradient > 0.0 || self.vignetting > 0.0) {
+            write!(f, " (on the background alone)")?;
         }
         if self.exposure > 0.0 {
             write!(f, " exposure ±{:.2}", self.exposure)?;

@@ -38,7 +38,7 @@ pub use appearance::{
 };
 pub use assignment::{match_to_starts, solve_dense, solve_sparse, SparseProblem};
 pub use background::{
-    estimate_background, Background, BackgroundChoice, BackgroundModel, SampleExposure, CLEAR_SAMPLES,
+    estimate_background, Background, BackgroundChoice, BackgroundModel, Light, SampleExposure, CLEAR_SAMPLES,
 };
 pub use blind::BlindPixels;
 pub use detect::{

@@ -121,6 +121,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         structure_threshold: tau,
         saturated_fraction: 0.0,
         blind: BlindPixels::default(),
+        light: None,
     };
     bg.measure_signal(samples);
     bg.reference_gain = samples.iter().map(|&f| bg.frame_gain(f)).sum::<f64>() / k as f64;
@@ -129,6 +130,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         .iter()
         .map(|&f| bg.saturated_fraction_of(f))
         .fold(0.0, f64::max);
+    bg.light = bg.read_light(None);
     bg
 }
 impl Background {
@@ -197,8 +199,8 @@ impl Background {
                     .map(|(b, u)| u * b)
                     .sum();
                 let (v, lo) = (
-                    self.signal_at(&f.pixel(i)[..channels], i) - shift * level,
-                    self.signal_at(&clip, i),
+                    self.unlit_signal_at(&f.pixel(i)[..channels], i) - shift * level,
+                    self.unlit_signal_at(&clip, i),
                 );
                 let d = v + dither(i);
                 if d < 0.0 {

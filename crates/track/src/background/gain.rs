@@ -176,22 +176,32 @@ impl Background {
     /// rings).
     pub fn apply_gain(&self, g: f64, signal: &mut [f32]) {
         let g = g as f32;
+        // The signal is divided by the light where one is read: so is the offset.
+        let lit = |i: usize| self.light.as_ref().map_or(1.0, |l| l.inverse[i]);
         if f64::from(g) * self.brightest < f64::from(CLIPPED) {
-            for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
+            for (i, (o, b)) in signal
+                .iter_mut()
+                .zip(self.image.chunks_exact(self.channels))
+                .enumerate()
+            {
                 // signal = u . (p - g b) = u . (p - b) - (g - 1) u . b
                 let ub: f32 = b.iter().zip(&self.direction).map(|(b, u)| u * b).sum();
-                *o -= (g - 1.0) * ub;
+                *o -= (g - 1.0) * ub * lit(i);
             }
             return;
         }
-        for (o, b) in signal.iter_mut().zip(self.image.chunks_exact(self.channels)) {
+        for (i, (o, b)) in signal
+            .iter_mut()
+            .zip(self.image.chunks_exact(self.channels))
+            .enumerate()
+        {
             // signal = u . (p - min(g b, 255)) = u . (p - b) - u . (min(g b, 255) - b)
             let shift: f32 = b
                 .iter()
                 .zip(&self.direction)
                 .map(|(b, u)| u * ((g * b).min(CLIP_LEVEL) - b))
                 .sum();
-            *o -= shift;
+            *o -= shift * lit(i);
         }
     }
 }

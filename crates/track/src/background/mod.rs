@@ -19,11 +19,13 @@
 mod estimate;
 mod exclusion;
 mod gain;
+mod light;
 mod median;
 mod model;
 mod signal;
 
 pub use estimate::estimate_background;
+pub use light::Light;
 pub(crate) use model::STRUCTURED_LIMIT;
 pub use model::{Background, BackgroundChoice, BackgroundModel, SampleExposure, CLEAR_SAMPLES};
 

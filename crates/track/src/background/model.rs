@@ -76,6 +76,10 @@ pub struct Background {
     /// that a particle cannot show there, and how their signal is filled in (see
     /// [`Background::find_blind`]); none until then.
     pub blind: BlindPixels,
+    /// The light over the frame where the per-pixel background is one even surface lit
+    /// unevenly: the signal is divided by it (see [`crate::Light`]); `None`
+    /// otherwise.
+    pub light: Option<super::Light>,
 }
 
 /// How [`Background::exclude_particles`] takes the samples' levels.

@@ -55,8 +55,10 @@ impl Background {
         let c = self.channels;
         let image = &self.image[pixels.start * c..pixels.end * c];
         match frame {
-            FrameView::Grey8 { samples, .. } => self.grey_signal(&samples[pixels], image, f32::from, out),
-            FrameView::Frame(f) if c == 1 => self.grey_signal(&f.data[pixels], image, |v| v, out),
+            FrameView::Grey8 { samples, .. } => {
+                self.grey_signal(&samples[pixels.clone()], image, f32::from, out)
+            }
+            FrameView::Frame(f) if c == 1 => self.grey_signal(&f.data[pixels.clone()], image, |v| v, out),
             FrameView::Frame(f) => {
                 let data = &f.data[pixels.start * c..pixels.end * c];
                 for ((o, p), b) in out
@@ -66,6 +68,11 @@ impl Background {
                 {
                     *o = colour_signal(p, b, &self.direction);
                 }
+            }
+        }
+        if let Some(light) = &self.light {
+            for (o, l) in out.iter_mut().zip(&light.inverse[pixels]) {
+                *o *= l;
             }
         }
     }
@@ -103,6 +110,14 @@ impl Background {
     /// The particle signal of one pixel, `pixel` (its channels' values, grey levels) at
     /// pixel index `i`: the value [`Background::signal_into`] gives there, to the bit.
     pub fn signal_at(&self, pixel: &[f32], i: usize) -> f32 {
+        let s = self.unlit_signal_at(pixel, i);
+        self.light.as_ref().map_or(s, |l| s * l.inverse[i])
+    }
+
+    /// [`Background::signal_at`] before the light is taken out (see
+    /// [`crate::Light`]): what the pixel noise is measured on, the same at every
+    /// pixel.
+    pub(super) fn unlit_signal_at(&self, pixel: &[f32], i: usize) -> f32 {
         let c = self.channels;
         match (c, self.model) {
             (1, BackgroundModel::Constant) => self.direction[0] * (pixel[0] - self.level[0]),

@@ -491,3 +491,120 @@ fn a_gain_that_saturates_half_the_frame_is_read_and_removed_where_the_light_clip
         "background signal up to {worst} levels after the gain"
     );
 }
+
+/// Frames of `w x h` px over a background `level(x, y)` with seeded pixel noise `noise` and a
+/// bright square spot of half-width 2 px (`spot` grey levels over the background times
+/// `lit(x, y)`) walking across, rounded to whole levels.
+fn lit_frames(
+    w: usize,
+    h: usize,
+    level: impl Fn(f64, f64) -> f64,
+    lit: impl Fn(f64, f64) -> f64,
+    spot: f64,
+    noise: f64,
+) -> Vec<Frame> {
+    use rand::SeedableRng;
+    use rand_distr::Distribution;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let normal = rand_distr::Normal::new(0.0, noise.max(1e-9)).expect("a spread");
+    (0..9)
+        .map(|k| {
+            let at = (10 + 8 * k, 12 + 5 * k);
+            let mut f = Frame::filled(w, h, &[0.0]);
+            for (i, v) in f.data.iter_mut().enumerate() {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let inside = x.sub(at.0 as f64).abs() <= 2.0 && y.sub(at.1 as f64).abs() <= 2.0;
+                let particle = if inside { spot * lit(x, y) } else { 0.0 };
+                *v = (level(x, y) + particle + normal.sample(&mut rng))
+                    .round()
+                    .clamp(0.0, 255.0) as f32;
+            }
+            f
+        })
+        .collect()
+}
+
+use std::ops::Sub;
+
+/// A vignetted, sloping light over an even surface: 120 grey levels at the centre, 15 % more
+/// to the right, 20 % less at the corners.
+fn vignetted(w: usize, h: usize) -> impl Fn(f64, f64) -> f64 {
+    let (cx, cy) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
+    move |x: f64, y: f64| {
+        let r2 = ((x - cx).powi(2) + (y - cy).powi(2)) / (cx * cx + cy * cy);
+        120.0 * (1.0 + 0.15 * (x - cx) / w as f64) * (1.0 - 0.2 * r2)
+    }
+}
+
+/// An even surface lit unevenly is read as the light: the factor each pixel's signal is
+/// multiplied by is the dimmest light over the light there (within 1 %), the surface is the
+/// background (within a grey level), and a particle lit by it has the same signal wherever
+/// it goes.
+#[test]
+fn an_evenly_lit_surface_is_read_as_the_light() {
+    let (w, h) = (96, 80);
+    let light = vignetted(w, h);
+    let frames = lit_frames(w, h, &light, |x, y| light(x, y) / 120.0, 60.0, 2.0);
+    let bg = estimate_background(&views(&frames), BackgroundChoice::PerPixel);
+    let read = bg.light.as_ref().expect("the light is read");
+    let dimmest = (0..w * h)
+        .map(|i| light((i % w) as f64, (i / w) as f64))
+        .fold(f64::INFINITY, f64::min);
+    for i in (0..w * h).step_by(37) {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let want = dimmest / light(x, y);
+        let got = f64::from(read.inverse[i]);
+        assert!(
+            (got - want).abs() < 0.01 * want,
+            "factor at ({x}, {y}): {got} against {want}"
+        );
+        let surface = f64::from(read.surface[i]);
+        assert!(
+            (surface - light(x, y)).abs() < 1.0,
+            "surface at ({x}, {y}): {surface}"
+        );
+    }
+    // The spot, brighter where the light is, has one signal once the light is taken out.
+    let spot_mean = |frame: &Frame, at: (usize, usize)| {
+        let signal = bg.signal(frame);
+        let mut sum = 0.0;
+        for y in at.1 - 2..=at.1 + 2 {
+            for x in at.0 - 2..=at.0 + 2 {
+                sum += f64::from(signal[y * w + x]);
+            }
+        }
+        sum / 25.0
+    };
+    let (bright, dim) = (spot_mean(&frames[8], (74, 52)), spot_mean(&frames[0], (10, 12)));
+    assert!(
+        (light(74.0, 52.0) / light(10.0, 12.0)) > 1.15 && (bright - dim).abs() < 0.03 * dim,
+        "the spot's signal where the light is bright, {bright}, and dim, {dim}"
+    );
+}
+
+/// A background with structure of its own (a checkerboard of 8 px squares, ±15 grey levels,
+/// on the same light), one near black (under 4 grey levels) and one lit evenly are not read
+/// as light.
+#[test]
+fn structure_black_and_even_light_are_not_read_as_light() {
+    let (w, h) = (96, 80);
+    let light = vignetted(w, h);
+    let checkered = |x: f64, y: f64| {
+        let square = ((x / 8.0) as i64 + (y / 8.0) as i64) % 2 == 0;
+        light(x, y) + if square { 15.0 } else { -15.0 }
+    };
+    let black = |x: f64, y: f64| light(x, y) / 40.0;
+    let even = |_: f64, _: f64| 120.0;
+    for (name, frames) in [
+        ("checkered", lit_frames(w, h, checkered, |_, _| 1.0, 60.0, 2.0)),
+        ("black", lit_frames(w, h, black, |_, _| 1.0, 60.0, 2.0)),
+        ("even", lit_frames(w, h, even, |_, _| 1.0, 60.0, 2.0)),
+    ] {
+        let bg = estimate_background(&views(&frames), BackgroundChoice::PerPixel);
+        assert!(
+            bg.light.is_none(),
+            "{name}: read as light of range {:?}",
+            bg.light.map(|l| l.range)
+        );
+    }
+}

@@ -9,6 +9,7 @@
 
 mod border;
 mod finder;
+mod light_check;
 mod neighbours;
 mod options;
 mod outcome;

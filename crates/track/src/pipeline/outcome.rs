@@ -53,6 +53,11 @@ pub struct TrackStats {
     /// such frames, left at its centroid, which can lie the rim's width or more off the
     /// ring's centre; a warning names them too.
     pub rim_not_found: Vec<(String, usize)>,
+    /// The light read off the background and taken out of the particles' images, as its
+    /// brightest over its dimmest level (docs/tracking.md section 2, "Light"); `None` where
+    /// none was (a background with structure of its own, lit evenly, near black, or a light
+    /// the tracks showed falls on the background alone).
+    pub light_taken_out: Option<f64>,
 }
 
 impl TrackStats {
@@ -94,7 +99,15 @@ impl std::fmt::Display for TrackStats {
             },
             if self.radius_estimated { "estimated" } else { "given" },
             self.median_ep
-        )
+        )?;
+        if let Some(range) = self.light_taken_out {
+            write!(
+                f,
+                ", uneven light taken out of the particles' images (brightest {:.0} % above dimmest)",
+                100.0 * (range - 1.0)
+            )?;
+        }
+        Ok(())
     }
 }
 

@@ -1,6 +1,7 @@
 //! The tracking stage of a recording, from its frames to the linked and checked track table.
 
 use super::finder::{Surround, Workers};
+use super::light_check::{check_light, moves, LightVerdict, STAKE_FLOOR};
 use super::options::TrackOptions;
 use super::outcome::{TrackOutcome, TrackStats};
 use super::plane::planes_move_points;
@@ -376,6 +377,37 @@ fn track_frames(
             }
         }
     }
+    // Light read off the background was taken out of the particles' images: where their
+    // brightness along the tracks says it only lights the background, the images are left as
+    // they are and the frames located again.
+    if let Some(light) = &background.light {
+        let gains = SampleGains::measure(&background, &views(&sample_frames), &sample_of, &numbers);
+        let check = check_light(&pass.table, light, size.0, &gains);
+        match check.verdict {
+            LightVerdict::AddsToBackground => {
+                background.light = None;
+                pass = stage.locate_and_link(&background, &classes, Surround::Ignore, progress)?;
+            }
+            // Particles that cross too little of the light to tell (one that hovers) keep the
+            // light taken out, as light that falls on them wants; where the frames located
+            // without it put them more than 3 standard errors (and 0.05 px) away, a warning
+            // says so.
+            LightVerdict::Undecided => {
+                let mut unlit = background.clone();
+                unlit.light = None;
+                let other = stage.locate_and_link(&unlit, &classes, Surround::Ignore, progress)?;
+                for (particle, most, ep) in moves(&pass.table, &other.table) {
+                    if most > (3.0 * ep).max(STAKE_FLOOR) {
+                        pass.warnings.push(format!(
+                            "{particle}: the light read off the background (its brightest {:.0} % above its dimmest) was taken out of its image, as light that falls on the particle wants; its brightness along the track cannot tell whether it does (it crosses too little of the light), and if the light falls on the background alone its positions are off by up to {most:.2} px",
+                            100.0 * (light.range - 1.0)
+                        ));
+                    }
+                }
+            }
+            LightVerdict::FallsOnParticles => {}
+        }
+    }
     let background = background;
     // A background the model could not see (under a large particle that hovers, under
     // uneven light) is left in each centroid window: where taking out the plane around each
@@ -478,6 +510,7 @@ fn track_frames(
         median_ep: median(&mut eps),
         cut_by_border: cut_by_border.into_iter().collect(),
         rim_not_found: rim_not_found.into_iter().collect(),
+        light_taken_out: background.light.as_ref().map(|l| l.range),
     };
     Ok(TrackOutcome {
         table,

@@ -177,6 +177,11 @@ impl SampleGains {
         Self { by_frame }
     }
 
+    /// The exposure gain of frame `frame`, if a sample holds it.
+    pub(super) fn gain(&self, frame: usize) -> Option<f64> {
+        self.by_frame.get(&frame).map(|&(_, g)| g)
+    }
+
     /// The sample that holds frame `frame`, if one does.
     fn sample(&self, frame: usize) -> Option<usize> {
         self.by_frame.get(&frame).map(|&(j, _)| j)
