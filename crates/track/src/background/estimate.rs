@@ -124,8 +124,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         light: None,
     };
     bg.measure_signal(samples);
-    bg.reference_gain = samples.iter().map(|&f| bg.frame_gain(f)).sum::<f64>() / k as f64;
-    bg.brightest = f64::from(bg.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+    bg.measure_levels(samples);
     bg.saturated_fraction = samples
         .iter()
         .map(|&f| bg.saturated_fraction_of(f))
@@ -134,6 +133,15 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
     bg
 }
 impl Background {
+    /// The samples' mean exposure gain against this background ([`Background::reference_gain`])
+    /// and its brightest value ([`Background::brightest`]), measured again after the image
+    /// changed.
+    pub(super) fn measure_levels(&mut self, samples: &[FrameView<'_>]) {
+        self.reference_gain =
+            samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len().max(1) as f64;
+        self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+    }
+
     /// The particles' colour direction, the signal's noise and the clip offset, measured on
     /// `samples` against the current background image (`sigma_t`: the temporal noise, grey
     /// levels, which sets the colour threshold). A clip offset already added to the image is

@@ -65,9 +65,7 @@ impl Background {
             }
             // As after a fill below: the colour and the noise are measured again.
             self.measure_signal(samples);
-            self.reference_gain =
-                samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
-            self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+            self.measure_levels(samples);
             return;
         }
         let trees: Vec<Option<ImmutableKdTree<f64, 2>>> = particles
@@ -143,8 +141,7 @@ impl Background {
             // light where it left) and the noise look larger: both are measured again.
             self.measure_signal(samples);
         }
-        self.reference_gain = samples.iter().map(|&f| self.frame_gain(f)).sum::<f64>() / samples.len() as f64;
-        self.brightest = f64::from(self.image.iter().fold(0.0f32, |m, &v| m.max(v)));
+        self.measure_levels(samples);
     }
 
     /// The fraction of the frame's pixels whose structure (a per-pixel median farther from

@@ -78,108 +78,88 @@ impl Background {
             .filter(|&i| !skip.is_some_and(|s| s[i]))
             .map(|i| (i, &self.image[i * c..(i + 1) * c]))
             .collect();
-        let frame = LitFrame {
-            width: self.width,
-            height: self.height,
-            channels: c,
-            temporal_noise: self.temporal_noise,
-            samples: self.sample_count,
-        };
-        light_from(&values, &frame)
+        self.light_from(&values)
     }
-}
 
-/// What reading the light needs to know of a recording's frames.
-pub(super) struct LitFrame {
-    /// Frame width and height, px.
-    pub(super) width: usize,
-    pub(super) height: usize,
-    /// Samples per pixel (1 or 3).
-    pub(super) channels: usize,
-    /// Pixel noise from differences of consecutive samples, grey levels.
-    pub(super) temporal_noise: f64,
-    /// Sample frames the background's median is taken over.
-    pub(super) samples: usize,
-}
-
-/// The light read from the background values `values` (pixel index, its channels' levels) of
-/// a median over `frame.samples` frames, if they are one smooth surface, as
-/// [`Background::read_light`].
-pub(super) fn light_from(values: &[(usize, &[f32])], frame: &LitFrame) -> Option<Light> {
-    let (w, h, c) = (frame.width, frame.height, frame.channels);
-    if w < 8 || h < 8 {
-        return None;
-    }
-    let pixels = w * h;
-    let (hx, hy) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
-    let mut points: Vec<([f64; TERMS], f64)> = Vec::with_capacity(values.len());
-    let mut picked: Vec<&[f32]> = Vec::with_capacity(values.len());
-    let mut clipped = 0usize;
-    for &(i, px) in values {
-        if px.iter().any(|&v| v >= CLIPPED) {
-            clipped += 1;
-            continue;
+    /// The light read from the background values `values` (pixel index, its channels'
+    /// levels), if they are one smooth surface, as [`Background::read_light`].
+    fn light_from(&self, values: &[(usize, &[f32])]) -> Option<Light> {
+        let (w, h, c) = (self.width, self.height, self.channels);
+        if w < 8 || h < 8 {
+            return None;
         }
-        let level = px.iter().map(|&v| f64::from(v)).sum::<f64>() / c as f64;
-        let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
-        points.push((terms(x, y), level));
-        picked.push(px);
-    }
-    let sampled = points.len() + clipped;
-    if (points.len() as f64) < MIN_INLIERS * sampled as f64 || points.len() < 4 * TERMS {
-        return None;
-    }
-    let (coefficients, spread, used) = robust_fit(&points)?;
-    let inliers = used.iter().filter(|&&u| u).count();
-    // The median's own noise over the samples, and the quantisation of 8-bit levels.
-    let k = frame.samples.max(1) as f64;
-    let median_noise = 1.2533 * frame.temporal_noise / k.sqrt();
-    let expected = (median_noise * median_noise + 1.0 / 12.0).sqrt();
-    if (inliers as f64) < MIN_INLIERS * sampled as f64 || spread > SMOOTH_FACTOR * expected {
-        return None;
-    }
-    let mut light = vec![0.0f32; pixels];
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for (i, l) in light.iter_mut().enumerate() {
-        let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
-        let v: f64 = terms(x, y).iter().zip(&coefficients).map(|(t, a)| t * a).sum();
-        lo = lo.min(v);
-        hi = hi.max(v);
-        *l = v as f32;
-    }
-    // The range must stand clear of the fit's own error (its values are known to about
-    // `spread sqrt(TERMS / n)`).
-    let fit_error = spread * (TERMS as f64 / inliers as f64).sqrt();
-    if lo < MIN_LEVEL || hi / lo - 1.0 < MIN_RANGE || hi - lo < 10.0 * fit_error {
-        return None;
-    }
-    // Each channel's surface, fitted on the same pixels (the light's for grey frames).
-    let mut surface = vec![0.0f32; pixels * c];
-    for ch in 0..c {
-        let a = if c == 1 {
-            coefficients
-        } else {
-            let channel: Vec<([f64; TERMS], f64)> = points
-                .iter()
-                .zip(&picked)
-                .map(|((t, _), px)| (*t, f64::from(px[ch])))
-                .collect();
-            least_squares(&channel, &used)?
-        };
-        for (i, v) in surface.iter_mut().skip(ch).step_by(c).enumerate() {
+        let pixels = w * h;
+        let (hx, hy) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
+        let mut points: Vec<([f64; TERMS], f64)> = Vec::with_capacity(values.len());
+        let mut picked: Vec<&[f32]> = Vec::with_capacity(values.len());
+        let mut clipped = 0usize;
+        for &(i, px) in values {
+            if px.iter().any(|&v| v >= CLIPPED) {
+                clipped += 1;
+                continue;
+            }
+            let level = px.iter().map(|&v| f64::from(v)).sum::<f64>() / c as f64;
             let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
-            *v = terms(x, y).iter().zip(&a).map(|(t, a)| t * a).sum::<f64>() as f32;
+            points.push((terms(x, y), level));
+            picked.push(px);
         }
+        let sampled = points.len() + clipped;
+        if (points.len() as f64) < MIN_INLIERS * sampled as f64 || points.len() < 4 * TERMS {
+            return None;
+        }
+        let (coefficients, spread, used) = robust_fit(&points)?;
+        let inliers = used.iter().filter(|&&u| u).count();
+        // The median's own noise over the samples, and the quantisation of 8-bit levels.
+        let k = self.sample_count.max(1) as f64;
+        let median_noise = 1.2533 * self.temporal_noise / k.sqrt();
+        let expected = (median_noise * median_noise + 1.0 / 12.0).sqrt();
+        if (inliers as f64) < MIN_INLIERS * sampled as f64 || spread > SMOOTH_FACTOR * expected {
+            return None;
+        }
+        let mut light = vec![0.0f32; pixels];
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (i, l) in light.iter_mut().enumerate() {
+            let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
+            let v: f64 = terms(x, y).iter().zip(&coefficients).map(|(t, a)| t * a).sum();
+            lo = lo.min(v);
+            hi = hi.max(v);
+            *l = v as f32;
+        }
+        // The range must stand clear of the fit's own error (its values are known to about
+        // `spread sqrt(TERMS / n)`).
+        let fit_error = spread * (TERMS as f64 / inliers as f64).sqrt();
+        if lo < MIN_LEVEL || hi / lo - 1.0 < MIN_RANGE || hi - lo < 10.0 * fit_error {
+            return None;
+        }
+        // Each channel's surface, fitted on the same pixels: the light itself for grey frames.
+        let surface = if c == 1 {
+            light.clone()
+        } else {
+            let mut surface = vec![0.0f32; pixels * c];
+            for ch in 0..c {
+                let channel: Vec<([f64; TERMS], f64)> = points
+                    .iter()
+                    .zip(&picked)
+                    .map(|((t, _), px)| (*t, f64::from(px[ch])))
+                    .collect();
+                let a = least_squares(&channel, &used)?;
+                for (i, v) in surface.iter_mut().skip(ch).step_by(c).enumerate() {
+                    let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
+                    *v = terms(x, y).iter().zip(&a).map(|(t, a)| t * a).sum::<f64>() as f32;
+                }
+            }
+            surface
+        };
+        let lo32 = lo as f32;
+        for l in &mut light {
+            *l = lo32 / *l;
+        }
+        Some(Light {
+            inverse: light,
+            surface,
+            range: hi / lo,
+        })
     }
-    let lo32 = lo as f32;
-    for l in &mut light {
-        *l = lo32 / *l;
-    }
-    Some(Light {
-        inverse: light,
-        surface,
-        range: hi / lo,
-    })
 }
 
 /// The monomials `x^i y^j`, `i + j <= 3`, at `(x, y)` (coordinates scaled to `[-1, 1]`).

@@ -14,6 +14,7 @@
 use super::tracks_background::SampleGains;
 use crate::background::Light;
 use crate::TrackTable;
+use physfit_tracks::stats::median;
 
 /// What the tracks' brightness says of the light taken out of their images.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,22 +39,15 @@ pub(super) const STAKE_FLOOR: f64 = 0.05;
 /// Least points (over every particle, beyond one per particle) the slope is read from.
 const MIN_POINTS: usize = 6;
 
-/// The slope of the log mass against the log factor, its standard error, and the verdict.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct LightCheck {
-    pub(super) slope: f64,
-    pub(super) error: f64,
-    pub(super) verdict: LightVerdict,
-}
-
-/// What the points of `table` in the sample frames (`gains`: their exposure) say of `light`
+/// What the points of `table` in the sample frames (`gains`: their exposure) say of `light`,
+/// read from the slope of their log mass against the log factor (see the module documentation)
 /// (over a frame `width` px wide).
 pub(super) fn check_light(
     table: &TrackTable,
     light: &Light,
     width: usize,
     gains: &SampleGains,
-) -> LightCheck {
+) -> LightVerdict {
     let height = light.inverse.len() / width.max(1);
     let (mut sab, mut sbb, mut saa, mut points, mut particles) = (0.0, 0.0, 0.0, 0usize, 0usize);
     for track in table.by_particle().values() {
@@ -86,26 +80,17 @@ pub(super) fn check_light(
     }
     let freedom = points.saturating_sub(particles + 1);
     if freedom < MIN_POINTS || sbb <= 0.0 {
-        return LightCheck {
-            slope: f64::NAN,
-            error: f64::INFINITY,
-            verdict: LightVerdict::Undecided,
-        };
+        return LightVerdict::Undecided;
     }
     let slope = sab / sbb;
     let residual = (saa - slope * sab).max(0.0) / freedom as f64;
     let error = (residual / sbb).sqrt();
-    let verdict = if error > UNDECIDED_ERROR {
+    if error > UNDECIDED_ERROR {
         LightVerdict::Undecided
     } else if slope > 0.5 {
         LightVerdict::AddsToBackground
     } else {
         LightVerdict::FallsOnParticles
-    };
-    LightCheck {
-        slope,
-        error,
-        verdict,
     }
 }
 
@@ -133,9 +118,7 @@ pub(super) fn moves(table: &TrackTable, other: &TrackTable) -> Vec<(String, f64,
             if eps.is_empty() || most.is_nan() {
                 return None;
             }
-            let mid = eps.len() / 2;
-            let ep = *eps.select_nth_unstable_by(mid, f64::total_cmp).1;
-            Some((name.to_string(), most, ep))
+            Some((name.to_string(), most, median(&mut eps)))
         })
         .collect()
 }

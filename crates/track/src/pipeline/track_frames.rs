@@ -382,8 +382,7 @@ fn track_frames(
     // they are and the frames located again.
     if let Some(light) = &background.light {
         let gains = SampleGains::measure(&background, &views(&sample_frames), &sample_of, &numbers);
-        let check = check_light(&pass.table, light, size.0, &gains);
-        match check.verdict {
+        match check_light(&pass.table, light, size.0, &gains) {
             LightVerdict::AddsToBackground => {
                 background.light = None;
                 pass = stage.locate_and_link(&background, &classes, Surround::Ignore, progress)?;
