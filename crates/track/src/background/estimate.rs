@@ -1,10 +1,10 @@
 //! Estimating the background from sample frames: the model choice, the colour direction and the noise.
 
-use super::gain::dither;
+use super::gain::{dither, gain_shift, value_stride};
 use super::median::{median_at, median_image, quantile};
 use super::model::{Background, BackgroundChoice, BackgroundModel, STRUCTURED_LIMIT};
 use crate::blind::BlindPixels;
-use crate::frames::{Frame, FrameView};
+use crate::frames::{Frame, FrameView, CLIPPED};
 
 /// Quantisation noise of 8-bit levels (1/sqrt(12)), the smallest noise ever assumed.
 const MIN_NOISE: f64 = 0.3;
@@ -43,7 +43,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
     // sample *is* the median at every pixel, so a third of three samples' deviations are 0.)
     let sigma_t = if k >= 2 {
         let n = first.len();
-        let stride = ((k - 1) * n / NOISE_SAMPLES).max(1) | 1;
+        let stride = value_stride((k - 1) * n / NOISE_SAMPLES, channels);
         let mut dev: Vec<f32> = Vec::with_capacity((k - 1) * n / stride + 1);
         for pair in samples.windows(2) {
             dev.extend(
@@ -188,27 +188,31 @@ impl Background {
         let mut negatives: Vec<f32> = Vec::new();
         let mut sampled: Vec<f32> = Vec::new();
         let mut clipped = 0usize;
-        // Each sample's own exposure, relative to their mean: a drifting exposure shifts the
-        // signal of every background pixel in proportion to its brightness, which is not
-        // noise (an exposure drifting by 14 % on a light background read noise 11 as 42).
+        // Each sample's own exposure, relative to their mean: a drifting exposure moves the
+        // value of every background pixel in proportion to its brightness, up to the clip
+        // level, which is not noise (an exposure drifting by 14 % on a light background read
+        // noise 11 as 42).
         let gains: Vec<f64> = samples.iter().map(|&f| self.frame_gain(f)).collect();
         let mean_gain = gains.iter().sum::<f64>() / gains.len().max(1) as f64;
+        let relative: Vec<f32> = gains.iter().map(|&g| (g / mean_gain) as f32).collect();
         for (s, f) in samples.iter().enumerate() {
-            let shift = (gains[s] / mean_gain - 1.0) as f32;
+            let g = relative[s];
             // 8-bit frames hold whole levels, so the signal takes values one level apart and
             // the median of its magnitude jumps by whole levels (noise 5 read as 4.45). A
             // deterministic dither spread evenly over one level makes the distribution
             // continuous again: its spread is then that of the quantised noise itself.
             for i in (s % stride..width * height).step_by(stride) {
-                let level: f32 = self
-                    .pixel(i)
-                    .iter()
-                    .zip(&self.direction)
-                    .map(|(b, u)| u * b)
-                    .sum();
+                let p = &f.pixel(i)[..channels];
+                let b = self.pixel(i);
+                // A value at the clip level where the exposure drives the background there
+                // holds no noise (a quarter of the samples, fresh style 6155).
+                if p.iter().zip(b).any(|(&p, &b)| p >= CLIPPED && g * b >= CLIPPED) {
+                    continue;
+                }
+                let shift = gain_shift(b, &self.direction, g);
                 let (v, lo) = (
-                    self.unlit_signal_at(&f.pixel(i)[..channels], i) - shift * level,
-                    self.unlit_signal_at(&clip, i),
+                    self.unlit_signal_at(p, i) - shift,
+                    self.unlit_signal_at(&clip, i) - shift,
                 );
                 let d = v + dither(i);
                 if d < 0.0 {
