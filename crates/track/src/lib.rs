@@ -12,6 +12,7 @@ mod detect;
 mod disjoint_sets;
 mod distance;
 mod error;
+mod excursion;
 mod frames;
 mod group_by_key;
 mod inpaint;

@@ -677,7 +677,7 @@ fn an_rgb_frame_clipped_in_one_channel_reads_its_gain_on_the_others() {
 /// middle clips whatever the noise (a third of the values): within 1.5 % (measured in a
 /// simulation of the same frames: +0.2 % under noise 10, +1.2 % under 27-30, where leaving
 /// the clipped values out read 1.2 % to 5.9 % low and counting them above every ratio 2.3 %
-/// to 4.3 % high).
+/// to 4.2 % high).
 #[test]
 fn gains_are_read_through_the_clipped_values() {
     use rand::{Rng, SeedableRng};

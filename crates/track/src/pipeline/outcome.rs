@@ -53,6 +53,10 @@ pub struct TrackStats {
     /// such frames, left at its centroid, which can lie the rim's width or more off the
     /// ring's centre; a warning names them too.
     pub rim_not_found: Vec<(String, usize)>,
+    /// The particle and frame of each detected point that lies off the path its neighbours
+    /// agree on (a single-frame excursion: a noise peak, a fragment or another image taken
+    /// for a frame), by particle then frame; a warning names them too.
+    pub excursions: Vec<(String, usize)>,
     /// The light read off the background and taken out of the particles' images, as its
     /// brightest over its dimmest level (docs/tracking.md section 2, "Light"); `None` where
     /// none was (a background with structure of its own, lit evenly, near black, or a light

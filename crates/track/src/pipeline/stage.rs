@@ -10,6 +10,7 @@ use super::spikes::bridge_spikes;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
 use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images, Concern, TrackConcern};
+use crate::excursion::excursion_warnings;
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
     link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
@@ -34,6 +35,9 @@ pub(super) struct Pass {
     /// The particle and frame of each written point of a ring whose rim was not found there
     /// (see `rims`).
     pub(super) rim_not_found: BTreeSet<(String, usize)>,
+    /// The particle and frame of each point off the path its neighbours agree on (see
+    /// `excursion`).
+    pub(super) excursions: BTreeSet<(String, usize)>,
 }
 
 /// A track's concern, worded for the user.
@@ -129,6 +133,7 @@ impl Stage<'_> {
         let mut concerns = Vec::new();
         let mut cut_by_border = BTreeSet::new();
         let mut rim_not_found = BTreeSet::new();
+        let mut excursions = BTreeSet::new();
         // Each class's radius and its tracks' particles.
         let mut class_tracks: Vec<(f64, Vec<String>)> = Vec::with_capacity(classes.len());
         for (class, located) in classes.iter().zip(&by_class) {
@@ -220,6 +225,9 @@ impl Stage<'_> {
             };
             let clipping = sample_clipping(&class_table, frames, class.sizes.radius);
             warnings.extend(saturated_edges(&clipping, class.sizes.radius));
+            let strays = excursion_warnings(&class_table);
+            warnings.extend(strays.warnings);
+            excursions.extend(strays.points);
             // Unnamed tracks end once lost (a particle found again starts a new one): only named
             // tracks can be lost and found again.
             let lost = match named {
@@ -268,6 +276,7 @@ impl Stage<'_> {
             concerns,
             cut_by_border,
             rim_not_found,
+            excursions,
         })
     }
 }

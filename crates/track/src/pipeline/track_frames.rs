@@ -441,6 +441,7 @@ fn track_frames(
         concerns,
         cut_by_border,
         rim_not_found,
+        excursions,
     } = pass;
     let total = numbers.len();
     let mut warnings = Vec::new();
@@ -509,6 +510,7 @@ fn track_frames(
         median_ep: median(&mut eps),
         cut_by_border: cut_by_border.into_iter().collect(),
         rim_not_found: rim_not_found.into_iter().collect(),
+        excursions: excursions.into_iter().collect(),
         light_taken_out: background.light.as_ref().map(|l| l.range),
     };
     Ok(TrackOutcome {

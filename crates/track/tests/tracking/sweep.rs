@@ -56,8 +56,9 @@ struct Row {
     /// warning of the tracker names (`"{particle}: ..."`): tracks wrong without a word.
     unwarned: Vec<String>,
     /// True centres in view with no point of their particle within the match radius that
-    /// the tracker names neither as cut by the border nor in an ambiguity over that frame
-    /// (not seen and bridged, lost, shared): points missing without a word.
+    /// the tracker names neither as cut by the border, nor as off its neighbours' path, nor
+    /// in an ambiguity over that frame (not seen and bridged, lost, shared): points missing
+    /// without a word.
     unnamed_missing: usize,
     /// The light the tracker took out of the particles' images (its range), if any.
     light: Option<f64>,
@@ -330,7 +331,9 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
                     .iter()
                     .any(|(name, frame)| *name == t.particle && *frame == t.frame)
             };
-            let cut = listed(&outcome.stats.cut_by_border) || listed(&outcome.stats.rim_not_found);
+            let cut = listed(&outcome.stats.cut_by_border)
+                || listed(&outcome.stats.rim_not_found)
+                || listed(&outcome.stats.excursions);
             let ambiguous = outcome.stats.ambiguities.iter().any(|a| {
                 a.particles.contains(&t.particle) && (a.first_frame..=a.last_frame).contains(&t.frame)
             });
@@ -991,10 +994,10 @@ fn light_saturating_between_the_skirts_frames_is_named() {
 /// (6063, a ring of 32.7 px: 14.1 px). Each was refused, its skirt, its motion or its
 /// detections contradicting the radius. A named particle hollow about its
 /// start is now measured by its rim's radius where the window does not reach it, and each is
-/// followed. (6063 is refused again since its frames' gain is read through their clipped
-/// values: under noise 28.5 on a light background vignetted to the clip level, the clipped
-/// noise leaves the background's signal round it above zero, and its skirt holds 53 % of
-/// its centre's level; the gain read low before hid it. Left.)
+/// followed. (6063, under noise 28.5 on a light background vignetted to the clip level, is
+/// refused again since its frames' gain is read through their clipped values: its skirt
+/// holds 53 % of its centre's level, likely the noise clipped at 255, whose mean lies below
+/// the model's, which the gain read low before offset in part. Left.)
 #[test]
 fn rings_whose_window_fell_short_of_their_rim_are_followed() {
     let bad: Vec<String> = [6021, 6116, 6302, 6390, 6488, 6585, 6616]
@@ -1223,9 +1226,9 @@ fn light_on_the_background_alone_is_dropped_or_named() {
 /// noise and light): at least 20 are followed within the bound. Before the frames' gain was
 /// read through their clipped values (and an RGB frame's on every channel), 17 were, and
 /// dark styles under a drifting exposure were refused four times as often as the rest of
-/// the fresh styles (65 of 311 against 16 of 601). None but one is written wrong without a
-/// word: 7247, discs of 2.7 px blurred by 3 px under noise 14.6, one point of which lies
-/// 2.9 px off in one frame, a single-frame excursion no self-check names (left, as before).
+/// the fresh styles (65 of 311 against 16 of 601). None is written wrong without a word
+/// (7247, discs of 2.7 px blurred by 3 px under noise 14.6, one point of which lies 2.7 px
+/// off its neighbours' path in frame 1, was, before single-frame excursions were named).
 #[test]
 fn dark_particles_under_a_drifting_exposure_are_followed() {
     let seeds: Vec<u64> = (7200u64..)
@@ -1247,7 +1250,7 @@ fn dark_particles_under_a_drifting_exposure_are_followed() {
         .map(|r| r.style.seed)
         .collect();
     assert!(
-        silent.iter().all(|&s| s == 7247),
+        silent.is_empty(),
         "styles {silent:?} written wrong without a word:\n{HEADER}\n{report}"
     );
     let followed = rows.iter().filter(|r| r.passed()).count();
