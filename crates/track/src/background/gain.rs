@@ -72,24 +72,32 @@ impl Background {
         let mut ratios: Vec<f32> = Vec::with_capacity(n / stride + 1);
         // The least ratio each clipped value may have.
         let mut bounds: Vec<f32> = Vec::new();
-        // The background under every value looked at, clipped or not.
-        let mut under: Vec<f32> = Vec::with_capacity(n / stride + 1);
+        // The background under value `i`, if the gain looks at it (16 levels at least).
+        let under = |i: usize| {
+            let b = if c == 1 { self.pixel(i)[0] } else { self.image[i] };
+            (b >= 16.0).then_some(b)
+        };
         // Sample `j` is value `j * stride` (a plain loop: the iterator chain cost three times
         // as much, on every frame); a grey value is its pixel's.
         for (j, i) in (0..n.div_ceil(stride)).map(|j| (j, j * stride)) {
-            let b = if c == 1 { self.pixel(i)[0] } else { self.image[i] };
-            if b < 16.0 {
+            let Some(b) = under(i) else {
                 continue;
-            }
+            };
             let v = level(data[i]);
-            under.push(b);
             if v < CLIPPED {
                 ratios.push((v + dither(j)) / b);
             } else {
                 bounds.push(CLIPPED / b);
             }
         }
-        censored_median(&mut ratios, &mut bounds, &mut under)
+        censored_median(&mut ratios, &mut bounds).unwrap_or_else(|| {
+            // Most values clipped: the least gain that clips as many, from the dimmest
+            // background of that many brightest (read again: rarely needed).
+            let mut all: Vec<f32> = (0..n).step_by(stride).filter_map(under).collect();
+            let rank = all.len() - bounds.len();
+            let dimmest_clipped = *all.select_nth_unstable_by(rank, f32::total_cmp).1;
+            f64::from(CLIPPED / dimmest_clipped)
+        })
     }
 
     /// [`Background::frame_gain`] of 8-bit grey samples `data` against a constant grey
@@ -162,7 +170,7 @@ impl Background {
     /// The offset (grey levels) that the gain `g` (from [`Background::gain_to_remove`]) adds
     /// to the signal of every pixel against a [`BackgroundModel::Constant`] background, to be
     /// subtracted from it; `None` for a per-pixel background (where the offset follows the
-    /// background's own brightness) and where uneven light is taken out. On a flat background
+    /// background's own brightness, and uneven light may be taken out). On a flat background
     /// a gain is one offset over the whole frame, so it can be taken out of the signal the
     /// blobs are found in: their noise mask assumes a background at zero, and an exposure
     /// drift of 9 % on a background of 181 levels (sweep style 1026) shifts it by 16 levels,
@@ -174,10 +182,7 @@ impl Background {
     /// against it (fresh style 6784: none found in 6 of 17 frames).
     #[must_use]
     pub fn uniform_gain_offset(&self, g: f64) -> Option<f32> {
-        if self.model != BackgroundModel::Constant || self.light.is_some() {
-            return None;
-        }
-        Some(gain_shift(&self.level, &self.direction, g as f32))
+        (self.model == BackgroundModel::Constant).then(|| gain_shift(&self.level, &self.direction, g as f32))
     }
 
     /// Removes the gain `g` (from [`Background::gain_to_remove`]) from `signal`, in place. The
@@ -223,10 +228,10 @@ pub(super) fn gain_shift(b: &[f32], direction: &[f32], g: f32) -> f32 {
 }
 
 /// The median ratio of a frame's values to the background under them: `ratios` holds the
-/// unclipped ones (dithered), `bounds` the least ratio each clipped value may have (a
-/// clipped value says only that its pixel is at least as bright as the clip level) and
-/// `under` the background under every value looked at (all three reordered); 1 when fewer
-/// than 16 values were looked at.
+/// unclipped ones (dithered) and `bounds` the least ratio each clipped value may have (a
+/// clipped value says only that its pixel is at least as bright as the clip level), both
+/// reordered; 1 when fewer than 16 values were looked at; `None` where most values are
+/// clipped and the estimate has no median.
 ///
 /// Left out, the clipped values pulled the median down where noise clipped the brightest
 /// of a flat light background (noise 27 on a background of 230 clips one value in five);
@@ -235,37 +240,33 @@ pub(super) fn gain_shift(b: &[f32], direction: &[f32], g: f32) -> f32 {
 /// clipped value censored at its bound, wherever a bound lies below the plain count's
 /// median (on a flat background, and where only particles clip, none does).
 ///
-/// Where the estimate has no median (most values clipped: a light background driven into
-/// saturation by the exposure, whose unclipped rest is mostly the particles), the gain is
-/// the least one that clips as many values: the clip level over the background of the
-/// dimmest of that many brightest (on a flat background, the least gain that clips it). The
-/// median of the unclipped rest read the particles: 0.5 to 0.7 in the clipped frames of
+/// Where the estimate has no median (a light background driven into saturation by the
+/// exposure, whose unclipped rest is mostly the particles), [`Background::frame_gain`]
+/// takes the least gain that clips as many values: the clip level over the background of
+/// the dimmest of that many brightest (on a flat background, the least gain that clips it).
+/// The median of the unclipped rest read the particles: 0.5 to 0.7 in the clipped frames of
 /// fresh style 6374, 0.97 to 1.0 in those of 6155, whose exposures drift by 14 and 15 %.
-fn censored_median(ratios: &mut [f32], bounds: &mut [f32], under: &mut [f32]) -> f64 {
+fn censored_median(ratios: &mut [f32], bounds: &mut [f32]) -> Option<f64> {
     let used = ratios.len() + bounds.len();
     if used < 16 {
-        return 1.0;
+        return Some(1.0);
     }
     let rank = ((used - 1) as f64 * 0.5).round() as usize;
     let lowest_bound = bounds.iter().fold(f32::INFINITY, |m, &l| m.min(l));
     if rank < ratios.len() {
         let m = *ratios.select_nth_unstable_by(rank, f32::total_cmp).1;
         if lowest_bound >= m {
-            return f64::from(m);
+            return Some(f64::from(m));
         }
     }
-    // Every bound above every ratio read: the clipped values count above them all (as
-    // `grey8_gain_on_level` counts, to the bit), and most are clipped.
+    // Where every bound lies above every ratio read (a flat background, as
+    // `grey8_gain_on_level` counts, to the bit), the clipped values count above them all and
+    // most are clipped here; else the Kaplan-Meier estimate.
     let highest_ratio = ratios.iter().fold(f32::NEG_INFINITY, |m, &r| m.max(r));
     if lowest_bound < highest_ratio {
-        if let Some(m) = kaplan_meier_median(ratios, bounds) {
-            return f64::from(m);
-        }
+        return kaplan_meier_median(ratios, bounds).map(f64::from);
     }
-    let dimmest_clipped = *under
-        .select_nth_unstable_by(used - bounds.len(), f32::total_cmp)
-        .1;
-    f64::from(CLIPPED / dimmest_clipped)
+    None
 }
 
 /// The median of the Kaplan-Meier estimate of a distribution from the values `events` and

@@ -89,7 +89,7 @@ impl Background {
             return None;
         }
         let pixels = w * h;
-        let (hx, hy) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
+        let half = [0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64];
         let mut points: Vec<([f64; TERMS], f64)> = Vec::with_capacity(values.len());
         let mut picked: Vec<&[f32]> = Vec::with_capacity(values.len());
         let mut clipped = 0usize;
@@ -99,7 +99,7 @@ impl Background {
                 continue;
             }
             let level = px.iter().map(|&v| f64::from(v)).sum::<f64>() / c as f64;
-            let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
+            let (x, y) = unit(i, w, half);
             points.push((terms(x, y), level));
             picked.push(px);
         }
@@ -119,8 +119,8 @@ impl Background {
         let mut light = vec![0.0f32; pixels];
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for (i, l) in light.iter_mut().enumerate() {
-            let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
-            let v: f64 = terms(x, y).iter().zip(&coefficients).map(|(t, a)| t * a).sum();
+            let (x, y) = unit(i, w, half);
+            let v = evaluate(&coefficients, x, y);
             lo = lo.min(v);
             hi = hi.max(v);
             *l = v as f32;
@@ -144,8 +144,8 @@ impl Background {
                     .collect();
                 let a = least_squares(&channel, &used)?;
                 for (i, v) in surface.iter_mut().skip(ch).step_by(c).enumerate() {
-                    let (x, y) = ((i % w) as f64 / hx - 1.0, (i / w) as f64 / hy - 1.0);
-                    *v = terms(x, y).iter().zip(&a).map(|(t, a)| t * a).sum::<f64>() as f32;
+                    let (x, y) = unit(i, w, half);
+                    *v = evaluate(&a, x, y) as f32;
                 }
             }
             surface
@@ -160,6 +160,17 @@ impl Background {
             range: hi / lo,
         })
     }
+}
+
+/// Pixel `i`'s coordinates in a frame `w` px wide, scaled to `[-1, 1]` by the half-extents
+/// `half = [(w - 1) / 2, (h - 1) / 2]`.
+fn unit(i: usize, w: usize, half: [f64; 2]) -> (f64, f64) {
+    ((i % w) as f64 / half[0] - 1.0, (i / w) as f64 / half[1] - 1.0)
+}
+
+/// The surface with `coefficients` at `(x, y)` (scaled to `[-1, 1]`).
+fn evaluate(coefficients: &[f64; TERMS], x: f64, y: f64) -> f64 {
+    terms(x, y).iter().zip(coefficients).map(|(t, a)| t * a).sum()
 }
 
 /// The monomials `x^i y^j`, `i + j <= 3`, at `(x, y)` (coordinates scaled to `[-1, 1]`).
