@@ -23,6 +23,12 @@ impl Background {
     /// (`inpaint::fill_from_surroundings`). Elsewhere such pixels keep the median of the
     /// farthest samples: unnamed, a speck always found may be the scene's own texture.
     ///
+    /// Where the background is an even surface lit unevenly (it has a [`Light`]), the light
+    /// is read again on the pixels clear of every particle's `reach` in every sample when
+    /// they are half the frame, or else on those clear of the named particles' `light_reach`
+    /// (px: how far their own light reaches) when that is nearer and those are, and that
+    /// surface is the background wherever a particle came.
+    ///
     /// With [`SampleExposure::Matched`] each sample is first divided by its
     /// [`Background::frame_gain`] against this background.
     pub fn exclude_particles(
@@ -31,6 +37,7 @@ impl Background {
         particles: &[Vec<[f64; 2]>],
         named: &[[f64; 2]],
         reach: f64,
+        light_reach: f64,
         exposure: SampleExposure,
     ) {
         if self.model != BackgroundModel::PerPixel
@@ -53,10 +60,43 @@ impl Background {
         // style 1018, bent across the middle by 10 grey levels: 0.75 px off).
         if self.light.is_some() {
             let clear = near_any.iter().filter(|&&n| !n).count();
-            if 2 * clear >= near_any.len() {
-                if let Some(light) = self.read_light(Some(&near_any)) {
-                    self.light = Some(light);
-                }
+            // Where the blobs' `reach` leaves less than half the frame (a large particle,
+            // specks of noise or texture found at its scale), the particles' own light may
+            // still leave half: the named particles' blobs (those within `reach` of a start),
+            // or every blob without names, out to `light_reach` where that is nearer. The
+            // first reading bends with a large ball that hovers (a shaded sphere of 39 px under
+            // vignetting, fresh style 6653: clear of every blob's 2R + 1 stood 23 % of the
+            // frame; against the first reading the sphere read 26 px and was followed 8 px
+            // off, read clear of its own R + 1 (60 %), 0.36 / 1.45 px, its shaded centroid
+            // 0.68 / 1.45 px off its centre). A smooth spot's light reaches `reach` itself,
+            // and read clear of the named spot alone the light bent with its skirt (fresh
+            // style 6054, a Gaussian spot of 30 px: 0.49 / 0.70 px -> 0.60 / 0.87).
+            let light = if 2 * clear >= near_any.len() {
+                self.read_light(Some(&near_any))
+            } else if light_reach >= reach {
+                None
+            } else {
+                let own: Vec<Vec<[f64; 2]>> = particles
+                    .iter()
+                    .map(|found| {
+                        found
+                            .iter()
+                            .filter(|p| {
+                                named.is_empty()
+                                    || named.iter().any(|s| (p[0] - s[0]).hypot(p[1] - s[1]) <= reach)
+                            })
+                            .copied()
+                            .collect()
+                    })
+                    .collect();
+                let near_light = near_any_particle(&own, light_reach, w, h);
+                let clear = near_light.iter().filter(|&&n| !n).count();
+                (2 * clear >= near_light.len())
+                    .then(|| self.read_light(Some(&near_light)))
+                    .flatten()
+            };
+            if light.is_some() {
+                self.light = light;
             }
             if let Some(light) = &self.light {
                 for (i, _) in near_any.iter().enumerate().filter(|(_, &n)| n) {

@@ -172,6 +172,21 @@ pub(super) fn largest_radius(classes: &[SizeClass]) -> f64 {
 /// 0.04. The sample frames' own exclusion, of every blob found, keeps `2R + 1`: with this
 /// reach there, five textured balls of 7 px under a gradient (sweep style 1003) were refused.
 pub(super) fn exclusion_reach(classes: &[SizeClass]) -> f64 {
+    reach_over(classes, |_| 2.0)
+}
+
+/// How far tracked particles' own light reaches, px: the radius and a pixel for particles
+/// sized at their edge (a disc, a ball, a ring), twice the radius and a pixel for smooth spots
+/// sized at their half maximum (a Gaussian's light stands at a sixteenth of its peak there),
+/// or the skirt as in [`exclusion_reach`] where farther; where the light falling on the scene
+/// is read again, the pixels beyond it are clear of them.
+pub(super) fn light_reach(classes: &[SizeClass]) -> f64 {
+    reach_over(classes, |sizes| if sizes.smooth { 2.0 } else { 1.0 })
+}
+
+/// The largest over the classes of `radii` (of a class's sizes) radii or the skirt's radius,
+/// and a pixel, px.
+fn reach_over(classes: &[SizeClass], radii: impl Fn(&Sizes) -> f64) -> f64 {
     classes
         .iter()
         .map(|c| {
@@ -180,7 +195,7 @@ pub(super) fn exclusion_reach(classes: &[SizeClass]) -> f64 {
                 .params
                 .expected
                 .map_or(0.0, |e| (e.extent / std::f64::consts::PI).sqrt());
-            (2.0 * c.sizes.radius).max(skirt) + 1.0
+            (radii(&c.sizes) * c.sizes.radius).max(skirt) + 1.0
         })
         .fold(0.0, f64::max)
 }

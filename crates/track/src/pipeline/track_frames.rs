@@ -7,7 +7,7 @@ use super::outcome::{TrackOutcome, TrackStats};
 use super::plane::planes_move_points;
 use super::radius::first_frame_scan;
 use super::samples::{check_size, load_sample, moving_blobs, views};
-use super::size_class::{exclusion_reach, largest_radius, SizeClass, Sizes};
+use super::size_class::{largest_radius, light_reach, SizeClass, Sizes};
 use super::skirts::particle_contrast;
 use super::stage::{Pass, Stage};
 use super::tracks_background::{
@@ -210,6 +210,7 @@ fn track_frames(
                     &with_hovering,
                     starts.unwrap_or_default(),
                     reach,
+                    light_reach(&classes),
                     SampleExposure::AsRecorded,
                 );
                 if starts.is_none() || options.radius.is_some() || round + 1 == EXCLUSION_ROUNDS {
@@ -345,8 +346,7 @@ fn track_frames(
                 &views(&sample_frames),
                 &gains,
                 &pass,
-                largest_radius(&classes),
-                exclusion_reach(&classes),
+                &classes,
                 blind_search,
             ) else {
                 break;

@@ -1,5 +1,6 @@
 //! The per-pixel background taken again without the named tracks, while it steadies them.
 
+use super::size_class::{exclusion_reach, largest_radius, light_reach, SizeClass};
 use super::stage::Pass;
 use crate::scale::{self, ScaleBlob};
 use crate::{Background, BackgroundModel, FrameView, SampleExposure, TrackPoint, TrackTable};
@@ -44,10 +45,12 @@ pub(super) fn hovering_starts(
 }
 
 /// The per-pixel `background` taken again with every track of `pass` left out of each
-/// sample (within `reach` px of its point there, each sample on the background's exposure)
-/// and the pixels no sample shows clear filled from around them; `None` when it would not
+/// sample (within the `classes`' [`exclusion_reach`] of its point there, each sample on the
+/// background's exposure) and the pixels no sample shows clear filled from around them (an
+/// unevenly lit surface's light read where their [`light_reach`] leaves the frame clear: see
+/// [`Background::exclude_particles`]); `None` when it would not
 /// matter: a background not per-pixel, a pass with concerns other than skirts, no tracked
-/// point in a sample whose centroid (over `radius` px) the change would move by half its own
+/// point in a sample whose centroid (over the largest radius) the change would move by half its own
 /// standard error, or (for a pass without concerns) masses it would not make steadier by
 /// [`STEADIER`].
 pub(super) fn background_without_tracks(
@@ -55,10 +58,10 @@ pub(super) fn background_without_tracks(
     samples: &[FrameView<'_>],
     gains: &SampleGains,
     pass: &Pass,
-    radius: f64,
-    reach: f64,
+    classes: &[SizeClass],
     blind_search: Option<(f32, usize)>,
 ) -> Option<Background> {
+    let radius = largest_radius(classes);
     // Concerns other than a skirt say the tracks themselves went astray (fresh 6509: a jump
     // of 44.5 px in two frames; taken out of the median, the track's wrong points let the
     // second pass through without a concern, 0.52 px off against 0.10).
@@ -92,7 +95,14 @@ pub(super) fn background_without_tracks(
     }
     let everywhere: Vec<[f64; 2]> = at.iter().flatten().copied().collect();
     let mut cleaner = background.clone();
-    cleaner.exclude_particles(samples, &at, &everywhere, reach, SampleExposure::Matched);
+    cleaner.exclude_particles(
+        samples,
+        &at,
+        &everywhere,
+        exclusion_reach(classes),
+        light_reach(classes),
+        SampleExposure::Matched,
+    );
     // Structure as bright as the particles may have been a particle in the median.
     if let Some((contrast, blind_reach)) = blind_search {
         cleaner.find_blind(contrast, blind_reach);
