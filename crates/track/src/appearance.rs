@@ -104,7 +104,8 @@ pub struct AppearanceSpread {
 
 impl AppearanceSpread {
     /// Pooled over a recording from unambiguous links (see the module doc); `None` when
-    /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist. Frames are visited spread over
+    /// fewer than [`OWN_SPREAD_MIN_CHANGES`] such links exist, and the size's spread unknown
+    /// (NaN) when fewer of them have both sizes. Frames are visited spread over
     /// the recording until 2 000 links are found (`POOLED_LINKS`).
     pub fn pooled(frames: &[FrameDetections], levels: &AppearanceLevels) -> Option<AppearanceSpread> {
         let mut dm: Vec<f64> = Vec::new();
@@ -122,12 +123,21 @@ impl AppearanceSpread {
             for (x, y) in unambiguous_links(&w[0], &w[1], usize::MAX) {
                 let (x, y) = (levels.apply(x, w[0].frame), levels.apply(y, w[1].frame));
                 dm.push(y.ln_mass - x.ln_mass);
-                ds.push(y.size - x.size);
+                // A size is unknown (NaN) where the border cut the window; left out, as the
+                // track's own spread leaves it out, else it sorts above every change.
+                let d_size = y.size - x.size;
+                if d_size.is_finite() {
+                    ds.push(d_size);
+                }
             }
         }
         (dm.len() >= OWN_SPREAD_MIN_CHANGES).then(|| AppearanceSpread {
             ln_mass: tail_spread(&mut dm),
-            size: tail_spread(&mut ds),
+            size: if ds.len() >= OWN_SPREAD_MIN_CHANGES {
+                tail_spread(&mut ds)
+            } else {
+                f64::NAN
+            },
         })
     }
 }
@@ -845,6 +855,39 @@ mod tests {
         // No pairs: no pooled spread.
         assert!(AppearanceSpread::pooled(&frames[..1], &AppearanceLevels::default()).is_none());
     }
+    /// Three particles far apart whose windows the border cuts (no size) and two whose
+    /// sizes alternate by ±0.1 px: the pooled size spread is theirs (the changes ±0.2 px),
+    /// the unknown sizes left out (among the changes they sorted above every one and made
+    /// the spread unknown); with every size unknown it is unknown.
+    #[test]
+    fn pooled_size_spread_leaves_out_unknown_sizes() {
+        let frames = |known: bool| -> Vec<FrameDetections> {
+            (0..8)
+                .map(|k| FrameDetections {
+                    frame: k,
+                    detections: (0..5)
+                        .map(|i| {
+                            let mut d = det(20.0 + 60.0 * i as f64, 20.0 + k as f64, 1000.0, 3.0);
+                            if i < 3 || !known {
+                                d.clipped = true;
+                            } else {
+                                d.size += if k % 2 == 0 { 0.1 } else { -0.1 };
+                            }
+                            d
+                        })
+                        .collect(),
+                })
+                .collect()
+        };
+        let s = AppearanceSpread::pooled(&frames(true), &AppearanceLevels::default()).expect("spread");
+        assert!(
+            s.size.is_finite() && (s.size - 0.2 * MAD_TO_SIGMA).abs() < 0.2,
+            "{s:?}"
+        );
+        let s = AppearanceSpread::pooled(&frames(false), &AppearanceLevels::default()).expect("spread");
+        assert!(s.size.is_nan() && s.ln_mass.is_finite(), "{s:?}");
+    }
+
     /// Five particles far apart whose masses all drop by a tenth from frame 3 on (an
     /// exposure change), each with its own wobble of ±1 %: the frames from 3 on sit at a
     /// level of ln 0.9, and a particle's appearance relative to it is back where it was.
