@@ -1222,6 +1222,33 @@ fn light_on_the_background_alone_is_dropped_or_named() {
     );
 }
 
+/// Tracks the synth styles `seeds` and asserts that none is written wrong without a word
+/// and that at least `least` are followed within the bound, printing the table (each row
+/// with the noise the tracker read).
+fn assert_class_followed(seeds: &[u64], least: usize) {
+    let rows: Vec<Row> = seeds.iter().map(|&s| synth_row(s)).collect();
+    let report: String = rows
+        .iter()
+        .map(|r| format!("{} noise read {:.2}\n", r.line(), r.noise))
+        .collect();
+    println!("{HEADER}\n{report}");
+    let silent: Vec<u64> = rows
+        .iter()
+        .filter(|r| !r.followed_refused_or_warned())
+        .map(|r| r.style.seed)
+        .collect();
+    assert!(
+        silent.is_empty(),
+        "styles {silent:?} written wrong without a word:\n{HEADER}\n{report}"
+    );
+    let followed = rows.iter().filter(|r| r.passed()).count();
+    assert!(
+        followed >= least,
+        "{followed} of {} followed:\n{HEADER}\n{report}",
+        seeds.len()
+    );
+}
+
 /// The first 24 styles from seed 7200 on that are dark on a light background under a
 /// drifting exposure (±5 % and more; a third of those drawn so clip the light background at
 /// 255 for part of the recording), each otherwise as drawn (any profile, size, colour, blur,
@@ -1240,23 +1267,7 @@ fn dark_particles_under_a_drifting_exposure_are_followed() {
         })
         .take(24)
         .collect();
-    let rows: Vec<Row> = seeds.iter().map(|&s| synth_row(s)).collect();
-    let report: String = rows
-        .iter()
-        .map(|r| format!("{} noise read {:.2}\n", r.line(), r.noise))
-        .collect();
-    println!("{HEADER}\n{report}");
-    let silent: Vec<u64> = rows
-        .iter()
-        .filter(|r| !r.followed_refused_or_warned())
-        .map(|r| r.style.seed)
-        .collect();
-    assert!(
-        silent.is_empty(),
-        "styles {silent:?} written wrong without a word:\n{HEADER}\n{report}"
-    );
-    let followed = rows.iter().filter(|r| r.passed()).count();
-    assert!(followed >= 20, "{followed} of 24 followed:\n{HEADER}\n{report}");
+    assert_class_followed(&seeds, 20);
 }
 
 /// Fresh style 6653 (a shaded sphere of 39 px under vignetting of 0.24, near a corner of a
@@ -1282,20 +1293,7 @@ fn large_particles_that_hover_under_vignetting_are_followed() {
         })
         .take(12);
     let seeds: Vec<u64> = std::iter::once(6653).chain(neighbours).collect();
-    let rows: Vec<Row> = seeds.iter().map(|&s| synth_row(s)).collect();
-    let report: String = rows.iter().map(|r| format!("{}\n", r.line())).collect();
-    println!("{HEADER}\n{report}");
-    let silent: Vec<u64> = rows
-        .iter()
-        .filter(|r| !r.followed_refused_or_warned())
-        .map(|r| r.style.seed)
-        .collect();
-    assert!(
-        silent.is_empty(),
-        "styles {silent:?} written wrong without a word:\n{HEADER}\n{report}"
-    );
-    let followed = rows.iter().filter(|r| r.passed()).count();
-    assert!(followed >= 11, "{followed} of 13 followed:\n{HEADER}\n{report}");
+    assert_class_followed(&seeds, 11);
 }
 
 /// Fresh styles 6139, 6168 and 6419 (a ring, a disc and a textured ball of 21-29 px, one in
@@ -1315,18 +1313,5 @@ fn single_large_particles_are_followed() {
         })
         .take(12);
     let seeds: Vec<u64> = [6139, 6168, 6419].into_iter().chain(neighbours).collect();
-    let rows: Vec<Row> = seeds.iter().map(|&s| synth_row(s)).collect();
-    let report: String = rows.iter().map(|r| format!("{}\n", r.line())).collect();
-    println!("{HEADER}\n{report}");
-    let silent: Vec<u64> = rows
-        .iter()
-        .filter(|r| !r.followed_refused_or_warned())
-        .map(|r| r.style.seed)
-        .collect();
-    assert!(
-        silent.is_empty(),
-        "styles {silent:?} written wrong without a word:\n{HEADER}\n{report}"
-    );
-    let followed = rows.iter().filter(|r| r.passed()).count();
-    assert!(followed >= 13, "{followed} of 15 followed:\n{HEADER}\n{report}");
+    assert_class_followed(&seeds, 13);
 }
