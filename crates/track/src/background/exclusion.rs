@@ -4,6 +4,7 @@ use super::estimate::DECISION_PIXELS;
 use super::median::median_of;
 use super::model::{Background, BackgroundModel, SampleExposure, CLEAR_SAMPLES};
 use crate::frames::FrameView;
+use crate::point_grid::PointGrid;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
@@ -76,18 +77,18 @@ impl Background {
             } else if light_reach >= reach {
                 None
             } else {
+                // Every track's points are named where the tracks are taken out: a grid, not a
+                // scan of all of them for each blob (nor kiddo's tree, wrong for a few points:
+                // see `point_grid`).
+                let starts = PointGrid::new(named);
+                let theirs = |p: &[f64; 2]| {
+                    let mut near = named.is_empty();
+                    starts.within(p, reach, |_, _| near = true);
+                    near
+                };
                 let own: Vec<Vec<[f64; 2]>> = particles
                     .iter()
-                    .map(|found| {
-                        found
-                            .iter()
-                            .filter(|p| {
-                                named.is_empty()
-                                    || named.iter().any(|s| (p[0] - s[0]).hypot(p[1] - s[1]) <= reach)
-                            })
-                            .copied()
-                            .collect()
-                    })
+                    .map(|found| found.iter().filter(|p| theirs(p)).copied().collect())
                     .collect();
                 let near_light = near_any_particle(&own, light_reach, w, h);
                 let clear = near_light.iter().filter(|&&n| !n).count();
