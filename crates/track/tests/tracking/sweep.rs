@@ -1222,6 +1222,14 @@ fn light_on_the_background_alone_is_dropped_or_named() {
     );
 }
 
+/// The seeds of the first `count` synth styles from seed `from` on that `keep` holds.
+fn first_styles(from: u64, count: usize, keep: impl Fn(&Style) -> bool) -> Vec<u64> {
+    (from..)
+        .filter(|&s| keep(&Style::random(s)))
+        .take(count)
+        .collect()
+}
+
 /// Tracks the synth styles `seeds` and asserts that none is written wrong without a word
 /// and that at least `least` are followed within the bound, printing the table (each row
 /// with the noise the tracker read).
@@ -1260,13 +1268,9 @@ fn assert_class_followed(seeds: &[u64], least: usize) {
 /// off its neighbours' path in frame 1, was, before single-frame excursions were named).
 #[test]
 fn dark_particles_under_a_drifting_exposure_are_followed() {
-    let seeds: Vec<u64> = (7200u64..)
-        .filter(|&s| {
-            let style = Style::random(s);
-            style.polarity == Polarity::DarkOnLight && style.exposure >= 0.05
-        })
-        .take(24)
-        .collect();
+    let seeds = first_styles(7200, 24, |style| {
+        style.polarity == Polarity::DarkOnLight && style.exposure >= 0.05
+    });
     assert_class_followed(&seeds, 20);
 }
 
@@ -1282,16 +1286,13 @@ fn dark_particles_under_a_drifting_exposure_are_followed() {
 /// too, and one, 7802, a sphere of 42 px under a saturating exposure, is refused).
 #[test]
 fn large_particles_that_hover_under_vignetting_are_followed() {
-    let neighbours = (7400u64..)
-        .filter(|&s| {
-            let style = Style::random(s);
-            matches!(
-                style.profile,
-                Profile::Disc | Profile::Textured { .. } | Profile::Sphere { .. }
-            ) && style.radius >= 25.0
-                && style.vignetting >= 0.1
-        })
-        .take(12);
+    let neighbours = first_styles(7400, 12, |style| {
+        matches!(
+            style.profile,
+            Profile::Disc | Profile::Textured { .. } | Profile::Sphere { .. }
+        ) && style.radius >= 25.0
+            && style.vignetting >= 0.1
+    });
     let seeds: Vec<u64> = std::iter::once(6653).chain(neighbours).collect();
     assert_class_followed(&seeds, 11);
 }
@@ -1306,12 +1307,9 @@ fn large_particles_that_hover_under_vignetting_are_followed() {
 /// too), and none is written wrong without a word.
 #[test]
 fn single_large_particles_are_followed() {
-    let neighbours = (7600u64..)
-        .filter(|&s| {
-            let style = Style::random(s);
-            style.particle_count == 1 && style.radius >= 15.0
-        })
-        .take(12);
+    let neighbours = first_styles(7600, 12, |style| {
+        style.particle_count == 1 && style.radius >= 15.0
+    });
     let seeds: Vec<u64> = [6139, 6168, 6419].into_iter().chain(neighbours).collect();
     assert_class_followed(&seeds, 13);
 }
