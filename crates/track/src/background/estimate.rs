@@ -122,6 +122,7 @@ pub fn estimate_background(samples: &[FrameView<'_>], choice: BackgroundChoice) 
         saturated_fraction: 0.0,
         blind: BlindPixels::default(),
         light: None,
+        facing: None,
     };
     bg.measure_signal(samples);
     bg.measure_levels(samples);
@@ -149,22 +150,8 @@ impl Background {
     /// ([`Background::exclude_particles`]).
     pub(super) fn measure_signal(&mut self, samples: &[FrameView<'_>]) {
         let sigma_t = self.temporal_noise;
-        let (width, height, channels) = (self.width, self.height, self.channels);
-        if self.clip_offset != 0.0 {
-            let offset = self.clip_offset as f32;
-            for (l, u) in self.level.iter_mut().zip(&self.direction) {
-                *l -= offset * u;
-            }
-            for px in self.image.chunks_exact_mut(channels) {
-                for (b, u) in px.iter_mut().zip(&self.direction) {
-                    *b -= offset * u;
-                }
-            }
-            self.clip_offset = 0.0;
-        }
-        // An even sample of the pixels (every `stride`-th of each frame, an odd stride so that
-        // successive frames' samples fall on other columns).
-        let stride = (samples.len() * width * height / NOISE_SAMPLES).max(1) | 1;
+        self.take_out_clip_offset();
+        let stride = self.noise_stride(samples);
         // Where no pixel differs by 6 temporal sigmas, the threshold is halved down to 3 grey
         // levels before bright particles are assumed: an exposure drift counts in the temporal
         // noise (a light background drifting by 11 % read 12.6), and 75 grey levels were more
@@ -175,9 +162,47 @@ impl Background {
             match colour_direction(samples, self, threshold, stride) {
                 Some(direction) => break direction,
                 None if threshold > 3.0 => threshold = (0.5 * threshold).max(3.0),
-                None => break vec![1.0 / (channels as f32).sqrt(); channels],
+                None => break vec![1.0 / (self.channels as f32).sqrt(); self.channels],
             }
         };
+        if let Some(facing) = &self.facing {
+            if self.direction.iter().zip(facing).map(|(a, b)| a * b).sum::<f32>() < 0.0 {
+                for u in &mut self.direction {
+                    *u = -*u;
+                }
+            }
+        }
+        self.measure_noise(samples);
+    }
+
+    /// Takes a clip offset added to the image (see [`Background::measure_noise`]) out again.
+    pub(super) fn take_out_clip_offset(&mut self) {
+        if self.clip_offset != 0.0 {
+            let offset = self.clip_offset as f32;
+            for (l, u) in self.level.iter_mut().zip(&self.direction) {
+                *l -= offset * u;
+            }
+            for px in self.image.chunks_exact_mut(self.channels) {
+                for (b, u) in px.iter_mut().zip(&self.direction) {
+                    *b -= offset * u;
+                }
+            }
+            self.clip_offset = 0.0;
+        }
+    }
+
+    /// An even sample of the pixels the noise is measured on: every `stride`-th of each
+    /// frame, an odd stride so that successive frames' samples fall on other columns.
+    fn noise_stride(&self, samples: &[FrameView<'_>]) -> usize {
+        (samples.len() * self.width * self.height / NOISE_SAMPLES).max(1) | 1
+    }
+
+    /// The signal's noise (grey levels) and the clip offset, measured on `samples` along the
+    /// colour direction in use, against the current background image (with no clip offset
+    /// in it).
+    pub(super) fn measure_noise(&mut self, samples: &[FrameView<'_>]) {
+        let (width, height, channels) = (self.width, self.height, self.channels);
+        let stride = self.noise_stride(samples);
         // The lowest signal a pixel can show: its value at the clip level (0 where particles
         // are brighter in a channel, 255 where darker).
         let clip: Vec<f32> = self

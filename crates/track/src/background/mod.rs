@@ -18,6 +18,7 @@
 
 mod estimate;
 mod exclusion;
+mod facing;
 mod gain;
 mod light;
 mod median;

@@ -80,6 +80,10 @@ pub struct Background {
     /// unevenly: the signal is divided by it (see [`crate::Light`]); `None`
     /// otherwise.
     pub light: Option<super::Light>,
+    /// The colour direction the named particles were found to face where it turned the one
+    /// the pixels gave (see [`Background::face_starts`]): a direction measured again is
+    /// signed to agree with it; `None` otherwise.
+    pub facing: Option<Vec<f32>>,
 }
 
 /// How [`Background::exclude_particles`] takes the samples' levels.

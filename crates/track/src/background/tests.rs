@@ -830,3 +830,83 @@ fn the_light_under_a_hovering_ball_is_read_clear_of_the_ball() {
         "kept as first read: {kept:.2} levels off under the ball"
     );
 }
+
+/// Frames of `w` × `h` px over a background of 215 grey levels, 6 % brighter in the middle
+/// than at the corners, at noise 11 (seeded), with a particle whose signal at distance `d`
+/// from its centre is `profile(d)` (grey levels, added) at `at(k)` in frame `k` of 17.
+fn vignetted_particle(
+    w: usize,
+    h: usize,
+    at: impl Fn(usize) -> [f64; 2],
+    profile: impl Fn(f64) -> f64,
+) -> Vec<Frame> {
+    use rand::SeedableRng;
+    use rand_distr::Distribution;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(8350);
+    let normal = rand_distr::Normal::new(0.0, 11.0).expect("a spread");
+    let (cx, cy) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
+    (0..17)
+        .map(|k| {
+            let p = at(k);
+            let mut f = Frame::filled(w, h, &[0.0]);
+            for (i, v) in f.data.iter_mut().enumerate() {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let r2 = ((x - cx).powi(2) + (y - cy).powi(2)) / (cx * cx + cy * cy);
+                let light = 215.0 * (1.0 - 0.06 * r2);
+                let d = (x - p[0]).hypot(y - p[1]);
+                *v = (light + profile(d) + normal.sample(&mut rng))
+                    .round()
+                    .clamp(0.0, 255.0) as f32;
+            }
+            f
+        })
+        .collect()
+}
+
+/// A faint dark particle in a small vignetted frame: the pixels alone say bright on dark
+/// (the middle of the frame outweighs the particle), its start turns the sign, and the noise
+/// is measured again along the turned direction; a bright particle, a bright ring wider
+/// than the start discs and a particle that does not move keep the sign the pixels gave.
+#[test]
+fn named_starts_turn_the_sign_of_a_faint_particle_the_light_outweighs() {
+    let path = |k: usize| [20.4, 20.2 + 1.5 * k as f64];
+    let spot = |c: f64| move |d: f64| c * (-0.5 * (d / 2.2).powi(2)).exp();
+    let dark = vignetted_particle(58, 62, path, spot(-30.0));
+    let mut bg = estimate_background(&views(&dark), BackgroundChoice::Auto);
+    assert!(
+        !bg.is_dark_on_light(),
+        "the premise: the pixels alone read bright on dark"
+    );
+    let noise = bg.noise_sigma;
+    assert!(bg.face_starts(&views(&dark), &[[20.4, 20.2]]));
+    assert!(bg.is_dark_on_light());
+    assert!(bg.facing.is_some());
+    assert!(
+        (bg.noise_sigma - 11.0).abs() < 1.0,
+        "noise {noise} then {}",
+        bg.noise_sigma
+    );
+    // A direction measured again (as after excluding particles) keeps the turn.
+    bg.measure_signal(&views(&dark));
+    assert!(bg.is_dark_on_light());
+
+    // Bright on dark as given.
+    let bright = vignetted_particle(58, 62, path, spot(35.0));
+    let mut bg = estimate_background(&views(&bright), BackgroundChoice::Auto);
+    assert!(!bg.face_starts(&views(&bright), &[[20.4, 20.2]]));
+    assert!(!bg.is_dark_on_light());
+    // A bright ring of radius 14 px: its middle, under the start discs, is background.
+    let ring = |d: f64| 60.0 * (-0.5 * ((d - 14.0) / 1.2).powi(2)).exp();
+    let rings = vignetted_particle(90, 90, |k| [45.0, 30.0 + 2.0 * k as f64], ring);
+    let mut bg = estimate_background(&views(&rings), BackgroundChoice::Auto);
+    let was = bg.is_dark_on_light();
+    assert!(!bg.face_starts(&views(&rings), &[[45.0, 30.0]]));
+    assert_eq!(bg.is_dark_on_light(), was);
+    assert!(!was);
+    // A dark particle that stays put changes no pixel against the other samples.
+    let still = vignetted_particle(58, 62, |_| [20.4, 20.2], spot(-35.0));
+    let mut bg = estimate_background(&views(&still), BackgroundChoice::Constant);
+    let was = bg.is_dark_on_light();
+    assert!(!bg.face_starts(&views(&still), &[[20.4, 20.2]]));
+    assert_eq!(bg.is_dark_on_light(), was);
+}

@@ -21,6 +21,7 @@ mod size_class;
 mod skirts;
 mod spikes;
 mod stage;
+mod start_offsets;
 mod track_frames;
 mod tracks_background;
 mod window_frames;

@@ -7,6 +7,7 @@ use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
 use super::skirts::{sample_clipping, sample_skirts};
 use super::spikes::bridge_spikes;
+use super::start_offsets::start_offsets;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::WindowFrames;
 use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images, Concern, TrackConcern};
@@ -186,6 +187,7 @@ impl Stage<'_> {
                 relocated.moved += r.moved;
                 relocated.renamed += r.renamed;
                 warnings.extend(bridge_spikes(&mut class_table, class.sizes.radius));
+                warnings.extend(start_offsets(&class_table, named, first, class.sizes.radius));
             }
             warnings.extend(link_warnings);
             // Without a structure, a track of one point inside the recording (not at its first or

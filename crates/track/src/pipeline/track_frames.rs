@@ -111,7 +111,6 @@ fn track_frames(
     for (j, &i) in picks.iter().enumerate() {
         sample_of[i] = Some(j);
     }
-    let mut background = estimate_background(&views(&sample_frames), options.background);
     // With named particles, their frame-A blobs are the particles: the sizes are measured on
     // them alone, so that texture or clutter, however plentiful, cannot set the scale.
     let starts: Option<Vec<[f64; 2]>> = options
@@ -119,6 +118,16 @@ fn track_frames(
         .as_ref()
         .map(|named| named.iter().map(|(_, p)| *p).collect());
     let starts = starts.as_deref();
+    // The first sample is the window's first frame, where the named particles start: they
+    // say which way their signal faces (see `Background::face_starts`).
+    let estimate = |samples: &[crate::FrameView<'_>], choice: BackgroundChoice| {
+        let mut background = estimate_background(samples, choice);
+        if let Some(starts) = starts {
+            background.face_starts(samples, starts);
+        }
+        background
+    };
+    let mut background = estimate(&views(&sample_frames), options.background);
     // The named particles' answers in scale space against this background, scanned once for
     // the sizes and the hovering test below.
     let first_scan: Option<Vec<ScaleBlob>> = (starts.is_some() && options.radius.is_none())
@@ -141,7 +150,7 @@ fn track_frames(
         // as crescents. Their sizes are measured against a flat level, where they show whole.
         let hovering: Vec<[f64; 2]> = match starts {
             Some(starts) if options.radius.is_none() => {
-                let flat = estimate_background(&samples, BackgroundChoice::Constant);
+                let flat = estimate(&samples, BackgroundChoice::Constant);
                 let flat_scan = first_frame_scan(&flat, &samples, &workers);
                 let against_median = first_scan.as_deref().unwrap_or_default();
                 let hovering = hovering_starts(against_median, &flat_scan, starts);
@@ -194,7 +203,7 @@ fn track_frames(
         {
             // All the structure of the median lies where particles were: particles that
             // hovered over few samples left themselves in it, and the scene itself is flat.
-            background = estimate_background(&samples, BackgroundChoice::Constant);
+            background = estimate(&samples, BackgroundChoice::Constant);
             classes = SizeClass::measure_all(&background, &samples, options.radius, starts, None, &workers);
         } else {
             // Hovering particles cover their start in every sample; pixels near a named start
