@@ -15,6 +15,7 @@
 use std::cell::OnceCell;
 
 use super::claimants::Claimants;
+use super::fragments::join_fragments;
 use super::options::{diagonal, FrameDetections, LinkOptions};
 use super::outcome::{collect_runs, AmbiguityKind, LinkOutcome};
 use super::reacquire::{reacquire, BlobColumns};
@@ -139,12 +140,23 @@ impl<'o> Linker<'o> {
                 sharing[*j].push(i);
             }
         }
+        // A light blob nobody took beside a light one a start took is the rest of its
+        // particle (see `join_fragments`).
+        let mut claims: Vec<Claimants> = vec![Claimants::default(); dets.len()];
+        for (j, group) in sharing.iter().enumerate() {
+            for &i in group {
+                claims[j].push(i);
+            }
+        }
+        let positions: Vec<[f64; 2]> = starts.iter().map(|s| s.1).collect();
+        let joined = join_fragments(dets, &claims, &positions, &self.one, self.r);
         for (i, (name, p)) in starts.iter().enumerate() {
             let init = (0.5 * nn[i]).min(diagonal(self.options)) / GATE_SIGMAS;
             let point = match assign[i] {
-                Some(j) if sharing[j].len() == 1 => {
-                    point_from(&dets[j], PointFlag::Detected, det_nn[j] < self.crowd)
-                }
+                Some(j) if sharing[j].len() == 1 => match joined.iter().find(|f| f.0 == j) {
+                    Some((_, _, whole)) => point_from(whole, PointFlag::Detected, true),
+                    None => point_from(&dets[j], PointFlag::Detected, det_nn[j] < self.crowd),
+                },
                 Some(j) => split_start(&dets[j], &sharing[j], starts, *p, init),
                 None => {
                     self.warnings.push(format!(
@@ -169,7 +181,8 @@ impl<'o> Linker<'o> {
             if split {
                 track.merged = 1;
             } else if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
-                if let Some(a) = Appearance::of(&dets[j], 1) {
+                let seen = joined.iter().find(|f| f.0 == j).map_or(&dets[j], |f| &f.2);
+                if let Some(a) = Appearance::of(seen, 1) {
                     track.apps.push(first.frame, self.levels.apply(a, first.frame));
                 }
             }
@@ -231,7 +244,15 @@ impl<'o> Linker<'o> {
             );
         }
         let clean = self.uncrowded(&view, &claims);
-        self.write_located(&view, &claims, &clean);
+        // Every particle is named: a light blob nobody took beside a light one taken is the
+        // rest of that particle.
+        let joined = if self.named {
+            let predictions: Vec<[f64; 2]> = view.preds.iter().map(|p| p.at).collect();
+            join_fragments(view.dets, &claims, &predictions, &self.one, self.r)
+        } else {
+            Vec::new()
+        };
+        self.write_located(&view, &claims, &clean, &joined);
         self.bridge_missing(&view, &missing);
         if !self.named {
             let taken: Vec<bool> = claims.iter().map(|g| !g.is_empty()).collect();
@@ -455,20 +476,30 @@ impl<'o> Linker<'o> {
 
     /// Writes this frame's located points: a detection claimed by one track is that
     /// track's point (flag `detected`); one claimed by several is split among them.
-    fn write_located(&mut self, view: &FrameView, claims: &[Claimants], clean: &[bool]) {
+    /// A detection in `joined` (taken, fragment, joined) is written as joined with its
+    /// fragment (see [`join_fragments`]).
+    fn write_located(
+        &mut self,
+        view: &FrameView,
+        claims: &[Claimants],
+        clean: &[bool],
+        joined: &[(usize, usize, Detection)],
+    ) {
         for (j, group) in claims.iter().enumerate() {
             match group.len() {
                 0 => {}
-                1 => self.write_detected(view, j, group[0], clean[j]),
+                1 => match joined.iter().find(|f| f.0 == j) {
+                    Some((_, _, whole)) => self.write_detected(view, whole, group[0], false),
+                    None => self.write_detected(view, &view.dets[j], group[0], clean[j]),
+                },
                 _ => self.write_split(view, j, group),
             }
         }
     }
 
-    /// Gives live track `k` detection `j` whole; `clean` says it was located clear of other
+    /// Gives live track `k` detection `d` whole; `clean` says it was located clear of other
     /// taken detections (only then does its step teach the step bound).
-    fn write_detected(&mut self, view: &FrameView, j: usize, k: usize, clean: bool) {
-        let d = &view.dets[j];
+    fn write_detected(&mut self, view: &FrameView, d: &Detection, k: usize, clean: bool) {
         let tr = &mut self.tracks[view.live[k]];
         if let Some(last) = tr.points.last() {
             if last.flag == PointFlag::Detected && last.clean && clean {

@@ -34,6 +34,7 @@
 //! by an integer, and tracks unseen for more than `memory` frames end.
 
 mod claimants;
+mod fragments;
 mod link_detections;
 mod linker;
 mod options;

@@ -1338,3 +1338,21 @@ fn faint_particles_in_uneven_light_are_followed() {
     let seeds: Vec<u64> = std::iter::once(8350).chain(neighbours).collect();
     assert_class_followed(&seeds, 11);
 }
+
+/// Fresh style 8321 (five discs of 1.5 px blurred by 2.5 px, 15 grey levels over noise 5.5,
+/// under vignetting) and its neighbours, the first 12 styles from seed 8400 on that hold four
+/// or more particles of one size, 2.5 px or less, blurred by 2 px or more, each otherwise as
+/// drawn. Such a faint, broad particle can rise above the noise as two peaks, and its track
+/// took one half, 2.5 px off (8321 frame 12; fresh 6435, 6580, 8275 and 8426 alike); a named
+/// particle's halves are now joined. At least 11 of the 13 are followed within the bound (11,
+/// the other two refused; 9 before, 8321 and 8426 written wrong without a word), and none is
+/// written wrong without a word. (Recordings that mix sizes are another class: 8767, the
+/// first of them here, loses its small particle beside a large one in 6 of 17 frames.)
+#[test]
+fn faint_blurred_particles_found_as_halves_are_followed() {
+    let neighbours = first_styles(8400, 12, |style| {
+        style.particle_count >= 4 && !style.mixed && style.radius <= 2.5 && style.blur >= 2.0
+    });
+    let seeds: Vec<u64> = std::iter::once(8321).chain(neighbours).collect();
+    assert_class_followed(&seeds, 11);
+}
