@@ -43,8 +43,11 @@ impl Background {
         if samples.len() < 3 || starts.is_empty() || !even {
             return false;
         }
-        let scores = self.start_scores(samples, starts);
-        if scores.iter().any(|&s| s > -TURN_SCORE) {
+        // The level's vote first: it needs no median over the samples, and where the
+        // particles face the sign in use (nearly always) the samples' is not wanted.
+        if self.start_score(samples, starts, Against::Level) > -TURN_SCORE
+            || self.start_score(samples, starts, Against::Samples) > -TURN_SCORE
+        {
             return false;
         }
         self.take_out_clip_offset();
@@ -58,18 +61,17 @@ impl Background {
         true
     }
 
-    /// The summed standard scores of the named particles' votes (positive where they agree
-    /// with the sign in use): against the other samples, and against the background's level.
-    fn start_scores(&self, samples: &[FrameView<'_>], starts: &[[f64; 2]]) -> [f64; 2] {
+    /// The summed standard score of the named particles' votes (positive where they agree
+    /// with the sign in use) against `against`.
+    fn start_score(&self, samples: &[FrameView<'_>], starts: &[[f64; 2]], against: Against) -> f64 {
         let (width, height) = (self.width as i64, self.height as i64);
         let k = samples.len() as f64;
         // The change of one pixel against the median of the samples: the noise of a pixel
-        // and of a median of `k` (sqrt(pi / 2) sigma / sqrt(k)); against the background, a
-        // pixel's.
-        let sigma = [
-            self.noise_sigma * (1.0 + std::f64::consts::FRAC_PI_2 / k).sqrt(),
-            self.noise_sigma,
-        ];
+        // and of a median of `k` (sqrt(pi / 2) sigma / sqrt(k)); against the level, a pixel's.
+        let sigma = match against {
+            Against::Samples => self.noise_sigma * (1.0 + std::f64::consts::FRAC_PI_2 / k).sqrt(),
+            Against::Level => self.noise_sigma,
+        };
         // Each sample's exposure against the samples' mean: a drifting exposure moves every
         // background pixel by its share of the brightness, which is no particle's signal.
         let gains: Vec<f64> = samples.iter().map(|&f| self.frame_gain(f)).collect();
@@ -78,11 +80,12 @@ impl Background {
         // The first sample's own exposure against the background.
         let first_gain = gains[0] as f32;
         let reach = 3.0 * WIDTHS[WIDTHS.len() - 1];
-        let mut sums = [0.0; 2];
+        let mut sum = 0.0;
         let mut values = Vec::with_capacity(samples.len());
+        let mut changes: Vec<(f64, f64)> = Vec::new();
         for &[x, y] in starts {
-            // Each pixel's squared distance from the start and its changes.
-            let mut changes: Vec<(f64, [f64; 2])> = Vec::new();
+            // Each pixel's squared distance from the start and its change.
+            changes.clear();
             let (cx, cy) = (x.round() as i64, y.round() as i64);
             let r = reach.ceil() as i64;
             for py in (cy - r).max(0)..=(cy + r).min(height - 1) {
@@ -92,48 +95,61 @@ impl Background {
                         continue;
                     }
                     let i = (py * width + px) as usize;
-                    values.clear();
-                    let b = self.pixel(i);
-                    values.extend(samples.iter().zip(&relative).map(|(f, &g)| {
-                        self.unlit_signal_at(&f.pixel(i), i) - gain_shift(b, &self.direction, g)
-                    }));
-                    let first = values[0];
-                    values.sort_by(f32::total_cmp);
-                    let median = values[values.len() / 2];
-                    // Against the level: a per-pixel image is the median of the samples,
-                    // which holds particles that hover about their own size (rings of 11 px
-                    // drifting by their radius have their rim there, their middle in the
-                    // first frame).
-                    let p = samples[0].pixel(i);
-                    let reference = match &self.light {
-                        Some(light) => &light.surface[i * self.channels..(i + 1) * self.channels],
-                        None => &self.level[..],
+                    let change = match against {
+                        Against::Samples => {
+                            values.clear();
+                            let b = self.pixel(i);
+                            values.extend(samples.iter().zip(&relative).map(|(f, &g)| {
+                                self.unlit_signal_at(&f.pixel(i), i) - gain_shift(b, &self.direction, g)
+                            }));
+                            let first = values[0];
+                            let middle = values.len() / 2;
+                            let median = *values.select_nth_unstable_by(middle, f32::total_cmp).1;
+                            first - median
+                        }
+                        Against::Level => {
+                            let p = samples[0].pixel(i);
+                            let reference = match &self.light {
+                                Some(light) => &light.surface[i * self.channels..(i + 1) * self.channels],
+                                None => &self.level[..],
+                            };
+                            (reference.iter().zip(&self.direction).zip(p))
+                                .map(|((l, u), p)| u * (p - l))
+                                .sum::<f32>()
+                                - gain_shift(reference, &self.direction, first_gain)
+                        }
                     };
-                    let level: f32 = (reference.iter().zip(&self.direction).zip(p))
-                        .map(|((l, u), p)| u * (p - l))
-                        .sum::<f32>()
-                        - gain_shift(reference, &self.direction, first_gain);
-                    changes.push((d2, [f64::from(first - median), f64::from(level)]));
+                    changes.push((d2, f64::from(change)));
                 }
             }
-            for (sum, (c, sigma)) in sums.iter_mut().zip([0, 1].into_iter().zip(sigma)) {
-                *sum += best_score(&changes, c, sigma);
-            }
+            sum += best_score(&changes, sigma);
         }
-        sums.map(|s| s / (starts.len() as f64).sqrt())
+        sum / (starts.len() as f64).sqrt()
     }
 }
 
-/// The matched sum of the changes `c` (entry of each pixel's pair) over its noise,
-/// `sum w c / (sigma sqrt(sum w^2))`, at the width of [`WIDTHS`] that gives it the largest
-/// magnitude; 0 without pixels.
-fn best_score(changes: &[(f64, [f64; 2])], c: usize, sigma: f64) -> f64 {
+/// What a start's change is measured against.
+#[derive(Clone, Copy, Debug)]
+enum Against {
+    /// The median of the samples at the same pixel.
+    Samples,
+    /// The background's level, or the light's surface where one was read: a per-pixel image
+    /// is the median of the samples, which holds particles that hover about their own size
+    /// (rings of 11 px drifting by their radius have their rim there, their middle in the
+    /// first frame).
+    Level,
+}
+
+/// The matched sum of the `changes` (each pixel's squared distance from the start, px², and
+/// change, grey levels) over its noise `sigma`, `sum w c / (sigma sqrt(sum w^2))`, at the
+/// width of [`WIDTHS`] that gives it the largest magnitude; 0 without pixels.
+fn best_score(changes: &[(f64, f64)], sigma: f64) -> f64 {
     WIDTHS
         .iter()
         .filter_map(|&width| {
-            let (total, weight2) = changes.iter().fold((0.0, 0.0), |(t, w2), (d2, change)| {
+            let (total, weight2) = changes.iter().fold((0.0, 0.0), |(t, w2), &(d2, change)| {
                 let w = (-0.5 * d2 / (width * width)).exp();
-                (t + w * change[c], w2 + w * w)
+                (t + w * change, w2 + w * w)
             });
             (weight2 > 0.0).then(|| total / (sigma * weight2.sqrt()))
         })

@@ -52,14 +52,8 @@ mod tests {
 
     fn point(frame: usize, particle: &str, x: f64, y: f64, flag: PointFlag) -> TrackPoint {
         TrackPoint {
-            frame,
-            particle: particle.into(),
-            x,
-            y,
-            mass: f64::NAN,
-            size: f64::NAN,
-            ep: f64::NAN,
             flag,
+            ..TrackPoint::new(frame, particle, x, y)
         }
     }
 
