@@ -115,11 +115,17 @@ pub(super) struct BlobColumns {
 
 impl BlobColumns {
     pub(super) fn of(dets: &[Detection], one: &SingleParticle) -> BlobColumns {
-        let mut blob = Vec::with_capacity(dets.len());
-        let mut first = Vec::with_capacity(dets.len() + 1);
-        for (j, d) in dets.iter().enumerate() {
+        let capacities: Vec<usize> = dets.iter().map(|d| one.capacity(d.mass)).collect();
+        BlobColumns::with(&capacities)
+    }
+
+    /// The columns of blobs that hold `capacities[j]` particles each.
+    pub(super) fn with(capacities: &[usize]) -> BlobColumns {
+        let mut blob = Vec::with_capacity(capacities.len());
+        let mut first = Vec::with_capacity(capacities.len() + 1);
+        for (j, &c) in capacities.iter().enumerate() {
             first.push(blob.len());
-            blob.extend(std::iter::repeat(j).take(one.capacity(d.mass)));
+            blob.extend(std::iter::repeat(j).take(c));
         }
         first.push(blob.len());
         BlobColumns { blob, first }
