@@ -302,6 +302,17 @@ impl<'o> Linker<'o> {
         }
     }
 
+    /// Live track `k`'s appearance for this frame, computed once a frame.
+    fn look<'v>(&self, view: &'v FrameView, k: usize) -> Option<&'v TrackAppearance> {
+        view.looks[k]
+            .get_or_init(|| {
+                self.tracks[view.live[k]]
+                    .apps
+                    .appearance(view.t, self.pooled, self.r + 1.0)
+            })
+            .as_ref()
+    }
+
     /// The appearance cost of giving live track `k` detection `j` (sum of the squared
     /// standardised changes of log mass and size), or `None` when its square root exceeds
     /// `gate`: the image is that of another object. A lone track's blob holds no other
@@ -312,13 +323,7 @@ impl<'o> Linker<'o> {
         if !view.lone[k] {
             return Some(0.0);
         }
-        let look = view.looks[k]
-            .get_or_init(|| {
-                self.tracks[view.live[k]]
-                    .apps
-                    .appearance(view.t, self.pooled, self.r + 1.0)
-            })
-            .as_ref();
+        let look = self.look(view, k);
         let a = Appearance::of(&view.dets[j], 1).map(|a| self.levels.apply(a, view.t));
         let (Some(look), Some(a)) = (look, a) else {
             return Some(0.0);
@@ -405,14 +410,11 @@ impl<'o> Linker<'o> {
             if near.is_empty() {
                 continue;
             }
-            let look = view.looks[k]
-                .get_or_init(|| {
-                    self.tracks[view.live[k]]
-                        .apps
-                        .appearance(view.t, self.pooled, self.r + 1.0)
-                })
-                .as_ref();
-            if let Some(usual) = look.map(|l| l.usual.ln_mass).filter(|m| m.is_finite()) {
+            if let Some(usual) = self
+                .look(view, k)
+                .map(|l| l.usual.ln_mass)
+                .filter(|m| m.is_finite())
+            {
                 for j in near {
                     heaviest[j] = heaviest[j].max(usual);
                 }
