@@ -46,8 +46,11 @@ impl Background {
         }
         // The level's vote first: it needs no median over the samples, and where the
         // particles face the sign in use (nearly always) the samples' is not wanted.
-        if self.start_score(samples, starts, Against::Level) > -TURN_SCORE
-            || self.start_score(samples, starts, Against::Samples) > -TURN_SCORE
+        // Each sample's exposure against the background: a drifting exposure moves every
+        // background pixel by its share of the brightness, which is no particle's signal.
+        let gains: Vec<f64> = samples.iter().map(|&f| self.frame_gain(f)).collect();
+        if self.start_score(samples, &gains, starts, Against::Level) > -TURN_SCORE
+            || self.start_score(samples, &gains, starts, Against::Samples) > -TURN_SCORE
         {
             return false;
         }
@@ -63,8 +66,15 @@ impl Background {
     }
 
     /// The summed standard score of the named particles' votes (positive where they agree
-    /// with the sign in use) against `against`.
-    fn start_score(&self, samples: &[FrameView<'_>], starts: &[[f64; 2]], against: Against) -> f64 {
+    /// with the sign in use) against `against`; `gains` are the samples' exposures
+    /// ([`Background::frame_gain`]).
+    fn start_score(
+        &self,
+        samples: &[FrameView<'_>],
+        gains: &[f64],
+        starts: &[[f64; 2]],
+        against: Against,
+    ) -> f64 {
         let (width, height) = (self.width as i64, self.height as i64);
         let k = samples.len() as f64;
         // The change of one pixel against the median of the samples: the noise of a pixel
@@ -73,9 +83,7 @@ impl Background {
             Against::Samples => self.noise_sigma * (1.0 + std::f64::consts::FRAC_PI_2 / k).sqrt(),
             Against::Level => self.noise_sigma,
         };
-        // Each sample's exposure against the samples' mean: a drifting exposure moves every
-        // background pixel by its share of the brightness, which is no particle's signal.
-        let gains: Vec<f64> = samples.iter().map(|&f| self.frame_gain(f)).collect();
+        // Each sample's exposure against the samples' mean, for the median of the samples.
         let mean_gain = gains.iter().sum::<f64>() / k;
         let relative: Vec<f32> = gains.iter().map(|&g| (g / mean_gain) as f32).collect();
         // The first sample's own exposure against the background.

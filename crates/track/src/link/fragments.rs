@@ -22,7 +22,7 @@ const FRAGMENT_SHARE: [f64; 2] = [0.25, 0.75];
 
 /// The detections of a frame (`dets`, claimed as `claims` says) that are each taken by one
 /// track and have the rest of their particle in an untaken blob nearby (see the module
-/// documentation), each as `(taken, fragment, joined detection)`; `predictions` are the live
+/// documentation), each as `(taken detection, joined detection)`; `predictions` are the live
 /// tracks' predicted positions, px, indexed as the claims' tracks (a fragment within `radius`
 /// px of another track's prediction may be that particle, and is left alone), `radius` the
 /// radius in use, px.
@@ -32,7 +32,7 @@ pub(super) fn join_fragments(
     predictions: &[[f64; 2]],
     one: &SingleParticle,
     radius: f64,
-) -> Vec<(usize, usize, Detection)> {
+) -> Vec<(usize, Detection)> {
     if !(one.mass.is_finite() && one.mass > 0.0) {
         return Vec::new();
     }
@@ -76,7 +76,6 @@ pub(super) fn join_fragments(
         let apart = (d.x - frag.x).hypot(d.y - frag.y);
         joined.push((
             j,
-            untaken[f],
             Detection {
                 x: a * d.x + b * frag.x,
                 y: a * d.y + b * frag.y,

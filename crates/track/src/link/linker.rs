@@ -134,7 +134,7 @@ impl<'o> Linker<'o> {
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
         let assign = self.match_starts(dets, starts, &nn);
         // The particles that start in each blob.
-        let mut sharing: Vec<Vec<usize>> = vec![Vec::new(); dets.len()];
+        let mut sharing: Vec<Claimants> = vec![Claimants::default(); dets.len()];
         for (i, a) in assign.iter().enumerate() {
             if let Some(j) = a {
                 sharing[*j].push(i);
@@ -142,19 +142,13 @@ impl<'o> Linker<'o> {
         }
         // A light blob nobody took beside a light one a start took is the rest of its
         // particle (see `join_fragments`).
-        let mut claims: Vec<Claimants> = vec![Claimants::default(); dets.len()];
-        for (j, group) in sharing.iter().enumerate() {
-            for &i in group {
-                claims[j].push(i);
-            }
-        }
         let positions: Vec<[f64; 2]> = starts.iter().map(|s| s.1).collect();
-        let joined = join_fragments(dets, &claims, &positions, &self.one, self.r);
+        let joined = join_fragments(dets, &sharing, &positions, &self.one, self.r);
         for (i, (name, p)) in starts.iter().enumerate() {
             let init = (0.5 * nn[i]).min(diagonal(self.options)) / GATE_SIGMAS;
             let point = match assign[i] {
                 Some(j) if sharing[j].len() == 1 => match joined.iter().find(|f| f.0 == j) {
-                    Some((_, _, whole)) => point_from(whole, PointFlag::Detected, true),
+                    Some((_, whole)) => point_from(whole, PointFlag::Detected, true),
                     None => point_from(&dets[j], PointFlag::Detected, det_nn[j] < self.crowd),
                 },
                 Some(j) => split_start(&dets[j], &sharing[j], starts, *p, init),
@@ -181,7 +175,7 @@ impl<'o> Linker<'o> {
             if split {
                 track.merged = 1;
             } else if let Some(j) = assign[i].filter(|&j| !dets[j].clipped) {
-                let seen = joined.iter().find(|f| f.0 == j).map_or(&dets[j], |f| &f.2);
+                let seen = joined.iter().find(|f| f.0 == j).map_or(&dets[j], |f| &f.1);
                 if let Some(a) = Appearance::of(seen, 1) {
                     track.apps.push(first.frame, self.levels.apply(a, first.frame));
                 }
@@ -190,7 +184,7 @@ impl<'o> Linker<'o> {
         }
         for group in sharing.iter().filter(|g| g.len() > 1) {
             self.events
-                .push((first.frame, AmbiguityKind::Merged, group.clone()));
+                .push((first.frame, AmbiguityKind::Merged, group.to_vec()));
         }
     }
 
@@ -524,20 +518,20 @@ impl<'o> Linker<'o> {
 
     /// Writes this frame's located points: a detection claimed by one track is that
     /// track's point (flag `detected`); one claimed by several is split among them.
-    /// A detection in `joined` (taken, fragment, joined) is written as joined with its
-    /// fragment (see [`join_fragments`]).
+    /// A detection in `joined` (taken detection, joined detection) is written as joined with
+    /// its fragment (see [`join_fragments`]).
     fn write_located(
         &mut self,
         view: &FrameView,
         claims: &[Claimants],
         clean: &[bool],
-        joined: &[(usize, usize, Detection)],
+        joined: &[(usize, Detection)],
     ) {
         for (j, group) in claims.iter().enumerate() {
             match group.len() {
                 0 => {}
                 1 => match joined.iter().find(|f| f.0 == j) {
-                    Some((_, _, whole)) => self.write_detected(view, whole, group[0], false),
+                    Some((_, whole)) => self.write_detected(view, whole, group[0], false),
                     None => self.write_detected(view, &view.dets[j], group[0], clean[j]),
                 },
                 _ => self.write_split(view, j, group),
