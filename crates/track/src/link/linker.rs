@@ -84,6 +84,9 @@ struct FrameView<'f> {
     /// Each live track's appearance, computed when first asked for (only lone tracks with a
     /// candidate in their gate use it).
     looks: Vec<OnceCell<Option<TrackAppearance>>>,
+    /// How many particles each detection holds ([`Linker::capacities`]), computed when first
+    /// asked for.
+    capacities: OnceCell<Vec<usize>>,
 }
 
 impl<'o> Linker<'o> {
@@ -290,6 +293,7 @@ impl<'o> Linker<'o> {
             points,
             grid: PointGrid::new(points),
             looks: (0..live.len()).map(|_| OnceCell::new()).collect(),
+            capacities: OnceCell::new(),
             live,
             preds,
             lone,
@@ -344,7 +348,7 @@ impl<'o> Linker<'o> {
     /// tracks as its mass says it holds. Returns each detection's claimants and the live
     /// tracks left without a detection.
     fn assign(&self, view: &FrameView) -> (Vec<Claimants>, Vec<usize>) {
-        let cols = BlobColumns::with(&self.capacities(view));
+        let cols = BlobColumns::with(self.capacities(view));
         let mut problem = SparseProblem {
             pairs: Vec::new(),
             // Missing costs a full position gate plus a full appearance gate's worth.
@@ -388,7 +392,13 @@ impl<'o> Linker<'o> {
     /// discs of 1.7 and 4.2 px: the large one's points moved 0.4-0.8 px by the split, the
     /// small one's 6-7 px off). A blob that weighs several particles, within the gate of
     /// named tracks, holds no more than its mass in the usual mass of the heaviest of them.
-    fn capacities(&self, view: &FrameView) -> Vec<usize> {
+    /// Computed once a frame, for the assignment and for tracks joining taken blobs.
+    fn capacities<'v>(&self, view: &'v FrameView) -> &'v [usize] {
+        view.capacities.get_or_init(|| self.weigh_blobs(view))
+    }
+
+    /// [`Linker::capacities`], computed.
+    fn weigh_blobs(&self, view: &FrameView) -> Vec<usize> {
         let mut capacities: Vec<usize> = view.dets.iter().map(|d| self.one.capacity(d.mass)).collect();
         if !self.named || capacities.iter().all(|&c| c == 1) {
             return capacities;
@@ -440,11 +450,17 @@ impl<'o> Linker<'o> {
             }
             // Only a blob whose light says it holds more particles than it was given:
             // otherwise two tracks would glue onto one particle, and the other particle, left
-            // unclaimed nearby, would be lost for good.
+            // unclaimed nearby, would be lost for good. Where named particles' masses say a
+            // blob holds fewer than the median's does, it takes no more than that.
+            let capacities = self.capacities(view);
             let mut best: Option<(usize, f64)> = None;
             view.grid.within(&view.preds[k].at, merge_r, |j, d2| {
-                if !claims[j].is_empty()
-                    && self.one.holds_more(&view.dets[j], claims[j].len())
+                let d = &view.dets[j];
+                let n = claims[j].len();
+                let weighed = capacities[j] < self.one.capacity(d.mass);
+                if n > 0
+                    && self.one.holds_more(d, n)
+                    && (!weighed || n < capacities[j])
                     && best.map_or(true, |b| d2 < b.1)
                 {
                     best = Some((j, d2));
@@ -1012,5 +1028,50 @@ mod tests {
             );
             assert_eq!(at("small").2, PointFlag::Interpolated, "frame {k}");
         }
+    }
+
+    /// The same two sizes, the small one 4 px from the large one, seen until frame 4 and then
+    /// hidden: its prediction lies inside the large one's blob, which outweighs the median
+    /// five times but holds one particle of the large one's mass, so the small track does
+    /// not join it (bridged, not split), and the large one keeps its detection.
+    #[test]
+    fn a_track_does_not_join_a_named_blob_of_one_large_particle() {
+        let blob = |x: f64, y: f64, mass: f64| Detection { mass, ..det(x, y) };
+        let small = |k: usize, i: usize| 100.0 * (1.0 + 0.2 * (1.3 * k as f64 + 2.0 * i as f64).sin());
+        let frames: Vec<FrameDetections> = (0..8)
+            .map(|k| {
+                let x = 20.0 + k as f64;
+                let mut detections = vec![
+                    blob(x, 60.0, 500.0),
+                    blob(x, 20.0, small(k, 1)),
+                    blob(x, 90.0, small(k, 2)),
+                ];
+                if k < 5 {
+                    detections.push(blob(x, 64.0, small(k, 0)));
+                }
+                FrameDetections { frame: k, detections }
+            })
+            .collect();
+        let o = LinkOptions {
+            named_start: Some(vec![
+                ("large".into(), [20.0, 60.0]),
+                ("small".into(), [20.0, 64.0]),
+                ("a".into(), [20.0, 20.0]),
+                ("b".into(), [20.0, 90.0]),
+            ]),
+            radius: 3.0,
+            ..options(3)
+        };
+        let out = super::super::link_detections::link_detections(&frames, &o);
+        let at = |name: &str| {
+            out.table
+                .points
+                .iter()
+                .find(|p| p.frame == 5 && p.particle == name)
+                .map(|p| (p.x, p.y, p.flag))
+                .expect("a point")
+        };
+        assert_eq!(at("large"), (25.0, 60.0, PointFlag::Detected));
+        assert_eq!(at("small").2, PointFlag::Interpolated);
     }
 }
