@@ -8,7 +8,9 @@
 //! without a word). A start position given by hand to within a pixel or two of the centre is
 //! well inside the radius of any particle the tracker can follow (1.5 px and up).
 
-use crate::track_table::{PointFlag, TrackTable};
+use std::collections::HashMap;
+
+use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 
 /// Nearest a detected start may lie from its named position before it is reported, px,
 /// whatever the radius: a start clicked by hand on a particle of radius 1.5 px is about a
@@ -25,13 +27,15 @@ pub(super) fn start_offsets(
     radius: f64,
 ) -> Vec<String> {
     let limit = radius.max(MIN_START_OFFSET);
+    // The first frame's located points by particle, read in one pass (a search per start
+    // reads the table once per named particle).
+    let located: HashMap<&str, &TrackPoint> = (table.points.iter())
+        .filter(|p| p.frame == first && p.flag != PointFlag::Interpolated)
+        .map(|p| (p.particle.as_str(), p))
+        .collect();
     let mut out = Vec::new();
     for (name, start) in starts {
-        let Some(p) = table
-            .points
-            .iter()
-            .find(|p| p.frame == first && p.particle == *name && p.flag != PointFlag::Interpolated)
-        else {
+        let Some(p) = located.get(name.as_str()) else {
             continue;
         };
         let off = (p.x - start[0]).hypot(p.y - start[1]);
@@ -48,7 +52,6 @@ pub(super) fn start_offsets(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::track_table::TrackPoint;
 
     fn point(frame: usize, particle: &str, x: f64, y: f64, flag: PointFlag) -> TrackPoint {
         TrackPoint {
