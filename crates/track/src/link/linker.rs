@@ -976,16 +976,19 @@ mod tests {
         );
     }
 
-    /// Named particles of two sizes: three small ones (mass 100 give or take 20) set the
-    /// recording's median, and a large one of mass 500 passes 10 px from a small one that
-    /// jitters and goes unseen for two frames. The large one's blob holds one particle of its own
-    /// mass, not five of the median's: the small one is bridged, not split from it, and the
-    /// large one keeps its detection.
-    #[test]
-    fn a_large_named_particle_blob_is_weighed_in_its_own_mass() {
+    /// Named particles of two sizes over `count` frames, moving right by 1 px a frame: a
+    /// large one of mass 500 at row 60, two small ones (mass 100 give or take 20, the
+    /// recording's median) at rows 20 and 90, and a small one at `small_at(k)` (its offset
+    /// from the large one's column and its row; `None` where unseen), started at
+    /// `small_start`. Returns each particle's (x, y, flag) in frame `k`.
+    fn two_sizes(
+        count: usize,
+        small_at: impl Fn(usize) -> Option<[f64; 2]>,
+        small_start: [f64; 2],
+    ) -> impl Fn(usize, &str) -> (f64, f64, PointFlag) {
         let blob = |x: f64, y: f64, mass: f64| Detection { mass, ..det(x, y) };
         let small = |k: usize, i: usize| 100.0 * (1.0 + 0.2 * (1.3 * k as f64 + 2.0 * i as f64).sin());
-        let frames: Vec<FrameDetections> = (0..10)
+        let frames: Vec<FrameDetections> = (0..count)
             .map(|k| {
                 let x = 20.0 + k as f64;
                 let mut detections = vec![
@@ -993,10 +996,8 @@ mod tests {
                     blob(x, 20.0, small(k, 1)),
                     blob(x, 90.0, small(k, 2)),
                 ];
-                // The small one jitters by up to 2 px a frame: its gate is wide.
-                let jitter = 2.0 * (2.7 * k as f64).sin();
-                if !(4..6).contains(&k) {
-                    detections.push(blob(x + jitter, 70.0 - jitter, small(k, 0)));
+                if let Some([dx, y]) = small_at(k) {
+                    detections.push(blob(x + dx, y, small(k, 0)));
                 }
                 FrameDetections { frame: k, detections }
             })
@@ -1004,74 +1005,52 @@ mod tests {
         let o = LinkOptions {
             named_start: Some(vec![
                 ("large".into(), [20.0, 60.0]),
-                ("small".into(), [20.0, 70.0]),
+                ("small".into(), small_start),
                 ("a".into(), [20.0, 20.0]),
                 ("b".into(), [20.0, 90.0]),
             ]),
             radius: 3.0,
             ..options(3)
         };
-        let out = super::super::link_detections::link_detections(&frames, &o);
-        for k in 4..6 {
-            let at = |name: &str| {
-                out.table
-                    .points
-                    .iter()
-                    .find(|p| p.frame == k && p.particle == name)
-                    .map(|p| (p.x, p.y, p.flag))
-                    .expect("a point")
-            };
-            assert_eq!(
-                at("large"),
-                (20.0 + k as f64, 60.0, PointFlag::Detected),
-                "frame {k}"
-            );
-            assert_eq!(at("small").2, PointFlag::Interpolated, "frame {k}");
+        let table = super::super::link_detections::link_detections(&frames, &o).table;
+        move |k, name| {
+            (table.points.iter())
+                .find(|p| p.frame == k && p.particle == name)
+                .map(|p| (p.x, p.y, p.flag))
+                .expect("a point")
         }
     }
 
-    /// The same two sizes, the small one 4 px from the large one, seen until frame 4 and then
-    /// hidden: its prediction lies inside the large one's blob, which outweighs the median
-    /// five times but holds one particle of the large one's mass, so the small track does
-    /// not join it (bridged, not split), and the large one keeps its detection.
+    /// A large one passes 10 px from a small one that jitters (its gate is wide) and goes
+    /// unseen for two frames. The large one's blob holds one particle of its own mass, not
+    /// five of the median's: the small one is bridged, not split from it, and the large one
+    /// keeps its detection.
+    #[test]
+    fn a_large_named_particle_blob_is_weighed_in_its_own_mass() {
+        let jitter = |k: usize| 2.0 * (2.7 * k as f64).sin();
+        let at = two_sizes(
+            10,
+            |k| (!(4..6).contains(&k)).then(|| [jitter(k), 70.0 - jitter(k)]),
+            [20.0, 70.0],
+        );
+        for k in 4..6 {
+            assert_eq!(
+                at(k, "large"),
+                (20.0 + k as f64, 60.0, PointFlag::Detected),
+                "frame {k}"
+            );
+            assert_eq!(at(k, "small").2, PointFlag::Interpolated, "frame {k}");
+        }
+    }
+
+    /// The small one 4 px from the large one, seen until frame 4 and then hidden: its
+    /// prediction lies inside the large one's blob, which outweighs the median five times but
+    /// holds one particle of the large one's mass, so the small track does not join it
+    /// (bridged, not split), and the large one keeps its detection.
     #[test]
     fn a_track_does_not_join_a_named_blob_of_one_large_particle() {
-        let blob = |x: f64, y: f64, mass: f64| Detection { mass, ..det(x, y) };
-        let small = |k: usize, i: usize| 100.0 * (1.0 + 0.2 * (1.3 * k as f64 + 2.0 * i as f64).sin());
-        let frames: Vec<FrameDetections> = (0..8)
-            .map(|k| {
-                let x = 20.0 + k as f64;
-                let mut detections = vec![
-                    blob(x, 60.0, 500.0),
-                    blob(x, 20.0, small(k, 1)),
-                    blob(x, 90.0, small(k, 2)),
-                ];
-                if k < 5 {
-                    detections.push(blob(x, 64.0, small(k, 0)));
-                }
-                FrameDetections { frame: k, detections }
-            })
-            .collect();
-        let o = LinkOptions {
-            named_start: Some(vec![
-                ("large".into(), [20.0, 60.0]),
-                ("small".into(), [20.0, 64.0]),
-                ("a".into(), [20.0, 20.0]),
-                ("b".into(), [20.0, 90.0]),
-            ]),
-            radius: 3.0,
-            ..options(3)
-        };
-        let out = super::super::link_detections::link_detections(&frames, &o);
-        let at = |name: &str| {
-            out.table
-                .points
-                .iter()
-                .find(|p| p.frame == 5 && p.particle == name)
-                .map(|p| (p.x, p.y, p.flag))
-                .expect("a point")
-        };
-        assert_eq!(at("large"), (25.0, 60.0, PointFlag::Detected));
-        assert_eq!(at("small").2, PointFlag::Interpolated);
+        let at = two_sizes(8, |k| (k < 5).then_some([0.0, 64.0]), [20.0, 64.0]);
+        assert_eq!(at(5, "large"), (25.0, 60.0, PointFlag::Detected));
+        assert_eq!(at(5, "small").2, PointFlag::Interpolated);
     }
 }
