@@ -50,12 +50,18 @@ pub fn run(args: &TrackArgs, verbosity: Verbosity) -> anyhow::Result<()> {
         let amb = &outcome.stats.ambiguities;
         if !amb.is_empty() {
             let count = |k: physfit_track::AmbiguityKind| amb.iter().filter(|a| a.kind == k).count();
+            let faint = count(physfit_track::AmbiguityKind::Faint);
             println!(
-                "ambiguities bridged: {} runs ({} merged, {} missing, {} lost)",
+                "ambiguities bridged: {} runs ({} merged, {} missing, {} lost{})",
                 amb.len(),
                 count(physfit_track::AmbiguityKind::Merged),
                 count(physfit_track::AmbiguityKind::Missing),
-                count(physfit_track::AmbiguityKind::Lost)
+                count(physfit_track::AmbiguityKind::Lost),
+                if faint > 0 {
+                    format!(", {faint} found faint")
+                } else {
+                    String::new()
+                }
             );
         }
         let s = &outcome.stats;

@@ -12,6 +12,10 @@ pub enum AmbiguityKind {
     Missing,
     /// The particle was outside the image or lost; no position was written.
     Lost,
+    /// The detector missed the particle; with a structure it was found near where its track
+    /// put it, standing less far above the noise than a detection (its position less
+    /// certain).
+    Faint,
 }
 
 /// A run of frames where tracking was ambiguous for some particles.
@@ -33,6 +37,7 @@ impl std::fmt::Display for Ambiguity {
             AmbiguityKind::Merged => "shared one blob (positions split from it)",
             AmbiguityKind::Missing => "not seen (bridged from its motion)",
             AmbiguityKind::Lost => "outside the image or lost (no positions written)",
+            AmbiguityKind::Faint => "missed by the detector, found near its predicted path (less certain)",
         };
         let frames = if self.first_frame == self.last_frame {
             format!("frame {}", self.first_frame)

@@ -47,7 +47,7 @@ pub(super) fn drop_cut_by_border(
     (warnings, dropped)
 }
 
-/// Takes out of the `Missing` runs of `ambiguities` the particles whose points there were all
+/// Takes out of the `Missing` and `Faint` runs of `ambiguities` the particles whose points there were all
 /// `dropped` (a bridge no longer written is no longer bridged), and the runs left empty.
 pub(super) fn forget_dropped_bridges(ambiguities: &mut Vec<Ambiguity>, dropped: &BTreeSet<(String, usize)>) {
     if dropped.is_empty() {
@@ -55,7 +55,7 @@ pub(super) fn forget_dropped_bridges(ambiguities: &mut Vec<Ambiguity>, dropped: 
     }
     for a in ambiguities
         .iter_mut()
-        .filter(|a| a.kind == AmbiguityKind::Missing)
+        .filter(|a| matches!(a.kind, AmbiguityKind::Missing | AmbiguityKind::Faint))
     {
         let (first, last) = (a.first_frame, a.last_frame);
         a.particles
@@ -65,7 +65,7 @@ pub(super) fn forget_dropped_bridges(ambiguities: &mut Vec<Ambiguity>, dropped: 
 }
 
 /// `frame 3` or `frames 3-5, 9` for sorted `frames`.
-fn runs(frames: &[usize]) -> String {
+pub(super) fn runs(frames: &[usize]) -> String {
     let mut parts: Vec<String> = Vec::new();
     let mut i = 0;
     while i < frames.len() {

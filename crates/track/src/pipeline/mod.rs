@@ -9,6 +9,7 @@
 
 mod border;
 mod finder;
+mod guided;
 mod light_check;
 mod neighbours;
 mod options;

@@ -2,6 +2,7 @@
 
 use super::border::{drop_cut_by_border, forget_dropped_bridges};
 use super::finder::{Parts, Surround, Workers};
+use super::guided::{search_missed, Seen};
 use super::options::TrackOptions;
 use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
@@ -169,6 +170,13 @@ impl Stage<'_> {
                         Ok(signal)
                     })
                 };
+                let image = SharedBlobs {
+                    signal_of: &signal_of,
+                    width: size.0,
+                    height: size.1,
+                    radius: class.sizes.radius,
+                    window: class.window(),
+                };
                 let r = relocate_shared(
                     &mut class_table.points,
                     &mut class_ambiguities,
@@ -176,16 +184,24 @@ impl Stage<'_> {
                         positions: named,
                         frame: first,
                     },
-                    &SharedBlobs {
-                        signal_of: &signal_of,
-                        width: size.0,
-                        height: size.1,
-                        radius: class.sizes.radius,
-                        window: class.window(),
-                    },
+                    &image,
                 )?;
                 relocated.moved += r.moved;
                 relocated.renamed += r.renamed;
+                // Particles the detector missed, searched for where their tracks put them.
+                let found = search_missed(
+                    &mut class_table,
+                    &mut class_ambiguities,
+                    named,
+                    &Seen {
+                        located,
+                        placed: &r.placed,
+                    },
+                    (first, last),
+                    &image,
+                    background.noise_sigma,
+                )?;
+                warnings.extend(found);
                 warnings.extend(bridge_spikes(&mut class_table, class.sizes.radius));
                 warnings.extend(start_offsets(&class_table, named, first, class.sizes.radius));
             }

@@ -489,6 +489,8 @@ fn track_frames(
     warnings.extend(
         ambiguities
             .iter()
+            // Found faint points are warned of per particle by the search (`guided`).
+            .filter(|a| a.kind != AmbiguityKind::Faint)
             .filter(|a| a.kind != AmbiguityKind::Merged || options.named_start.is_some())
             .map(|a| a.to_string()),
     );

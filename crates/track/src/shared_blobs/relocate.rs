@@ -8,6 +8,7 @@ use crate::link::Ambiguity;
 use crate::track_table::{PointFlag, TrackPoint};
 use crate::TrackError;
 use rayon::prelude::*;
+use std::collections::BTreeSet;
 
 /// What the relocation needs to know about the frames and the particles in them.
 pub(crate) struct SharedBlobs<'a> {
@@ -24,12 +25,14 @@ pub(crate) struct SharedBlobs<'a> {
 }
 
 /// Counts of a relocation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub(crate) struct Relocated {
     /// Points moved to their fitted positions.
     pub moved: usize,
     /// Points handed to another track of their group by the motion.
     pub renamed: usize,
+    /// The particle and frame of each point placed from the image by a group's fit.
+    pub placed: BTreeSet<(String, usize)>,
 }
 /// Places the flagged (split or bridged) points of `points`, and the points that share their
 /// blobs, from the image, then lets the motion judge which of a group's positions belongs to
@@ -81,6 +84,15 @@ pub(crate) fn relocate_shared(
         }
     }
     counts.renamed = rename_by_motion(points, &groups, ambiguities, starts);
+    counts.placed = groups
+        .iter()
+        .filter(|g| g.fit.is_some())
+        .flat_map(|g| {
+            g.members
+                .iter()
+                .map(|&i| (points[i].particle.clone(), points[i].frame))
+        })
+        .collect();
     Ok(counts)
 }
 

@@ -471,105 +471,16 @@ fn render_row(seed: u64, index: usize, count: usize) -> Row {
     run("render", &seq, dir.path())
 }
 
-/// The synth styles the tracker follows today (41 of the 48 with [`FOLLOWED_RENDER`]):
-/// they must stay followed while the rest are worked on. 1017, 1037 and 1039 (a large disc,
-/// a ring, textured balls, under uneven light or exposure drift) are followed since each
-/// particle is located again on the signal with the plane fitted just beyond it taken out
-/// (`pipeline/plane.rs`); 1008 and 1030 (Gaussian spots of 46-53 px) since the radius is
-/// widened to the half-maximum radius measured where the window `R + 1` cut a smooth spot
-/// above half its peak (`pipeline/radius.rs`); 1018 (a textured ball of 38 px hovering
-/// under vignetting, 0.37 / 0.52 px against 0.22 / 0.45 before) since the gap it leaves in the
-/// per-pixel median is filled along the light's curvature (`inpaint.rs`) and its window's
-/// reach past its cut edge is bounded by its own signal there, apart from the plane's; 1026
-/// (discs of 3.4 px under noise 28.6 and an exposure drift, every particle lost in frames
-/// 3-9 before) since a frame's gain is taken out of the signal its blobs are found in,
-/// against a constant background that does not saturate (`background/gain.rs`); 1009 (dark
-/// discs of 11 and 28 px under vignetting and a saturating exposure drift, none found in 7
-/// of 15 frames before) since the same is done against a per-pixel background
-/// (`pipeline/finder.rs`). (1038, dark shaded spheres of 9.6 and 24 px under a gradient and
-/// a saturating exposure drift, was followed from the large one's radius widened to its
-/// silhouette and a point off its track's path bridged, `pipeline/spikes.rs`; it was refused
-/// from session 26, when the frame's gain came to be read from its unclipped pixels, and is
-/// followed again (0.38 / 1.14 px against 0.51 / 1.18) since the radius's edge is the
-/// steepest two-ring fall above the noise, `pipeline/radius.rs`.) 1002 (seven bright rings
-/// of 6.5 px under a gradient, no noise; three of them rejected as specks in frames 0-10, the
-/// median extent of the named blobs swollen by the light's offset regions) since the speck
-/// test holds the smallest named blob's extent to half of it (`pipeline/radius.rs`); 1033
-/// (dark textured balls of 3.9 and 9.8 px under a saturating exposure drift; a small one
-/// hovers for ten frames, and against a median holding it its skirt read 26 % of its level)
-/// since a pass refused for skirts alone is located again on the median taken without its
-/// tracks (`pipeline/tracks_background.rs`); 1031 (one dark ring of 24.7 px under noise 27.6,
-/// its radius read down to 7.1 px on an arc of its rim) since a named ring's size is read
-/// from its rim where the window falls short of it (`pipeline/radius.rs`); 1011 (dark rings
-/// of 4.6 px in RGB under vignetting and an exposure drift saturating the light background)
-/// since a frame's gain is read through its clipped values (`background/gain.rs`).
-const FOLLOWED_SYNTH: &[u64] = &[
-    1000, 1001, 1002, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1011, 1012, 1013, 1014, 1015, 1016,
-    1017, 1018, 1020, 1021, 1022, 1023, 1024, 1026, 1027, 1028, 1029, 1030, 1031, 1032, 1033, 1034, 1035,
-    1036, 1037, 1038, 1039,
-];
-/// Every `physfit-render` style (flat discs of radius 1.9-47.7 px) is followed today.
-const FOLLOWED_RENDER: std::ops::Range<u64> = RENDER_SEEDS;
-
+/// Every style of the sweep, 48 drawn from fixed seeds (the synth styles and
+/// `physfit-render`'s discs), must be followed within the bound: recall 1, no identity error,
+/// RMS within `max(0.05 + 0.01 sigma, 2 CRB)` plus the centroid's own offset. All 48 are
+/// since session 36: 1025 (seven shaded spheres of 2.42 px at noise 23, about at the
+/// detector's threshold; four of its tracks bridged in half their frames or lost, refused)
+/// is followed since a named particle the detector missed is searched for where its track
+/// puts it (`pipeline/guided.rs`). Until then the 47 others were held by a test of their
+/// own and 1025 by one that it be refused or followed; the history of each style is in
+/// `docs/tracking.md`, section 8.
 #[test]
-fn styles_followed_today_stay_followed() {
-    let count = (RENDER_SEEDS.end - RENDER_SEEDS.start) as usize;
-    let rows: Vec<Row> = FOLLOWED_SYNTH
-        .iter()
-        .map(|&seed| synth_row(seed))
-        .chain(
-            FOLLOWED_RENDER
-                .enumerate()
-                .map(|(i, seed)| render_row(seed, i, count)),
-        )
-        .collect();
-    let failed: Vec<String> = rows.iter().filter(|r| !r.passed()).map(Row::line).collect();
-    assert!(failed.is_empty(), "\n{HEADER}\n{}", failed.join("\n"));
-}
-
-/// The synth styles the tracker refuses today with an error (1025, shaded spheres of 2.4 px
-/// under noise a third of the contrast): each must be
-/// refused or followed, never tracked wrong without a word. Style 1038 (shaded spheres of
-/// 9.6 and 24 px under a gradient and a saturating exposure, 0.75 / 2.0 px RMS against
-/// 0.51 / 1.18) was written wrong until the skirt's magnitude counted, then followed from
-/// session 24 (0.25 / 0.88 px). From session 26, with the frame's gain read from its
-/// unclipped pixels, its small sphere was lost at frame 11 and its track took the large
-/// one's highlight, 125 px away: refused as a jump (`checks.rs`); followed since session 28
-/// (see [`FOLLOWED_SYNTH`]).
-const REFUSED_SYNTH: &[u64] = &[1025];
-
-/// The table lines of the synth styles `seeds` whose rows are not `ok`, each with the
-/// particles off their tolerance that no warning names.
-fn rows_not(seeds: &[u64], ok: impl Fn(&Row) -> bool) -> Vec<String> {
-    seeds
-        .iter()
-        .map(|&seed| synth_row(seed))
-        .filter(|row| !ok(row))
-        .map(|row| format!("{} (unwarned: {})", row.line(), row.unwarned.join(", ")))
-        .collect()
-}
-
-#[test]
-fn styles_refused_today_are_refused_or_followed() {
-    let bad = rows_not(REFUSED_SYNTH, Row::followed_or_refused);
-    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
-}
-
-/// The synth styles the tracker follows today but for some particles it names in a
-/// warning: 1019 (dark textured balls of 12 and 30 px under vignetting and a saturating
-/// exposure drift; the large one hovers, and the median over differently exposed samples
-/// leaves uneven arcs round it, 0.13 / 0.20 px RMS against 0.12 / 0.13). Each must be
-/// followed, refused, or have every particle beyond its tolerance named in a warning.
-const WARNED_SYNTH: &[u64] = &[1019];
-
-#[test]
-fn styles_warned_today_are_warned_refused_or_followed() {
-    let bad = rows_not(WARNED_SYNTH, Row::followed_refused_or_warned);
-    assert!(bad.is_empty(), "\n{HEADER}\n{}", bad.join("\n"));
-}
-
-#[test]
-#[ignore = "tracker issue 20: 1 of 48 styles fails (1025: shaded spheres of 2.4 px under noise 23 and a gradient, refused), see the table"]
 fn sweep_of_random_styles_is_followed_within_the_bound() {
     let start = std::time::Instant::now();
     // PHYSFIT_SWEEP_ONLY=SEED,SEED,... runs those styles alone (a seed beyond the render
@@ -1355,4 +1266,28 @@ fn faint_blurred_particles_found_as_halves_are_followed() {
     });
     let seeds: Vec<u64> = std::iter::once(8321).chain(neighbours).collect();
     assert_class_followed(&seeds, 11);
+}
+
+/// Sweep style 1025 (seven shaded spheres of 2.42 px, about 51 grey levels above the
+/// background at their centres under noise 23) and its neighbours, the first 12 styles from
+/// seed 8400 on that hold three or more particles of one size, 4 px or less, less than 4
+/// noise sigmas from the background, each otherwise as drawn. Such particles stand about at
+/// the detector's threshold, and a named track was bridged in half its frames or lost (1025
+/// refused: four of its seven tracks); a named particle the detector missed is now searched
+/// for where its track puts it (`pipeline/guided.rs`). At least 10 of the 13 are followed
+/// within the bound and none is written wrong without a word: 10 followed,
+/// 1 warned, 2 refused (8780, 9276: bridged in all but one of their frames). Before the
+/// search, 10 were followed too, 1025 refused: 10744 (rings of 1.76 px at noise 23) was
+/// followed, bridged in 27 points; searched, one point is found 1.9 px off (3.3 times its
+/// error) where its bridge was 0.35 px off, and is named in a warning.
+#[test]
+fn faint_small_particles_near_the_threshold_are_followed() {
+    let neighbours = first_styles(8400, 12, |style| {
+        let contrast = (0..3)
+            .map(|c| (style.foreground[c] - style.background[c]).abs())
+            .fold(0.0, f64::max);
+        style.particle_count >= 3 && !style.mixed && style.radius <= 4.0 && contrast < 4.0 * style.noise
+    });
+    let seeds: Vec<u64> = std::iter::once(1025).chain(neighbours).collect();
+    assert_class_followed(&seeds, 10);
 }
