@@ -1141,6 +1141,14 @@ fn first_styles(from: u64, count: usize, keep: impl Fn(&Style) -> bool) -> Vec<u
         .collect()
 }
 
+/// The largest difference between a style's particle and background colours over the
+/// channels, grey levels.
+fn contrast(style: &Style) -> f64 {
+    (0..3)
+        .map(|c| (style.foreground[c] - style.background[c]).abs())
+        .fold(0.0, f64::max)
+}
+
 /// Tracks the synth styles `seeds` and asserts that none is written wrong without a word
 /// and that at least `least` are followed within the bound, printing the table (each row
 /// with the noise the tracker read).
@@ -1237,13 +1245,10 @@ fn single_large_particles_are_followed() {
 #[test]
 fn faint_particles_in_uneven_light_are_followed() {
     let neighbours = first_styles(8400, 12, |style| {
-        let contrast = (0..3)
-            .map(|c| (style.foreground[c] - style.background[c]).abs())
-            .fold(0.0, f64::max);
         style.particle_count <= 2
             && style.radius <= 5.0
             && style.noise >= 8.0
-            && contrast < 6.0 * style.noise
+            && contrast(style) < 6.0 * style.noise
             && (style.vignetting >= 0.05 || style.gradient >= 0.1)
     });
     let seeds: Vec<u64> = std::iter::once(8350).chain(neighbours).collect();
@@ -1283,10 +1288,10 @@ fn faint_blurred_particles_found_as_halves_are_followed() {
 #[test]
 fn faint_small_particles_near_the_threshold_are_followed() {
     let neighbours = first_styles(8400, 12, |style| {
-        let contrast = (0..3)
-            .map(|c| (style.foreground[c] - style.background[c]).abs())
-            .fold(0.0, f64::max);
-        style.particle_count >= 3 && !style.mixed && style.radius <= 4.0 && contrast < 4.0 * style.noise
+        style.particle_count >= 3
+            && !style.mixed
+            && style.radius <= 4.0
+            && contrast(style) < 4.0 * style.noise
     });
     let seeds: Vec<u64> = std::iter::once(1025).chain(neighbours).collect();
     assert_class_followed(&seeds, 10);
