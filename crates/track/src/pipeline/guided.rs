@@ -80,11 +80,11 @@ struct Slot {
 /// Searches each named particle (`named`, in the structure's order) in the frames of
 /// `first..=last` where its track has no located point (an interpolated point or none), near
 /// where its motion puts it (see the module documentation), in the particle signal of
-/// `image` (radius and window in px); not where `seen` says a point was placed from the image
-/// where particles shared a blob. Found points replace the interpolated ones or are added, flagged
-/// detected; the `Missing` and `Lost` runs of `ambiguities` lose their frames to `Faint` runs. `noise_sigma`
-/// (grey levels per pixel) sets the found points' errors. Returns a warning per particle
-/// with points found, naming their frames.
+/// `image` (radius and window in px); not where `seen` says a point was placed from the
+/// image where particles shared a blob. Found points replace the interpolated ones or are
+/// added, flagged detected; the `Missing` and `Lost` runs of `ambiguities` lose their frames
+/// to `Faint` runs. `noise_sigma` (grey levels per pixel) sets the found points' errors.
+/// Returns a warning per particle with points found, naming their frames.
 pub(super) fn search_missed(
     table: &mut TrackTable,
     ambiguities: &mut Vec<Ambiguity>,
@@ -162,21 +162,21 @@ pub(super) fn search_missed(
             if !(z > threshold && (MASS_RANGE.0..=MASS_RANGE.1).contains(&share)) {
                 continue;
             }
-            let Some(d) = locate(&signal, image, centre, &taken, noise_sigma) else {
+            let Some(located) = locate(&signal, image, centre, &taken, noise_sigma) else {
                 continue;
             };
-            if (d.x - s.at[0]).hypot(d.y - s.at[1]) > s.gate + 1.0 {
+            if d([located.x, located.y]) > s.gate + 1.0 {
                 continue;
             }
-            taken.push([d.x, d.y]);
+            taken.push([located.x, located.y]);
             let point = TrackPoint {
                 frame: k,
                 particle: t.name.clone(),
-                x: d.x,
-                y: d.y,
-                mass: d.mass,
-                size: d.size,
-                ep: d.fixed_point_error(),
+                x: located.x,
+                y: located.y,
+                mass: located.mass,
+                size: located.size,
+                ep: located.fixed_point_error(),
                 flag: PointFlag::Detected,
             };
             found.push((s.track, k, point, z));
