@@ -37,7 +37,9 @@
 //! 0.35 px off).
 
 use super::border::runs;
+use super::stage::sort_in_structure_order;
 use crate::locate::refine_centroids;
+use crate::point_grid::PointGrid;
 use crate::shared_blobs::SharedBlobs;
 use crate::{Ambiguity, AmbiguityKind, FrameDetections, PointFlag, TrackError, TrackPoint, TrackTable};
 use physfit_tracks::stats::{median, normal_upper_quantile, robust_spread};
@@ -97,7 +99,7 @@ pub(super) fn search_missed(
     let r = image.radius.max(1.0);
     let size = (image.width, image.height);
     let mut tracks = points_by_track(table, named, last);
-    let total: usize = tracks.iter().map(|t| t.searches(last)).sum();
+    let total: usize = tracks.iter().map(|t| t.searches).sum();
     if total == 0 {
         return Ok(Vec::new());
     }
@@ -183,30 +185,28 @@ pub(super) fn search_missed(
         }
         // Found points predict the frames after them (a track's end).
         for (track, _, point, _) in &found[before..] {
-            let entry = tracks[*track].by_frame.entry(k).or_insert(Entry {
-                index: None,
-                at: [point.x, point.y],
-                located: true,
-            });
-            match entry.index {
-                Some(i) => table.points[i] = point.clone(),
+            let index = match tracks[*track].by_frame.get(&k) {
+                Some(e) => {
+                    table.points[e.index] = point.clone();
+                    e.index
+                }
                 None => {
                     table.points.push(point.clone());
-                    entry.index = Some(table.points.len() - 1);
+                    table.points.len() - 1
                 }
-            }
-            entry.at = [point.x, point.y];
-            entry.located = true;
+            };
+            let entry = Entry {
+                index,
+                at: [point.x, point.y],
+                located: true,
+            };
+            tracks[*track].by_frame.insert(k, entry);
         }
     }
     if found.is_empty() {
         return Ok(Vec::new());
     }
-    let rank: HashMap<&str, usize> = named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
-    let order = |p: &TrackPoint| rank.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
-    table
-        .points
-        .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| order(a).cmp(&order(b))));
+    sort_in_structure_order(&mut table.points, named);
     let keys: BTreeSet<(String, usize)> = found.iter().map(|f| (f.2.particle.clone(), f.1)).collect();
     forget_found(ambiguities, &keys);
     Ok(warnings(&found, &tracks))
@@ -215,8 +215,8 @@ pub(super) fn search_missed(
 /// One point of a named track.
 #[derive(Clone, Copy)]
 struct Entry {
-    /// Its index in the table (none for a frame the track had no point in).
-    index: Option<usize>,
+    /// Its index in the table.
+    index: usize,
     /// Its position, px.
     at: [f64; 2],
     /// Whether it was located from the image (not bridged).
@@ -227,6 +227,10 @@ struct Entry {
 struct Points {
     name: String,
     by_frame: BTreeMap<usize, Entry>,
+    /// Frames it is searched in at most: those from its first point (its named start) to its
+    /// last located point with none located, and [`TAIL_FRAMES`] after that (up to the last
+    /// frame); 0 for a track located throughout, whose other fields are left empty.
+    searches: usize,
     /// The largest step between located points, per frame, px (NaN: not searched).
     step: f64,
     /// The median mass of its located points, grey levels · px².
@@ -250,34 +254,10 @@ impl Points {
             .find(|(_, e)| e.located)
             .map(|(&f, e)| (f, e.at))
     }
-
-    /// Frames searched at most: those from its first point (its named start) to its last
-    /// located point with none located, and [`TAIL_FRAMES`] after the last (up to `last`).
-    fn searches(&self, last: usize) -> usize {
-        let Some((&start, _)) = self.by_frame.iter().next() else {
-            return 0;
-        };
-        let Some(end) = self
-            .by_frame
-            .iter()
-            .rev()
-            .find(|(_, e)| e.located)
-            .map(|(&f, _)| f)
-        else {
-            return 0;
-        };
-        let inside = (end - start + 1)
-            - self
-                .by_frame
-                .range(start..=end)
-                .filter(|(_, e)| e.located)
-                .count();
-        inside + last.saturating_sub(end).min(TAIL_FRAMES)
-    }
 }
 
-/// Each named track's points, its largest step and its usual mass; a track located in every
-/// frame from its start to `last` is left empty (nothing to search).
+/// Each named track's points, how often it is searched, its largest step and its usual
+/// mass; a track located in every frame from its start to `last` is left empty.
 fn points_by_track(table: &TrackTable, named: &[(String, [f64; 2])], last: usize) -> Vec<Points> {
     let index: HashMap<&str, usize> = named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); named.len()];
@@ -294,6 +274,7 @@ fn points_by_track(table: &TrackTable, named: &[(String, [f64; 2])], last: usize
             let mut t = Points {
                 name: n.0.clone(),
                 by_frame: BTreeMap::new(),
+                searches: 0,
                 step: f64::NAN,
                 mass: f64::NAN,
             };
@@ -307,14 +288,15 @@ fn points_by_track(table: &TrackTable, named: &[(String, [f64; 2])], last: usize
             let (Some(start), Some(end)) = (start, end) else {
                 return t;
             };
-            let whole = end == last && members.iter().filter(|i| located(i)).count() == end - start + 1;
-            if whole {
+            let unlocated = (end + 1 - start) - members.iter().filter(|i| located(i)).count();
+            t.searches = unlocated + last.saturating_sub(end).min(TAIL_FRAMES);
+            if t.searches == 0 {
                 return t;
             }
             for &i in &members {
                 let p = &table.points[i];
                 let entry = Entry {
-                    index: Some(i),
+                    index: i,
                     at: [p.x, p.y],
                     located: located(&i),
                 };
@@ -467,38 +449,15 @@ fn background_sums(
     while cells / (spacing * spacing) as f64 > MAX_SAMPLES as f64 {
         spacing += 1;
     }
-    // Grid position `(i, j)` stands at `(offset + i spacing, offset + j spacing)`.
-    let offset = spacing / 2;
-    let (columns, rows) = (
-        (frame.width.saturating_sub(offset)).div_ceil(spacing),
-        (frame.height.saturating_sub(offset)).div_ceil(spacing),
-    );
-    let mut blocked = vec![false; columns * rows];
-    let at = |i: usize| (offset + i * spacing) as f64;
-    let range = |c: f64, n: usize| {
-        let lo = ((c - clear - offset as f64) / spacing as f64).ceil().max(0.0) as usize;
-        let hi = ((c + clear - offset as f64) / spacing as f64).floor();
-        (lo, if hi < 0.0 { 0 } else { (hi as usize + 1).min(n) })
-    };
-    for c in clear_of {
-        let (i0, i1) = range(c[0], columns);
-        let (j0, j1) = range(c[1], rows);
-        for j in j0..j1 {
-            for i in i0..i1 {
-                if (at(i) - c[0]).hypot(at(j) - c[1]) < clear {
-                    blocked[j * columns + i] = true;
-                }
-            }
-        }
-    }
+    let grid = PointGrid::new(clear_of);
     let mut sums = Vec::new();
-    for j in 0..rows {
-        for i in 0..columns {
-            if blocked[j * columns + i] {
-                continue;
-            }
-            let (x, y) = (offset + i * spacing, offset + j * spacing);
-            if let Some(s) = frame.disc_sum(disc, x as i64, y as i64) {
+    for y in (spacing / 2..frame.height).step_by(spacing) {
+        for x in (spacing / 2..frame.width).step_by(spacing) {
+            let mut clear_here = true;
+            grid.within(&[x as f64, y as f64], clear, |_, d2| {
+                clear_here &= d2 >= clear * clear
+            });
+            if let Some(s) = frame.disc_sum(disc, x as i64, y as i64).filter(|_| clear_here) {
                 sums.push(s);
             }
         }

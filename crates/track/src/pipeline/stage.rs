@@ -19,7 +19,7 @@ use crate::{
     TrackPoint, TrackTable,
 };
 use rayon::prelude::*;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeSet, HashMap};
 
 /// What one pass of locating and linking found.
 pub(super) struct Pass {
@@ -277,12 +277,7 @@ impl Stage<'_> {
         }
         if let (true, Some(named)) = (classes.len() > 1, options.named_start.as_deref()) {
             // Frame, then the structure's order, as one class's tracks are.
-            let order: BTreeMap<&str, usize> =
-                named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
-            let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
-            table
-                .points
-                .sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
+            sort_in_structure_order(&mut table.points, named);
             ambiguities.sort_by_key(|a| (a.first_frame, a.last_frame));
         }
         Ok(Pass {
@@ -297,4 +292,12 @@ impl Stage<'_> {
             excursions,
         })
     }
+}
+
+/// Sorts `points` by frame, then by their particle's place in the structure (`named`; names
+/// it does not hold last): the order a class's linked tracks come in.
+pub(super) fn sort_in_structure_order(points: &mut [TrackPoint], named: &[(String, [f64; 2])]) {
+    let order: HashMap<&str, usize> = named.iter().enumerate().map(|(i, n)| (n.0.as_str(), i)).collect();
+    let rank = |p: &TrackPoint| order.get(p.particle.as_str()).copied().unwrap_or(usize::MAX);
+    points.sort_by(|a, b| a.frame.cmp(&b.frame).then_with(|| rank(a).cmp(&rank(b))));
 }
