@@ -15,6 +15,7 @@ mod neighbours;
 mod options;
 mod outcome;
 mod plane;
+mod profiles;
 mod radius;
 mod rims;
 mod samples;

@@ -4,6 +4,7 @@ use super::border::{drop_cut_by_border, forget_dropped_bridges};
 use super::finder::{Parts, Surround, Workers};
 use super::guided::{search_missed, Seen};
 use super::options::TrackOptions;
+use super::profiles::fit_profiles;
 use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
 use super::skirts::{sample_clipping, sample_skirts};
@@ -234,8 +235,17 @@ impl Stage<'_> {
                 workers,
             )?;
             warnings.extend(rims.warnings);
+            // Noisy particles are located by their own profile where that pays (see `profiles`).
+            let fitted = fit_profiles(
+                &mut class_table,
+                &hollow,
+                frames,
+                background,
+                class.sizes.radius,
+                workers,
+            )?;
             let remeasured;
-            let skirts = if rims.moved > 0 {
+            let skirts = if rims.moved + fitted.moved > 0 {
                 remeasured = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
                 &remeasured
             } else {
