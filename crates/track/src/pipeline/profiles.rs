@@ -563,7 +563,6 @@ fn measure_profiles(
     reach: f64,
     workers: &Workers,
 ) -> Result<BTreeMap<String, RadialProfile>, TrackError> {
-    let first = frames.numbers.first().copied().unwrap_or(0);
     // Frames alternate between two halves (see `profile_of_halves`).
     let by_frame: Vec<(usize, (usize, Vec<usize>))> =
         group_by_frame(table, which).into_iter().enumerate().collect();
@@ -574,14 +573,11 @@ fn measure_profiles(
     let per_frame: Vec<Sums> = by_frame
         .into_par_iter()
         .map(|(rank, (k, idx))| {
-            workers.with(|w| {
-                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                let (width, height) = frame.size();
-                w.finder.levelled_signal(background, frame);
+            frames.with_signal(k, background, workers, |signal, width, height| {
                 let mut sums: Sums = BTreeMap::new();
                 for i in idx {
                     let sample = ProfileSample {
-                        signal: &w.finder.signal,
+                        signal,
                         width,
                         height,
                         centre: at[i],
@@ -589,7 +585,7 @@ fn measure_profiles(
                     let entry = sums.entry(table.points[i].particle.clone()).or_insert_with(empty);
                     accumulate(&sample, reach, &mut entry[rank % 2]);
                 }
-                Ok(sums)
+                sums
             })
         })
         .collect::<Result<_, TrackError>>()?;
@@ -720,22 +716,18 @@ fn fit_points(
     reach: f64,
     workers: &Workers,
 ) -> Result<Vec<(usize, ProfileFit)>, TrackError> {
-    let first = frames.numbers.first().copied().unwrap_or(0);
     let by_frame = group_by_frame(table, which);
     let fits: Vec<Vec<(usize, ProfileFit)>> = by_frame
         .into_par_iter()
         .map(|(k, idx)| {
-            workers.with(|w| {
-                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                let (width, height) = frame.size();
-                w.finder.levelled_signal(background, frame);
+            frames.with_signal(k, background, workers, |signal, width, height| {
                 let mut out = Vec::new();
                 for i in idx {
                     let Some(profile) = profiles.get(&table.points[i].particle) else {
                         continue;
                     };
                     let sample = ProfileSample {
-                        signal: &w.finder.signal,
+                        signal,
                         width,
                         height,
                         centre: at[i],
@@ -744,7 +736,7 @@ fn fit_points(
                         out.push((i, fit));
                     }
                 }
-                Ok(out)
+                out
             })
         })
         .collect::<Result<_, TrackError>>()?;

@@ -157,7 +157,6 @@ fn rim_search(
     reach: f64,
     workers: &Workers,
 ) -> Result<Vec<FoundRim>, TrackError> {
-    let first = frames.numbers.first().copied().unwrap_or(0);
     let points = &table.points;
     // Each frame's points (all of them: a neighbour's pixels are its own), by index.
     let mut by_frame: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
@@ -171,10 +170,7 @@ fn rim_search(
     let found: Vec<Vec<FoundRim>> = starts
         .into_par_iter()
         .map(|(k, wanted)| {
-            workers.with(|w| {
-                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                let (width, height) = frame.size();
-                w.finder.levelled_signal(background, frame);
+            frames.with_signal(k, background, workers, |signal, width, height| {
                 let idx = &by_frame[&k];
                 let mut out = Vec::new();
                 for (i, at) in wanted {
@@ -184,15 +180,9 @@ fn rim_search(
                         .map(|&j| [points[j].x, points[j].y])
                         .filter(|q| (q[0] - at[0]).abs().max((q[1] - at[1]).abs()) < 2.0 * reach)
                         .collect();
-                    if let Some(rim) = rim_centre(
-                        &w.finder.signal,
-                        width,
-                        height,
-                        at,
-                        &others,
-                        reach,
-                        background.noise_sigma,
-                    ) {
+                    if let Some(rim) =
+                        rim_centre(signal, width, height, at, &others, reach, background.noise_sigma)
+                    {
                         out.push(FoundRim {
                             index: i,
                             centre: [at[0] + rim.offset[0], at[1] + rim.offset[1]],
@@ -201,7 +191,7 @@ fn rim_search(
                         });
                     }
                 }
-                Ok(out)
+                out
             })
         })
         .collect::<Result<_, TrackError>>()?;

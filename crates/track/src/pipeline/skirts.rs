@@ -50,19 +50,9 @@ pub(super) fn sample_skirts(
     let measured: Vec<Vec<(String, usize, Skirt)>> = by_frame
         .into_par_iter()
         .map(|(k, points)| {
-            workers.with(|w| {
-                let frame = frames.get(k - first, &mut w.decoder, &mut w.frame)?;
-                let (width, height) = frame.size();
-                w.finder.levelled_signal(background, frame);
+            frames.with_signal(k, background, workers, |signal, width, height| {
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
-                let mut s = skirts(
-                    &w.finder.signal,
-                    width,
-                    height,
-                    &at,
-                    radius,
-                    background.noise_sigma,
-                );
+                let mut s = skirts(signal, width, height, &at, radius, background.noise_sigma);
                 // Hollow about the point (a ring): where its rim is centred.
                 let reach = RIM_REACH * radius + 2.0;
                 for (i, skirt) in s.iter_mut().enumerate() {
@@ -82,21 +72,13 @@ pub(super) fn sample_skirts(
                         })
                         .map(|(_, q)| *q)
                         .collect();
-                    skirt.rim = rim_centre(
-                        &w.finder.signal,
-                        width,
-                        height,
-                        p,
-                        &others,
-                        reach,
-                        background.noise_sigma,
-                    );
+                    skirt.rim = rim_centre(signal, width, height, p, &others, reach, background.noise_sigma);
                 }
-                Ok(points
+                points
                     .iter()
                     .zip(s)
                     .filter_map(|(p, s)| s.map(|s| (p.particle.clone(), k, s)))
-                    .collect())
+                    .collect()
             })
         })
         .collect::<Result<_, TrackError>>()?;

@@ -1,7 +1,8 @@
 //! The frames of the tracked window, decoded on demand.
 
+use super::finder::Workers;
 use super::samples::check_size;
-use crate::{DecodedFrame, Frame, FrameDecoder, FrameSource, FrameView, TrackError};
+use crate::{Background, DecodedFrame, Frame, FrameDecoder, FrameSource, FrameView, TrackError};
 use std::path::Path;
 
 /// The frames of the tracked window: the samples already decoded, the others read from the
@@ -36,5 +37,24 @@ impl WindowFrames<'_> {
             check_size(&self.source.frame_name(k), view, self.reference, self.size)?;
         }
         Ok(view)
+    }
+
+    /// `f(signal, width, height)` on the levelled signal of the frame numbered `k` in the
+    /// source (row-major, `width * height` px, particles positive, against `background`),
+    /// decoded and levelled with an idle worker's buffers.
+    pub(super) fn with_signal<R>(
+        &self,
+        k: usize,
+        background: &Background,
+        workers: &Workers,
+        f: impl FnOnce(&[f32], usize, usize) -> R,
+    ) -> Result<R, TrackError> {
+        let first = self.numbers.first().copied().unwrap_or(0);
+        workers.with(|w| {
+            let frame = self.get(k - first, &mut w.decoder, &mut w.frame)?;
+            let (width, height) = frame.size();
+            w.finder.levelled_signal(background, frame);
+            Ok(f(&w.finder.signal, width, height))
+        })
     }
 }
