@@ -951,6 +951,27 @@ mod tests {
     }
 
     #[test]
+    fn a_track_scatters_less_about_its_motion_with_the_better_estimates() {
+        // A parabola over 30 frames, located with errors of 0.3 px and fitted with 0.1 px.
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (wide, narrow) = (Normal::new(0.0, 0.3).unwrap(), Normal::new(0.0, 0.1).unwrap());
+        let truth = |k: usize| [2.0 * k as f64, 0.05 * (k * k) as f64];
+        let frames: Vec<usize> = (0..30).collect();
+        let noisy = |n: &Normal<f64>, rng: &mut ChaCha8Rng| -> Vec<[f64; 2]> {
+            (0..30).map(|k| truth(k).map(|c| c + n.sample(rng))).collect()
+        };
+        let located = noisy(&wide, &mut rng);
+        let fitted = noisy(&narrow, &mut rng);
+        let better = smoother(&frames, &located, &fitted);
+        assert!(better > SMOOTHER_SIGMAS, "{better:.2}");
+        let worse = smoother(&frames, &fitted, &located);
+        assert!(worse < -SMOOTHER_SIGMAS, "{worse:.2}");
+        // Runs of three consecutive frames only: frames 0, 2, 4, ... hold none.
+        let even: Vec<usize> = (0..30).map(|k| 2 * k).collect();
+        assert!(smoother(&even, &located, &fitted).abs() < 1e-300);
+    }
+
+    #[test]
     fn the_profile_is_the_mean_signal_at_each_distance() {
         // A cone, 10 - r, in 8 frames: the profile reads it back within the bins' spread.
         let cone = |dx: f64, dy: f64| (10.0 - (dx * dx + dy * dy).sqrt()).max(0.0);
