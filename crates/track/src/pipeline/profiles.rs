@@ -27,6 +27,7 @@
 
 use super::finder::Workers;
 use super::window_frames::WindowFrames;
+use crate::point_grid::PointGrid;
 use crate::{Background, PointFlag, TrackError, TrackTable};
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
@@ -532,21 +533,12 @@ fn eligible_points(table: &TrackTable, hollow: &BTreeSet<String>, reach: f64) ->
     for (i, p) in points.iter().enumerate() {
         by_frame.entry(p.frame).or_default().push(i);
     }
-    let near = 2.0 * reach;
     for idx in by_frame.values() {
-        let mut sorted = idx.clone();
-        sorted.sort_by(|&a, &b| points[a].x.total_cmp(&points[b].x));
-        for (k, &i) in sorted.iter().enumerate() {
-            for &j in &sorted[k + 1..] {
-                if points[j].x - points[i].x > near {
-                    break;
-                }
-                if (points[j].y - points[i].y).abs() < near
-                    && (points[j].x - points[i].x).hypot(points[j].y - points[i].y) < near
-                {
-                    eligible[i] = false;
-                    eligible[j] = false;
-                }
+        let at: Vec<[f64; 2]> = idx.iter().map(|&i| [points[i].x, points[i].y]).collect();
+        let grid = PointGrid::new(&at);
+        for (&i, p) in idx.iter().zip(&at) {
+            if eligible[i] && grid.any_other_within(p, 2.0 * reach) {
+                eligible[i] = false;
             }
         }
     }
