@@ -661,9 +661,33 @@ fn foot(profile: &RingProfile, radius: f64, noise: f64) -> Option<(f64, f64)> {
     // rim fragment widened from 7.5 to 9.2 px, with a halo of -16 grey levels under noise 5,
     // changed the background the sizes were measured against, and a ring refused before was
     // then followed 5-9 px off its centre).
-    let dips = (outer..profile.mean.len()).any(|j| profile.mean[j].is_some_and(|m| -m > floor(j)));
+    // A dip stands below the level the profile settles at as well (the median of its
+    // outermost rings): a background model a few grey levels off the local background (an
+    // illumination gradient a constant model leaves) sets the whole tail below zero, a level
+    // and no halo (fresh style 6198, a shaded sphere of 27 px under a gradient, its tail at
+    // -2 to -7 grey levels under noise 26, read as dipping: its radius was left at 19.8 px
+    // and it was followed 3.6 px off).
+    let settled = settled_level(&profile.mean[outer..]);
+    let dips = (outer..profile.mean.len())
+        .any(|j| profile.mean[j].is_some_and(|m| -m > floor(j) && settled - m > floor(j)));
     (!dips).then_some((edge, reach.max(edge)))
 }
+
+/// The level a profile's `tail` (ring means, grey levels) settles at: the median of its
+/// outermost quarter of rings, at least [`SETTLED_RINGS`] of them; 0 (the background) with
+/// fewer rings than that.
+fn settled_level(tail: &[Option<f64>]) -> f64 {
+    let mut present: Vec<f64> = tail.iter().flatten().copied().collect();
+    let n = (present.len() / 4).max(SETTLED_RINGS);
+    if present.len() < n {
+        return 0.0;
+    }
+    let mut outermost = present.split_off(present.len() - n);
+    median(&mut outermost)
+}
+
+/// Fewest rings [`settled_level`] reads a profile's settled level from.
+const SETTLED_RINGS: usize = 3;
 
 /// Rings each fall of [`foot`] spans: two, so that an edge blurred over a few rings stands
 /// out of the noise twice as far as over one (the standard error of the difference of two
@@ -940,6 +964,27 @@ mod tests {
         );
         let haloed = radial(size, c, |d| {
             sphere_at(d) - if (34.0..40.0).contains(&d) { 15.0 } else { 0.0 }
+        });
+        assert_eq!(edge_beyond(&haloed, size, size, c, 0.8 * r, 1.0), None);
+    }
+
+    /// The sphere of the test above on a background the model left 5 grey levels too high
+    /// (its whole tail below zero: an illumination gradient a constant background leaves) is
+    /// widened to its silhouette all the same; with a dark halo round it as well, it is not.
+    /// Read as dipping below the background, fresh style 6198's shaded sphere of 27 px under
+    /// a gradient kept a radius of 19.8 px and was followed 3.6 px off.
+    #[test]
+    fn a_sphere_on_a_background_left_off_is_widened_but_not_with_a_halo() {
+        let (size, c, r) = (200, [100.3, 99.6], 30.0);
+        let sphere_at = |d: f64| {
+            let inside = (r + 0.5 - d).clamp(0.0, 1.0);
+            100.0 * inside * (0.2 + 0.8 * (1.0 - (d / r).powi(2)).max(0.0).sqrt())
+        };
+        let low = radial(size, c, |d| sphere_at(d) - 5.0);
+        let reach = edge_beyond(&low, size, size, c, 0.8 * r, 1.0).expect("cut");
+        assert!((reach - r).abs() < 1.5, "reach {reach:.2} px, silhouette {r}");
+        let haloed = radial(size, c, |d| {
+            sphere_at(d) - 5.0 - if (34.0..40.0).contains(&d) { 15.0 } else { 0.0 }
         });
         assert_eq!(edge_beyond(&haloed, size, size, c, 0.8 * r, 1.0), None);
     }

@@ -1297,6 +1297,33 @@ fn faint_small_particles_near_the_threshold_are_followed() {
     assert_class_followed(&seeds, 10);
 }
 
+/// Particles with an edge whose light falls off inside it (shaded spheres, textured balls)
+/// of 10 px or more under an illumination gradient or vignetting: fresh styles 6198 and 6389
+/// (spheres of 27 and 21 px beside smaller ones, written 2.7 / 0.8 and 0.4 / 0.7 px off
+/// against tolerances of 1.4 / 0.5 and 0.3 / 0.5 without a word), 6447 (textured balls of 22
+/// px, 5.8 / 2.4 px off, warned) and the first 12 styles from seed 9800 on of such particles,
+/// each otherwise as drawn. Their radius of gyration reads short of their silhouette, which
+/// the profile's steepest fall beyond the window finds; a constant background a few grey
+/// levels off the local one set the profile's whole tail below zero, and that was read as a
+/// dark halo (not one particle's image), the radius left short and the window cut the
+/// particle on its bright side. None may be written wrong without a word, and at least 12
+/// of the 15 must be followed within the bound.
+#[test]
+fn large_shaded_particles_under_uneven_light_are_sized_to_their_silhouette() {
+    let neighbours = first_styles(9800, 12, |style| {
+        let largest = if style.mixed {
+            2.5 * style.radius
+        } else {
+            style.radius
+        };
+        largest >= 10.0
+            && (style.gradient > 0.0 || style.vignetting > 0.0)
+            && matches!(style.profile, Profile::Sphere { .. } | Profile::Textured { .. })
+    });
+    let seeds: Vec<u64> = [6198, 6389, 6447].into_iter().chain(neighbours).collect();
+    assert_class_followed(&seeds, 12);
+}
+
 /// Noisy small particles, whose centroid's error runs to two to four times the bound: fresh
 /// styles 8020 and 8145 (rings of 4.3 and 3.4 px at noise 16 and 21, written 0.26 / 0.20 and
 /// 0.41 / 0.31 px off against tolerances of 0.25 and 0.26 without a word) and the first 12
