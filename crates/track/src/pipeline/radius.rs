@@ -930,6 +930,14 @@ mod tests {
             .collect()
     }
 
+    /// The level, grey levels, at `d` px from the centre of a sphere of radius `r` px lit from
+    /// the front: 100 times ambient 0.2 and a Lambertian `0.8 sqrt(1 - d² / r²)`, its
+    /// silhouette anti-aliased over a pixel.
+    fn front_lit_sphere(r: f64, d: f64) -> f64 {
+        let inside = (r + 0.5 - d).clamp(0.0, 1.0);
+        100.0 * inside * (0.2 + 0.8 * (1.0 - (d / r).powi(2)).max(0.0).sqrt())
+    }
+
     /// A sphere of 30 px lit from the front (ambient 0.2 and a Lambertian `sqrt(1 - d² / R²)`
     /// up to its silhouette) seen through a window of 0.8 of its radius is widened to its
     /// silhouette and no farther; a flat disc, the same sphere through a window that holds it,
@@ -939,10 +947,7 @@ mod tests {
     #[test]
     fn a_sphere_cut_by_its_window_reads_its_silhouette_and_nothing_else_is_widened() {
         let (size, c, r) = (200, [100.3, 99.6], 30.0);
-        let sphere_at = |d: f64| {
-            let inside = (r + 0.5 - d).clamp(0.0, 1.0);
-            100.0 * inside * (0.2 + 0.8 * (1.0 - (d / r).powi(2)).max(0.0).sqrt())
-        };
+        let sphere_at = |d: f64| front_lit_sphere(r, d);
         let sphere = radial(size, c, sphere_at);
         let reach = edge_beyond(&sphere, size, size, c, 0.8 * r, 1.0).expect("cut");
         assert!((reach - r).abs() < 1.5, "reach {reach:.2} px, silhouette {r}");
@@ -976,10 +981,7 @@ mod tests {
     #[test]
     fn a_sphere_on_a_background_left_off_is_widened_but_not_with_a_halo() {
         let (size, c, r) = (200, [100.3, 99.6], 30.0);
-        let sphere_at = |d: f64| {
-            let inside = (r + 0.5 - d).clamp(0.0, 1.0);
-            100.0 * inside * (0.2 + 0.8 * (1.0 - (d / r).powi(2)).max(0.0).sqrt())
-        };
+        let sphere_at = |d: f64| front_lit_sphere(r, d);
         let low = radial(size, c, |d| sphere_at(d) - 5.0);
         let reach = edge_beyond(&low, size, size, c, 0.8 * r, 1.0).expect("cut");
         assert!((reach - r).abs() < 1.5, "reach {reach:.2} px, silhouette {r}");
