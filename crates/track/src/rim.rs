@@ -67,8 +67,8 @@ pub(crate) fn rim_is_closed(
     let (inner, outer) = ((radius - half).max(0.0), radius + half);
     let area = std::f64::consts::PI * (outer * outer - inner * inner);
     let sectors = ((area / SECTOR_PIXELS) as usize).clamp(SECTORS[0], SECTORS[1]);
-    let mut sum = vec![0.0f64; sectors];
-    let mut count = vec![0usize; sectors];
+    let mut sum = [0.0f64; SECTORS[1]];
+    let mut count = [0usize; SECTORS[1]];
     let x0 = (centre[0] - outer).floor().max(0.0) as usize;
     let y0 = (centre[1] - outer).floor().max(0.0) as usize;
     let x1 = ((centre[0] + outer).ceil() as i64).min(width as i64 - 1);

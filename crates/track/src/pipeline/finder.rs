@@ -179,7 +179,7 @@ impl Finder {
         // instructions (one round 7 %).
         // Estimates up to two radii apart are the arcs of one ring where a closed rim is found
         // about their midpoint, holding both (see [`join_close`]).
-        let reach = super::rims::RIM_REACH * params.radius + 2.0;
+        let reach = super::rims::rim_reach(params.radius);
         for _ in 0..JOIN_ROUNDS {
             let signal = &self.signal;
             let arcs = |a: [f64; 2], b: [f64; 2]| {

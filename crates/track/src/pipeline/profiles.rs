@@ -26,7 +26,7 @@
 //! points, and hollow particles (located on their rims, see `rims`) are left as they are.
 
 use super::finder::Workers;
-use super::window_frames::WindowFrames;
+use super::window_frames::{ClassFrames, WindowFrames};
 use crate::point_grid::PointGrid;
 use crate::{Background, PointFlag, TrackError, TrackTable};
 use physfit_tracks::stats::median;
@@ -341,12 +341,15 @@ pub(super) struct ProfilesFitted {
 pub(super) fn fit_profiles(
     table: &mut TrackTable,
     hollow: &BTreeSet<String>,
-    frames: &WindowFrames<'_>,
-    background: &Background,
-    radius: f64,
-    workers: &Workers,
+    class: &ClassFrames<'_>,
 ) -> Result<ProfilesFitted, TrackError> {
-    let reach = super::rims::RIM_REACH * radius + 2.0;
+    let ClassFrames {
+        frames,
+        background,
+        radius,
+        workers,
+    } = *class;
+    let reach = super::rims::rim_reach(radius);
     let first = frames.numbers.first().copied().unwrap_or(0);
     let eligible = eligible_points(table, hollow, reach);
     if eligible.iter().all(|&e| !e) {

@@ -2,7 +2,7 @@
 
 use super::finder::{locate_window, Finder, Workers};
 use super::neighbours::Neighbours;
-use super::rims::RIM_REACH;
+use super::rims::rim_reach;
 use super::skirts::{locate_unfiltered, unfiltered};
 use crate::rim::rim_centre;
 use crate::scale::{self, ScaleBlob};
@@ -71,11 +71,11 @@ pub(super) fn estimate_radius(
         .unwrap_or(START_RADIUS);
     // The last round's detections, each measured for the half-maximum check as well.
     let mut last: Vec<Measure> = Vec::new();
-    // The largest radius tried so far: a ring's rim is searched for out to RIM_REACH of it.
+    // The largest radius tried so far: a ring's rim is searched for out to `rim_reach` of it.
     let mut widest = radius;
     for _ in 0..RADIUS_ROUNDS {
         widest = widest.max(radius);
-        let rims = Rims::Measured(RIM_REACH * widest + 2.0);
+        let rims = Rims::Measured(rim_reach(widest));
         let measured = measure_round(estimation, starts, radius, Reading::Sizes(rims));
         if measured.is_empty() {
             break;

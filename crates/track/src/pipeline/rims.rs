@@ -9,7 +9,7 @@
 //! frame by frame. Discs, spots, balls and spheres are not hollow and are left as located.
 
 use super::finder::Workers;
-use super::window_frames::WindowFrames;
+use super::window_frames::{ClassFrames, WindowFrames};
 use crate::checks::Skirt;
 use crate::rim::rim_centre;
 use crate::{Background, PointFlag, TrackError, TrackPoint, TrackTable};
@@ -20,7 +20,13 @@ use std::collections::{BTreeMap, BTreeSet};
 /// A hollow particle's rim is searched out to this many radii in use (and 2 px): the radius
 /// of gyration of a thin ring is its own radius, `1 / sqrt(2)` of the radius it is
 /// estimated at, and a ring estimated at a smaller size still holds its rim within reach.
-pub(super) const RIM_REACH: f64 = 1.5;
+const RIM_REACH: f64 = 1.5;
+
+/// How far from a point a hollow particle's rim is searched for (and a round particle's
+/// profile read), px, for particles of radius `radius` px: [`RIM_REACH`] radii and 2 px.
+pub(super) fn rim_reach(radius: f64) -> f64 {
+    RIM_REACH * radius + 2.0
+}
 
 /// Least sample frames in which a particle's rim must be found for it to count as hollow.
 const HOLLOW_SAMPLES: usize = 3;
@@ -69,15 +75,18 @@ const RIM_RADIUS_SIGMAS: f64 = 5.0;
 pub(super) fn centre_on_rims(
     table: &mut TrackTable,
     hollow: &BTreeSet<String>,
-    frames: &WindowFrames<'_>,
-    background: &Background,
-    radius: f64,
-    workers: &Workers,
+    class: &ClassFrames<'_>,
 ) -> Result<RimsCentred, TrackError> {
+    let ClassFrames {
+        frames,
+        background,
+        radius,
+        workers,
+    } = *class;
     if hollow.is_empty() {
         return Ok(RimsCentred::default());
     }
-    let reach = RIM_REACH * radius + 2.0;
+    let reach = rim_reach(radius);
     let detected = |p: &TrackPoint| p.flag == PointFlag::Detected && hollow.contains(&p.particle);
     let searches: Vec<(usize, [f64; 2])> = (table.points.iter().enumerate())
         .filter(|(_, p)| detected(p))

@@ -2,9 +2,9 @@
 
 use super::finder::{locate_window, Finder, Parts, Workers};
 use super::radius::nearest_each;
-use super::rims::RIM_REACH;
+use super::rims::rim_reach;
 use super::size_class::Sizes;
-use super::window_frames::WindowFrames;
+use super::window_frames::{ClassFrames, WindowFrames};
 use crate::checks::{clipped_ring, skirts, Skirt};
 use crate::rim::rim_centre;
 use crate::{
@@ -28,11 +28,14 @@ const HOLLOW: f64 = 0.9;
 /// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
 pub(super) fn sample_skirts(
     table: &TrackTable,
-    frames: &WindowFrames<'_>,
-    background: &Background,
-    radius: f64,
-    workers: &Workers,
+    class: &ClassFrames<'_>,
 ) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
+    let ClassFrames {
+        frames,
+        background,
+        radius,
+        workers,
+    } = *class;
     let first = frames.numbers.first().copied().unwrap_or(0);
     // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
     // and each costs a pass over its points' rings.
@@ -54,7 +57,7 @@ pub(super) fn sample_skirts(
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
                 let mut s = skirts(signal, width, height, &at, radius, background.noise_sigma);
                 // Hollow about the point (a ring): where its rim is centred.
-                let reach = RIM_REACH * radius + 2.0;
+                let reach = rim_reach(radius);
                 for (i, skirt) in s.iter_mut().enumerate() {
                     let Some(skirt) = skirt.as_mut() else {
                         continue;

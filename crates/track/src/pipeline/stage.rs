@@ -11,7 +11,7 @@ use super::skirts::{sample_clipping, sample_skirts};
 use super::spikes::bridge_spikes;
 use super::start_offsets::start_offsets;
 use super::track_frames::one_frame_tracks;
-use super::window_frames::WindowFrames;
+use super::window_frames::{ClassFrames, WindowFrames};
 use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images, Concern, TrackConcern};
 use crate::excursion::excursion_warnings;
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
@@ -222,31 +222,23 @@ impl Stage<'_> {
             }
             // Tracks that contradict themselves: named particles not followed are an error (their
             // tracks would be wrong); unnamed ones are warned of.
-            let located = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+            let reading = ClassFrames {
+                frames,
+                background,
+                radius: class.sizes.radius,
+                workers,
+            };
+            let located = sample_skirts(&class_table, &reading)?;
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
-            let rims = centre_on_rims(
-                &mut class_table,
-                &hollow,
-                frames,
-                background,
-                class.sizes.radius,
-                workers,
-            )?;
+            let rims = centre_on_rims(&mut class_table, &hollow, &reading)?;
             warnings.extend(rims.warnings);
             // Noisy particles are located by their own profile where that pays (see `profiles`).
-            let fitted = fit_profiles(
-                &mut class_table,
-                &hollow,
-                frames,
-                background,
-                class.sizes.radius,
-                workers,
-            )?;
+            let fitted = fit_profiles(&mut class_table, &hollow, &reading)?;
             let remeasured;
             let skirts = if rims.moved + fitted.moved > 0 {
-                remeasured = sample_skirts(&class_table, frames, background, class.sizes.radius, workers)?;
+                remeasured = sample_skirts(&class_table, &reading)?;
                 &remeasured
             } else {
                 &located

@@ -5,6 +5,18 @@ use super::samples::check_size;
 use crate::{Background, DecodedFrame, Frame, FrameDecoder, FrameSource, FrameView, TrackError};
 use std::path::Path;
 
+/// What a pass over one size class's tracked points reads the frames with: the window's
+/// frames, the background model their signal is formed against, the class's radius (px)
+/// and the idle workers (the skirts, the rims, the profile fits).
+#[derive(Clone, Copy)]
+pub(super) struct ClassFrames<'a> {
+    pub(super) frames: &'a WindowFrames<'a>,
+    pub(super) background: &'a Background,
+    /// The class's particle radius, px.
+    pub(super) radius: f64,
+    pub(super) workers: &'a Workers,
+}
+
 /// The frames of the tracked window: the samples already decoded, the others read from the
 /// source on demand.
 pub(super) struct WindowFrames<'a> {
