@@ -103,6 +103,48 @@ pub(crate) fn rim_is_closed(
             .all(|k| sum[k] / count[k] as f64 >= SECTOR_SHARE * band)
 }
 
+/// Rays [`encircled`] casts from a point.
+const RAYS: usize = 16;
+
+/// Whether something bright encircles `point` (px) within `reach` px in `signal`
+/// (`width * height`, grey levels, particles positive): along each of [`RAYS`] rays from it
+/// (nearest pixels, 1 px apart, each the mean of three consecutive samples against the
+/// noise), the brightest stands at [`SECTOR_SHARE`] of the brightest over all rays or more;
+/// rays that leave the frame are not judged, and at least four must be. A cheap first test
+/// before [`rim_centre`] and [`rim_is_closed`]: a point inside a ring is encircled, the
+/// midpoint between two separate blobs (or clutter) only towards them.
+pub(crate) fn encircled(signal: &[f32], width: usize, height: usize, point: [f64; 2], reach: f64) -> bool {
+    let steps = reach.ceil() as usize;
+    let mut brightest = [f64::NEG_INFINITY; RAYS];
+    let mut judged = [false; RAYS];
+    for (k, (b, j)) in brightest.iter_mut().zip(judged.iter_mut()).enumerate() {
+        let angle = std::f64::consts::TAU * k as f64 / RAYS as f64;
+        let (dx, dy) = (angle.cos(), angle.sin());
+        let mut last = [0.0f64; 3];
+        let mut inside = true;
+        for step in 1..=steps {
+            let (x, y) = (point[0] + dx * step as f64, point[1] + dy * step as f64);
+            let (xi, yi) = (x.round(), y.round());
+            if xi < 0.0 || yi < 0.0 || xi >= width as f64 || yi >= height as f64 {
+                inside = false;
+                break;
+            }
+            last[step % 3] = f64::from(signal[yi as usize * width + xi as usize]);
+            if step >= 3 {
+                *b = b.max((last[0] + last[1] + last[2]) / 3.0);
+            }
+        }
+        *j = inside && steps >= 3;
+    }
+    let top = brightest.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let count = judged.iter().filter(|&&j| j).count();
+    top > 0.0
+        && count >= 4
+        && (0..RAYS)
+            .filter(|&k| judged[k])
+            .all(|k| brightest[k] >= SECTOR_SHARE * top)
+}
+
 /// The rim of the hollow particle about `point` (px) in `signal` (`width * height`, grey
 /// levels, particles positive), searched out to `reach` px, pixels nearer to any of
 /// `others` (px) than to the point left out, under pixel noise `noise` (grey levels);
@@ -351,6 +393,33 @@ mod tests {
             !rim_is_closed(&pair, wide, height, centre, rim.radius),
             "rim {rim:?}"
         );
+    }
+
+    /// Points inside a ring of 20 px (its centre, and 0.4 of its radius off, where the
+    /// midpoint of two of its thirds lies) are encircled, also when the border cuts the ring;
+    /// the midpoint between two discs 30 px apart is not, nor a point in the background.
+    #[test]
+    fn a_point_inside_a_ring_is_encircled_and_one_between_blobs_is_not() {
+        let size = 100;
+        let c = [50.3, 49.8];
+        let one = ring(size, c, 15.0, 21.0, 100.0, 0.3);
+        assert!(encircled(&one, size, size, c, 32.0));
+        assert!(encircled(&one, size, size, [c[0] + 7.0, c[1] - 4.0], 32.0));
+        let cut = ring(size, [12.4, 49.8], 15.0, 21.0, 100.0, 0.0);
+        assert!(encircled(&cut, size, size, [12.4, 49.8], 32.0));
+        let two: Vec<f32> = (0..size * size)
+            .map(|i| {
+                let (x, y) = ((i % size) as f64, (i / size) as f64);
+                let near = |cx: f64| (x - cx).hypot(y - 50.0) <= 6.0;
+                if near(35.0) || near(65.0) {
+                    100.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        assert!(!encircled(&two, size, size, [50.0, 50.0], 32.0));
+        assert!(!encircled(&vec![0.0; size * size], size, size, c, 32.0));
     }
 
     /// Seen from points up to a third of the radius off, rings of 4-20 px (rims 0.2-0.35 of

@@ -1,7 +1,7 @@
 //! Per-thread blob finding and location, with joins of close detections.
 
 use crate::distance::closer_than;
-use crate::rim::{rim_centre, rim_is_closed};
+use crate::rim::{encircled, rim_centre, rim_is_closed};
 use crate::{
     find_blobs_forming, find_blobs_with_scratch, refine_centroids_with_scratch, Background, BackgroundModel,
     BlobSet, DetectParameters, Detection, Frame, FrameDecoder, FrameView, LocateScratch, Scratch,
@@ -184,13 +184,14 @@ impl Finder {
             let signal = &self.signal;
             let arcs = |a: [f64; 2], b: [f64; 2]| {
                 let mid = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
-                rim_centre(signal, width, height, mid, &[], reach, noise).is_some_and(|rim| {
-                    let c = [mid[0] + rim.offset[0], mid[1] + rim.offset[1]];
-                    [a, b]
-                        .iter()
-                        .all(|p| (p[0] - c[0]).hypot(p[1] - c[1]) < rim.radius)
-                        && rim_is_closed(signal, width, height, c, rim.radius)
-                })
+                encircled(signal, width, height, mid, reach)
+                    && rim_centre(signal, width, height, mid, &[], reach, noise).is_some_and(|rim| {
+                        let c = [mid[0] + rim.offset[0], mid[1] + rim.offset[1]];
+                        [a, b]
+                            .iter()
+                            .all(|p| (p[0] - c[0]).hypot(p[1] - c[1]) < rim.radius)
+                            && rim_is_closed(signal, width, height, c, rim.radius)
+                    })
             };
             let Some((seeds, areas)) = join_close(&found, params.radius, arcs) else {
                 break;
