@@ -44,5 +44,5 @@ pub use error::SynthError;
 pub use look::{add_particle, samples_per_axis, ParticleLook};
 pub use motion::draw_paths;
 pub use sequence::{frame_file_name, Sequence};
-pub use style::{Polarity, Profile, Style};
+pub use style::{Lines, Polarity, Profile, Style};
 pub use truth::Truth;

@@ -12,7 +12,7 @@ use crate::bound::{cramer_rao, PositionBound};
 use crate::error::SynthError;
 use crate::look::{add_particle, ParticleLook};
 use crate::motion::{draw_paths, normal};
-use crate::style::Style;
+use crate::style::{Lines, Style};
 use crate::truth::Truth;
 
 /// The file name of frame `k`: `frame_00000.png`, `frame_00001.png`, ...
@@ -117,6 +117,11 @@ impl Sequence {
         for (&p, look) in self.truth.positions[k].iter().zip(&self.looks) {
             add_particle(&mut plane, w, h, look, p, &|_, _| 1.0);
         }
+        if let Some(lines) = s.lines {
+            for pair in self.truth.positions[k].windows(2) {
+                add_line_beneath(&mut plane, w, h, pair[0], pair[1], lines);
+            }
+        }
         blur_plane(&mut plane, w, h, s.blur);
         let mut rng = ChaCha8Rng::seed_from_u64(s.seed ^ NOISE_SALT);
         rng.set_stream(k as u64);
@@ -190,6 +195,35 @@ impl Sequence {
     }
 }
 
+/// Adds the line from `a` to `b` (px) of `lines` to `plane` (`w * h` profile values) beneath
+/// what is there: a pixel gains `(1 − min(value, 1)) level f`, `f` the overlap of the
+/// pixel's unit span and the line's width measured across the line at the pixel's centre.
+fn add_line_beneath(plane: &mut [f64], w: usize, h: usize, a: [f64; 2], b: [f64; 2], lines: Lines) {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let length2 = d[0] * d[0] + d[1] * d[1];
+    if length2 <= 0.0 {
+        return;
+    }
+    let reach = 0.5 * lines.width + 1.0;
+    let x0 = (a[0].min(b[0]) - reach).floor().max(0.0) as usize;
+    let y0 = (a[1].min(b[1]) - reach).floor().max(0.0) as usize;
+    let x1 = ((a[0].max(b[0]) + reach).ceil().max(0.0) as usize).min(w.saturating_sub(1));
+    let y1 = ((a[1].max(b[1]) + reach).ceil().max(0.0) as usize).min(h.saturating_sub(1));
+    let half = 0.5 * lines.width;
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let (px, py) = (x as f64 - a[0], y as f64 - a[1]);
+            let t = ((px * d[0] + py * d[1]) / length2).clamp(0.0, 1.0);
+            let across = (px - t * d[0]).hypot(py - t * d[1]);
+            let cover = ((across + 0.5).min(half) - (across - 0.5).max(-half)).clamp(0.0, 1.0);
+            if cover > 0.0 {
+                let v = &mut plane[y * w + x];
+                *v += (1.0 - v.min(1.0)) * lines.level * cover;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,6 +239,39 @@ mod tests {
         }
         let (a, b) = (Sequence::new(Style::random(4)), Sequence::new(Style::random(5)));
         assert_ne!(a.render_frame(0).as_bytes(), b.render_frame(0).as_bytes());
+    }
+
+    /// A line 2 px wide at half the contrast: its middle pixel between two particles is
+    /// lifted by half the contrast, a pixel 3 px beside it not at all; drawn styles have none.
+    #[test]
+    fn lines_join_consecutive_particles_beneath_them() {
+        let mut style = Style::random(4);
+        assert!(style.lines.is_none());
+        style.noise = 0.0;
+        style.blur = 0.0;
+        style.gradient = 0.0;
+        style.vignetting = 0.0;
+        style.exposure = 0.0;
+        style.colour = false;
+        style.particle_count = 2;
+        style.mixed = false;
+        style.lines = Some(Lines { width: 2.0, level: 0.5 });
+        let seq = Sequence::new(style);
+        let s = &seq.style;
+        let [a, b] = [seq.truth.positions[0][0], seq.truth.positions[0][1]];
+        let image = seq.render_frame(0).to_luma8();
+        let level = |x: f64, y: f64| f64::from(image.get_pixel(x.round() as u32, y.round() as u32)[0]);
+        let (mx, my) = (0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]));
+        let contrast = s.foreground[0] - s.background[0];
+        // Nearest pixel centre to the midpoint: within 0.71 px of the line's axis, so at least
+        // a quarter of it covered.
+        let lifted = level(mx, my) - s.background[0];
+        assert!(lifted.abs() >= 0.125 * contrast.abs() && lifted * contrast > 0.0, "{lifted} of {contrast}");
+        // 3 px aside, across the line.
+        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let (nx, ny) = (-(b[1] - a[1]) / len, (b[0] - a[0]) / len);
+        let aside = level(mx + 3.0 * nx, my + 3.0 * ny) - s.background[0];
+        assert!(aside.abs() <= 1.0, "{aside}");
     }
 
     #[test]

@@ -141,6 +141,21 @@ pub struct Style {
     pub width: u32,
     /// Frame height, px.
     pub height: u32,
+    /// Lines drawn from each particle to the next, beneath them (a mass-spring model's
+    /// springs as a physics engine's view draws them); `None` in every drawn style.
+    pub lines: Option<Lines>,
+}
+
+/// Lines joining consecutive particles (see [`Style::lines`]): each pixel's profile value
+/// beneath the particles gains `level` times the fraction of the pixel across the line's
+/// width (the overlap of the pixel's span and the line's, measured across the line), so a
+/// line is drawn at `level` of the particles' contrast where it is not covered.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lines {
+    /// Width, px.
+    pub width: f64,
+    /// Level, as a fraction of the particles' profile value 1.
+    pub level: f64,
 }
 
 /// A draw in `[lo, hi]` uniform in the logarithm.
@@ -311,6 +326,7 @@ impl Style {
             frame_count,
             width: 0,
             height: 0,
+            lines: None,
         };
         let aspect = rng.gen_range(1.0..1.3);
         style.fit_frame(aspect);
@@ -469,6 +485,9 @@ impl fmt::Display for Style {
         }
         if self.saturating {
             write!(f, " saturating")?;
+        }
+        if let Some(l) = self.lines {
+            write!(f, " lines {:.1} px at {:.2}", l.width, l.level)?;
         }
         write!(
             f,

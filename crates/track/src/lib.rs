@@ -28,6 +28,7 @@ mod scale;
 mod score;
 mod shared_blobs;
 mod source;
+mod spokes;
 mod stack;
 mod track_table;
 mod video;

@@ -164,8 +164,46 @@ pub fn refine_centroids_with_scratch(
     noise_sigma: f64,
     scratch: &mut LocateScratch,
 ) -> Vec<Detection> {
+    refine_centroids_with_cuts(
+        signal,
+        width,
+        height,
+        seeds,
+        areas,
+        window,
+        noise_sigma,
+        &[],
+        scratch,
+    )
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// [`refine_centroids_with_scratch`] with each window also cut by fixed half-planes that move
+/// with its estimate: `cuts[i]` holds seed `i`'s, each the unit normal pointing out of the
+/// window and the cut's distance from the estimate along it (px), weighted as a neighbour's
+/// split is (a ramp of one pixel centred there). Seeds past the end of `cuts` have none. A
+/// cut and its opposite keep the window's weights symmetric about the estimate, so the
+/// centroid of a point-symmetric particle stays unbiased (see `crate::spokes`). One entry a
+/// seed, `None` for those dropped.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn refine_centroids_with_cuts(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    seeds: &[[f64; 2]],
+    areas: &[f64],
+    window: f64,
+    noise_sigma: f64,
+    cuts: &[Vec<([f64; 2], f64)>],
+    scratch: &mut LocateScratch,
+) -> Vec<Option<Detection>> {
     let n = seeds.len();
-    if n == 0 || signal.len() < width * height {
+    if signal.len() < width * height {
+        return vec![None; n];
+    }
+    if n == 0 {
         return Vec::new();
     }
     neighbour_lists(
@@ -202,6 +240,9 @@ pub fn refine_centroids_with_scratch(
                 continue;
             }
             collect_splits(splits, i, &pos, &alive, &neighbours[offsets[i]..offsets[i + 1]]);
+            if let Some(c) = cuts.get(i) {
+                splits.extend_from_slice(c);
+            }
             let st = window_stats(&image, pos[i], window, splits, rows);
             let c = [st.sx / st.mass, st.sy / st.mass];
             if st.mass <= 0.0 || norm([c[0] - seeds[i][0], c[1] - seeds[i][1]]) > window {
@@ -250,6 +291,7 @@ pub fn refine_centroids_with_scratch(
     let mut out = Vec::with_capacity(n);
     for i in 0..n {
         if !alive[i] {
+            out.push(None);
             continue;
         }
         // An estimate the next sweep would not measure (neither it nor a neighbour still
@@ -261,14 +303,18 @@ pub fn refine_centroids_with_scratch(
             stats[i]
         } else {
             collect_splits(splits, i, &pos, &alive, &neighbours[offsets[i]..offsets[i + 1]]);
+            if let Some(c) = cuts.get(i) {
+                splits.extend_from_slice(c);
+            }
             window_stats(&image, pos[i], window, splits, rows)
         };
         if st.mass <= 0.0 {
+            out.push(None);
             continue;
         }
         let [x, y] = pos[i];
         let rg2 = (st.sr2 / st.mass).max(0.0);
-        out.push(Detection {
+        out.push(Some(Detection {
             x,
             y,
             mass: st.mass,
@@ -277,7 +323,7 @@ pub fn refine_centroids_with_scratch(
             follow: st.follow(),
             area: areas.get(i).copied().unwrap_or(f64::NAN),
             clipped: st.clipped,
-        });
+        }));
     }
     out
 }

@@ -22,6 +22,7 @@ mod samples;
 mod size_class;
 mod skirts;
 mod spikes;
+mod spokes;
 mod stage;
 mod start_offsets;
 mod track_frames;

@@ -350,17 +350,12 @@ pub(super) fn fit_profiles(
         workers,
     } = *class;
     let reach = super::rims::rim_reach(radius);
-    let first = frames.numbers.first().copied().unwrap_or(0);
     let eligible = eligible_points(table, hollow, reach);
     if eligible.iter().all(|&e| !e) {
         return Ok(ProfilesFitted::default());
     }
     // Sample frames (already decoded), at most PROFILE_FRAMES evenly spread.
-    let samples: Vec<usize> = (0..frames.numbers.len())
-        .filter(|&i| frames.sample_of[i].is_some())
-        .collect();
-    let every = samples.len().div_ceil(PROFILE_FRAMES).max(1);
-    let chosen: Vec<usize> = samples.iter().step_by(every).map(|&i| i + first).collect();
+    let chosen = frames.spread_samples(PROFILE_FRAMES);
     let in_samples: Vec<usize> = (0..table.points.len())
         .filter(|&i| eligible[i] && chosen.binary_search(&table.points[i].frame).is_ok())
         .collect();

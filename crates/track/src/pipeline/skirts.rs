@@ -36,14 +36,9 @@ pub(super) fn sample_skirts(
         radius,
         workers,
     } = *class;
-    let first = frames.numbers.first().copied().unwrap_or(0);
     // At most SKIRT_FRAMES of the sample frames, evenly spread: a median over them is plenty,
     // and each costs a pass over its points' rings.
-    let samples: Vec<usize> = (0..frames.numbers.len())
-        .filter(|&i| frames.sample_of[i].is_some())
-        .collect();
-    let every = samples.len().div_ceil(SKIRT_FRAMES).max(1);
-    let chosen: Vec<usize> = samples.iter().step_by(every).map(|&i| i + first).collect();
+    let chosen = frames.spread_samples(SKIRT_FRAMES);
     let mut by_frame: BTreeMap<usize, Vec<&TrackPoint>> = BTreeMap::new();
     for p in &table.points {
         if p.flag == PointFlag::Detected && chosen.binary_search(&p.frame).is_ok() {

@@ -9,6 +9,7 @@ use super::rims::{centre_on_rims, hollow_particles};
 use super::size_class::SizeClass;
 use super::skirts::{sample_clipping, sample_skirts};
 use super::spikes::bridge_spikes;
+use super::spokes::mask_spokes;
 use super::start_offsets::start_offsets;
 use super::track_frames::one_frame_tracks;
 use super::window_frames::{ClassFrames, WindowFrames};
@@ -228,16 +229,20 @@ impl Stage<'_> {
                 radius: class.sizes.radius,
                 workers,
             };
+            let located_frames: &[FrameDetections] = located;
             let located = sample_skirts(&class_table, &reading)?;
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
+            // Particles with lines leaving them, located with the lines cut out (see `spokes`).
+            let spoked = mask_spokes(&mut class_table, &hollow, located_frames, &reading)?;
+            warnings.extend(spoked.warnings);
             let rims = centre_on_rims(&mut class_table, &hollow, &reading)?;
             warnings.extend(rims.warnings);
             // Noisy particles are located by their own profile where that pays (see `profiles`).
             let fitted = fit_profiles(&mut class_table, &hollow, &reading)?;
             let remeasured;
-            let skirts = if rims.moved + fitted.moved > 0 {
+            let skirts = if spoked.moved + rims.moved + fitted.moved > 0 {
                 remeasured = sample_skirts(&class_table, &reading)?;
                 &remeasured
             } else {

@@ -51,6 +51,17 @@ impl WindowFrames<'_> {
         Ok(view)
     }
 
+    /// The numbers (in the source) of at most `at_most` of the sample frames, already
+    /// decoded, evenly spread over them, in order.
+    pub(super) fn spread_samples(&self, at_most: usize) -> Vec<usize> {
+        let first = self.numbers.first().copied().unwrap_or(0);
+        let samples: Vec<usize> = (0..self.numbers.len())
+            .filter(|&i| self.sample_of[i].is_some())
+            .collect();
+        let every = samples.len().div_ceil(at_most).max(1);
+        samples.iter().step_by(every).map(|&i| i + first).collect()
+    }
+
     /// `f(signal, width, height)` on the levelled signal of the frame numbered `k` in the
     /// source (row-major, `width * height` px, particles positive, against `background`),
     /// decoded and levelled with an idle worker's buffers.
