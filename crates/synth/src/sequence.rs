@@ -255,7 +255,10 @@ mod tests {
         style.colour = false;
         style.particle_count = 2;
         style.mixed = false;
-        style.lines = Some(Lines { width: 2.0, level: 0.5 });
+        style.lines = Some(Lines {
+            width: 2.0,
+            level: 0.5,
+        });
         let seq = Sequence::new(style);
         let s = &seq.style;
         let [a, b] = [seq.truth.positions[0][0], seq.truth.positions[0][1]];
@@ -266,7 +269,10 @@ mod tests {
         // Nearest pixel centre to the midpoint: within 0.71 px of the line's axis, so at least
         // a quarter of it covered.
         let lifted = level(mx, my) - s.background[0];
-        assert!(lifted.abs() >= 0.125 * contrast.abs() && lifted * contrast > 0.0, "{lifted} of {contrast}");
+        assert!(
+            lifted.abs() >= 0.125 * contrast.abs() && lifted * contrast > 0.0,
+            "{lifted} of {contrast}"
+        );
         // 3 px aside, across the line.
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
         let (nx, ny) = (-(b[1] - a[1]) / len, (b[0] - a[0]) / len);

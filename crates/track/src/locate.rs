@@ -164,20 +164,18 @@ pub fn refine_centroids_with_scratch(
     noise_sigma: f64,
     scratch: &mut LocateScratch,
 ) -> Vec<Detection> {
-    refine_centroids_with_cuts(
+    let mut out = Vec::with_capacity(seeds.len());
+    let image = Image {
         signal,
         width,
         height,
-        seeds,
-        areas,
-        window,
-        noise_sigma,
-        &[],
-        scratch,
-    )
-    .into_iter()
-    .flatten()
-    .collect()
+    };
+    refine(&image, seeds, areas, window, noise_sigma, &[], scratch, |d| {
+        if let Some(d) = d {
+            out.push(d);
+        }
+    });
+    out
 }
 
 /// [`refine_centroids_with_scratch`] with each window also cut by fixed half-planes that move
@@ -199,12 +197,39 @@ pub(crate) fn refine_centroids_with_cuts(
     cuts: &[Vec<([f64; 2], f64)>],
     scratch: &mut LocateScratch,
 ) -> Vec<Option<Detection>> {
+    let mut out = Vec::with_capacity(seeds.len());
+    let image = Image {
+        signal,
+        width,
+        height,
+    };
+    refine(&image, seeds, areas, window, noise_sigma, cuts, scratch, |d| {
+        out.push(d)
+    });
+    out
+}
+
+/// The iteration of [`refine_centroids_with_cuts`]: `emit` gets each seed's detection in
+/// order, `None` for those dropped (every seed's, where `image` is short of its size).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn refine(
+    image: &Image<'_>,
+    seeds: &[[f64; 2]],
+    areas: &[f64],
+    window: f64,
+    noise_sigma: f64,
+    cuts: &[Vec<([f64; 2], f64)>],
+    scratch: &mut LocateScratch,
+    mut emit: impl FnMut(Option<Detection>),
+) {
     let n = seeds.len();
-    if signal.len() < width * height {
-        return vec![None; n];
+    if image.signal.len() < image.width * image.height {
+        (0..n).for_each(|_| emit(None));
+        return;
     }
     if n == 0 {
-        return Vec::new();
+        return;
     }
     neighbour_lists(
         seeds,
@@ -228,11 +253,6 @@ pub(crate) fn refine_centroids_with_cuts(
         splits,
         rows,
     } = scratch;
-    let image = Image {
-        signal,
-        width,
-        height,
-    };
     for _ in 0..MAX_ITERATIONS {
         wake.clear();
         for i in 0..n {
@@ -243,7 +263,7 @@ pub(crate) fn refine_centroids_with_cuts(
             if let Some(c) = cuts.get(i) {
                 splits.extend_from_slice(c);
             }
-            let st = window_stats(&image, pos[i], window, splits, rows);
+            let st = window_stats(image, pos[i], window, splits, rows);
             let c = [st.sx / st.mass, st.sy / st.mass];
             if st.mass <= 0.0 || norm([c[0] - seeds[i][0], c[1] - seeds[i][1]]) > window {
                 alive[i] = false;
@@ -288,10 +308,9 @@ pub(crate) fn refine_centroids_with_cuts(
             }
         }
     }
-    let mut out = Vec::with_capacity(n);
     for i in 0..n {
         if !alive[i] {
-            out.push(None);
+            emit(None);
             continue;
         }
         // An estimate the next sweep would not measure (neither it nor a neighbour still
@@ -306,15 +325,15 @@ pub(crate) fn refine_centroids_with_cuts(
             if let Some(c) = cuts.get(i) {
                 splits.extend_from_slice(c);
             }
-            window_stats(&image, pos[i], window, splits, rows)
+            window_stats(image, pos[i], window, splits, rows)
         };
         if st.mass <= 0.0 {
-            out.push(None);
+            emit(None);
             continue;
         }
         let [x, y] = pos[i];
         let rg2 = (st.sr2 / st.mass).max(0.0);
-        out.push(Some(Detection {
+        emit(Some(Detection {
             x,
             y,
             mass: st.mass,
@@ -325,7 +344,6 @@ pub(crate) fn refine_centroids_with_cuts(
             clipped: st.clipped,
         }));
     }
-    out
 }
 
 /// The last plain centroid steps of one estimate, for [`accelerate`].

@@ -19,7 +19,7 @@ use super::window_frames::ClassFrames;
 use crate::locate::refine_centroids_with_cuts;
 use crate::point_grid::PointGrid;
 use crate::spokes::{cut_sampling_error, spoke_cuts, SpokeSearch};
-use crate::{Detection, FrameDetections, LocateScratch, PointFlag, TrackError, TrackTable};
+use crate::{Detection, FrameDetections, LocateScratch, PointFlag, TrackError, TrackPoint, TrackTable};
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -130,23 +130,26 @@ pub(super) fn mask_spokes(
         .map(|f| (f.frame, f.detections.as_slice()))
         .collect();
     let found_in = |k: usize| found.get(&k).copied().unwrap_or(&[]);
-    // Each frame's detected points: index into the table.
-    let mut by_frame: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
-    for (i, p) in table.points.iter().enumerate() {
-        if p.flag == PointFlag::Detected {
-            by_frame.entry(p.frame).or_default().push(i);
+    // Each frame's detected points (index into the table), in the frames `keep` keeps.
+    let detected_by_frame = |keep: &dyn Fn(&TrackPoint) -> bool| {
+        let mut by_frame: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+        for (i, p) in table.points.iter().enumerate() {
+            if p.flag == PointFlag::Detected && keep(p) {
+                by_frame.entry(p.frame).or_default().push(i);
+            }
         }
-    }
+        by_frame
+    };
     let at = |i: usize| {
         let p = &table.points[i];
         [p.x, p.y, p.mass]
     };
     let chosen = frames.spread_samples(SPOKE_FRAMES);
+    let in_chosen = detected_by_frame(&|p| chosen.binary_search(&p.frame).is_ok());
     let search = SpokeSearch::new(radius, locate_window(radius));
-    let looked: Vec<Vec<(usize, bool)>> = chosen
+    let looked: Vec<Vec<(usize, bool)>> = in_chosen
         .par_iter()
-        .filter_map(|k| by_frame.get(k).map(|points| (*k, points)))
-        .map(|(k, points)| {
+        .map(|(&k, points)| {
             frames.with_signal(k, background, workers, |signal, width, height| {
                 let xy: Vec<[f64; 2]> = points.iter().map(|&i| [at(i)[0], at(i)[1]]).collect();
                 let near = FrameNeighbours::new(&xy, found_in(k), radius);
@@ -180,15 +183,14 @@ pub(super) fn mask_spokes(
         return Ok(SpokesMasked::default());
     }
     let window = locate_window(radius);
-    let frames_with: Vec<(usize, &Vec<usize>)> = by_frame
+    let frames_of_spoked: BTreeSet<usize> = table
+        .points
         .iter()
-        .filter(|(_, points)| {
-            points
-                .iter()
-                .any(|&i| spoked.contains_key(&table.points[i].particle))
-        })
-        .map(|(&k, points)| (k, points))
+        .filter(|p| spoked.contains_key(&p.particle))
+        .map(|p| p.frame)
         .collect();
+    let by_frame = detected_by_frame(&|p| frames_of_spoked.contains(&p.frame));
+    let frames_with: Vec<(usize, &Vec<usize>)> = by_frame.iter().map(|(&k, points)| (k, points)).collect();
     // Each frame's moved points.
     let moved: Vec<Vec<Moved>> = frames_with
         .par_iter()
