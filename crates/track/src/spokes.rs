@@ -262,6 +262,59 @@ fn sector_of(dx: f64, dy: f64, count: usize) -> usize {
     ((angle / TAU * count as f64) as usize).min(count - 1)
 }
 
+/// Least pixels a sector of the ring inside a particle holds on average for [`mark_pull`] to
+/// judge it (the ring from a quarter to 0.85 of the radius holds about `1.2 R` pixels a
+/// sector of two pixels' arc: particles of 5 px and more).
+const LEAST_MARK_PIXELS: f64 = 6.0;
+
+/// How far a mark inside a particle (a line drawn from its centre to its edge for its angle,
+/// a texture's bump, a highlight) pulls its centroid, as the first moment of the mark's
+/// signal about the point, grey levels · px³ (to be divided by the window's mass); `None`
+/// where no sector of the ring from a quarter to 0.85 of the radius `radius` (px) about `c`
+/// stands out from the ring's typical sector either way (as [`spokes`] judges a sector, its
+/// shells' medians taken out), or where the particle is too small to judge
+/// ([`LEAST_MARK_PIXELS`]). The ring leaves out the centre, where sectors hold a pixel or two,
+/// and the edge, which a centroid off the centre by a little makes uneven: the moment is
+/// that of the part of the mark the ring holds, about two thirds of a line from centre to
+/// edge.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn mark_pull(
+    signal: &[f32],
+    width: usize,
+    height: usize,
+    c: [f64; 2],
+    radius: f64,
+    level: f64,
+    noise_sigma: f64,
+    others: &[[f64; 2]],
+) -> Option<[f64; 2]> {
+    let (inner, outer) = (0.25 * radius, 0.85 * radius);
+    let count = sector_count(inner, outer);
+    let area = std::f64::consts::PI * (outer * outer - inner * inner);
+    if area / (count as f64) < LEAST_MARK_PIXELS {
+        return None;
+    }
+    let image = SectorImage {
+        signal,
+        width,
+        height,
+        c,
+        others,
+    };
+    let sigmas = (2.0 * (count as f64 / FALSE_RATE).ln()).sqrt();
+    let threshold =
+        |pixels: usize| (sigmas * noise_sigma / (pixels as f64).sqrt()).max(LEAST_EXCESS * level.abs());
+    let deviations = image.sector_deviations((inner, outer), count, &threshold)?;
+    let middle = 0.5 * (inner + outer);
+    let mut pull = [0.0, 0.0];
+    for (k, &(d, pixels)) in deviations.iter().enumerate() {
+        let a = (k as f64 + 0.5) * TAU / count as f64;
+        pull[0] += d * pixels as f64 * middle * a.cos();
+        pull[1] += d * pixels as f64 * middle * a.sin();
+    }
+    deviations.iter().any(|d| d.0.abs() > 0.0).then_some(pull)
+}
+
 /// What [`SectorImage::sector_excess`] reads: the signal (`width * height`, row-major), the
 /// particle's position `c` and its neighbours' `others` (px).
 struct SectorImage<'a> {
@@ -287,6 +340,19 @@ impl SectorImage<'_> {
         count: usize,
         threshold: &dyn Fn(usize) -> f64,
     ) -> Option<Vec<f64>> {
+        let deviations = self.sector_deviations((inner, outer), count, threshold)?;
+        Some(deviations.iter().map(|d| d.0.max(0.0)).collect())
+    }
+
+    /// Each of `count` sectors' deviation from the ring's typical sector (see
+    /// [`SectorImage::sector_excess`]), either way, where its size is over
+    /// `threshold(pixels)`, else 0, with the pixels the sector holds.
+    fn sector_deviations(
+        &self,
+        (inner, outer): (f64, f64),
+        count: usize,
+        threshold: &dyn Fn(usize) -> f64,
+    ) -> Option<Vec<(f64, usize)>> {
         let SectorImage {
             signal,
             width,
@@ -361,8 +427,8 @@ impl SectorImage<'_> {
                 .iter()
                 .zip(&n)
                 .map(|(m, &pixels)| match m {
-                    Some(m) if m - typical > threshold(pixels) => m - typical,
-                    _ => 0.0,
+                    Some(m) if (m - typical).abs() > threshold(pixels) => (m - typical, pixels),
+                    _ => (0.0, pixels),
                 })
                 .collect(),
         )
@@ -506,6 +572,70 @@ mod tests {
             }
         }
         assert!(spokes(&spot, 64, 64, [31.3, 30.7], 6.0, 7.0, 100.0, 0.5, &[]).is_empty());
+    }
+
+    /// A disc of radius `r` and level `amp` at `c` with a line of half-width `hw` and level
+    /// `line` drawn over it from its centre to its edge along `u` (a physics engine's mark of
+    /// a body's angle), area-sampled 8 x 8.
+    #[allow(clippy::too_many_arguments)]
+    fn disc_with_radius_line(
+        w: usize,
+        h: usize,
+        c: [f64; 2],
+        r: f64,
+        amp: f32,
+        u: [f64; 2],
+        hw: f64,
+        line: f32,
+    ) -> Vec<f32> {
+        let mut img = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut v = 0.0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let px = x as f64 - 0.4375 + 0.125 * sx as f64 - c[0];
+                        let py = y as f64 - 0.4375 + 0.125 * sy as f64 - c[1];
+                        if px.hypot(py) <= r {
+                            let along = px * u[0] + py * u[1];
+                            let on_line = along >= 0.0 && (px * u[1] - py * u[0]).abs() <= hw;
+                            v += if on_line { line } else { amp } / 64.0;
+                        }
+                    }
+                }
+                img[y * w + x] = v;
+            }
+        }
+        img
+    }
+
+    /// A dark line from the centre of a disc of 12 px to its edge, 2 px wide: the plain
+    /// centroid moves 0.3 px away from it; [`mark_pull`] points away from the line and says
+    /// how far within a factor of two (measured 0.65 of it: the ring leaves out the line's
+    /// inner and outer parts); a plain disc has no mark.
+    #[test]
+    fn a_mark_inside_a_disc_is_measured_by_its_pull() {
+        let c = [40.3, 39.6];
+        let plain = disc_with_radius_line(80, 80, c, 12.0, 200.0, [1.0, 0.0], 1.0, 200.0);
+        assert!(mark_pull(&plain, 80, 80, c, 12.0, 200.0, 1.0, &[]).is_none());
+        for a in [0.3f64, 2.0, 4.4] {
+            let u = [a.cos(), a.sin()];
+            let img = disc_with_radius_line(80, 80, c, 12.0, 200.0, u, 1.0, 20.0);
+            let found = crate::refine_centroids(&img, 80, 80, &[[40.0, 40.0]], &[0.0], 13.0, 1.0)[0];
+            let off = [found.x - c[0], found.y - c[1]];
+            let moved = off[0].hypot(off[1]);
+            assert!(
+                moved > 0.2 && off[0] * u[0] + off[1] * u[1] < 0.0,
+                "{off:?} for {u:?}"
+            );
+            let pull = mark_pull(&img, 80, 80, [found.x, found.y], 12.0, 200.0, 1.0, &[]).expect("a mark");
+            let said = pull[0].hypot(pull[1]) / found.mass;
+            assert!(pull[0] * u[0] + pull[1] * u[1] < 0.0, "{pull:?} for {u:?}");
+            assert!(
+                said > 0.5 * moved && said < 2.0 * moved,
+                "said {said:.3} px for {moved:.3}"
+            );
+        }
     }
 
     /// The cuts' own error: discs of 2-20 px with no line, cut along a random direction and

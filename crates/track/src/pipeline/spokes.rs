@@ -18,7 +18,7 @@ use super::finder::locate_window;
 use super::window_frames::ClassFrames;
 use crate::locate::refine_centroids_with_cuts;
 use crate::point_grid::PointGrid;
-use crate::spokes::{cut_sampling_error, spoke_cuts, SpokeSearch};
+use crate::spokes::{cut_sampling_error, mark_pull, spoke_cuts, SpokeSearch};
 use crate::{Detection, FrameDetections, LocateScratch, PointFlag, TrackError, TrackPoint, TrackTable};
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
@@ -39,6 +39,60 @@ struct Moved {
     error: f64,
     /// The sum of its lines' directions (unit vectors, y down): where they pull it.
     pull: [f64; 2],
+}
+
+/// What the look about one point in a sample frame found.
+struct Look {
+    /// Its index in the table.
+    point: usize,
+    /// Whether lines leave it.
+    lines: bool,
+    /// How far a mark inside it pulls its centroid, px ([`mark_pull`] over the window's
+    /// mass), where one stands out.
+    mark: Option<f64>,
+}
+
+/// Multiple of a point's own error by which a mark inside it must pull its centroid to
+/// count ([`mark_warnings`]).
+const MARK_SIGMAS: f64 = 3.0;
+
+/// Warnings naming the particles (the first [`NAMED`] of them, and how many more) whose
+/// centroid a mark inside them pulls by over [`MARK_SIGMAS`] times their error in at least
+/// half of the sample frames looked at (two at least): a line drawn from the centre for the
+/// body's angle, a texture's bump, a highlight. The centroid follows the mark, and the
+/// warning gives the median pull over those frames.
+fn mark_warnings(looked: &[Vec<Look>], table: &TrackTable) -> Vec<String> {
+    let mut by_particle: BTreeMap<&str, (usize, Vec<f64>)> = BTreeMap::new();
+    for look in looked.iter().flatten() {
+        let p = &table.points[look.point];
+        let e = by_particle.entry(p.particle.as_str()).or_default();
+        e.0 += 1;
+        if let Some(pull) = look.mark.filter(|&m| m > MARK_SIGMAS * p.ep) {
+            e.1.push(pull);
+        }
+    }
+    let mut out = Vec::new();
+    let mut more = 0;
+    for (name, (n, mut pulls)) in by_particle {
+        if pulls.len() < 2 || 2 * pulls.len() < n {
+            continue;
+        }
+        if out.len() == NAMED {
+            more += 1;
+            continue;
+        }
+        out.push(format!(
+            "{name}: a mark inside it (a line drawn for its angle, a texture, a highlight) stands out from its even \
+             parts in {} of {n} sample frames looked at and pulls its centroid about {:.3} px (median) off the centre \
+             of its outline",
+            pulls.len(),
+            median(&mut pulls)
+        ));
+    }
+    if more > 0 {
+        out.push(format!("{more} more particles with a mark inside them, as above"));
+    }
+    out
 }
 
 /// Particles named in the warning, at most.
@@ -147,7 +201,7 @@ pub(super) fn mask_spokes(
     let chosen = frames.spread_samples(SPOKE_FRAMES);
     let in_chosen = detected_by_frame(&|p| chosen.binary_search(&p.frame).is_ok());
     let search = SpokeSearch::new(radius, locate_window(radius));
-    let looked: Vec<Vec<(usize, bool)>> = in_chosen
+    let looked: Vec<Vec<Look>> = in_chosen
         .par_iter()
         .map(|(&k, points)| {
             frames.with_signal(k, background, workers, |signal, width, height| {
@@ -161,7 +215,15 @@ pub(super) fn mask_spokes(
                         let p = at(i);
                         let others = near.about(&grid, [p[0], p[1]], radius);
                         let lines = lines_about(&search, signal, (width, height), p, &others, radius, noise);
-                        (i, !lines.is_empty())
+                        let level = p[2] / (std::f64::consts::PI * radius * radius);
+                        let mark =
+                            mark_pull(signal, width, height, [p[0], p[1]], radius, level, noise, &others)
+                                .map(|m| m[0].hypot(m[1]) / p[2]);
+                        Look {
+                            point: i,
+                            lines: !lines.is_empty(),
+                            mark,
+                        }
                     })
                     .collect()
             })
@@ -169,18 +231,21 @@ pub(super) fn mask_spokes(
         .collect::<Result<_, TrackError>>()?;
     // Frames looked at and frames with lines, by particle.
     let mut seen: BTreeMap<&str, (usize, usize)> = BTreeMap::new();
-    for &(i, lines) in looked.iter().flatten() {
-        let e = seen.entry(table.points[i].particle.as_str()).or_default();
+    for look in looked.iter().flatten() {
+        let e = seen
+            .entry(table.points[look.point].particle.as_str())
+            .or_default();
         e.0 += 1;
-        e.1 += usize::from(lines);
+        e.1 += usize::from(look.lines);
     }
+    let mut warnings = mark_warnings(&looked, table);
     let spoked: BTreeMap<String, (usize, usize)> = seen
         .into_iter()
         .filter(|&(_, (n, with))| with > 1 && 4 * with >= n)
         .map(|(name, counts)| (name.to_string(), counts))
         .collect();
     if spoked.is_empty() {
-        return Ok(SpokesMasked::default());
+        return Ok(SpokesMasked { moved: 0, warnings });
     }
     let window = locate_window(radius);
     let frames_of_spoked: BTreeSet<usize> = table
@@ -261,7 +326,10 @@ pub(super) fn mask_spokes(
     let mut kept: Vec<Moved> = Vec::new();
     let mut named: Vec<String> = Vec::new();
     let mut refused: Vec<String> = Vec::new();
-    let mut out = SpokesMasked::default();
+    let mut out = SpokesMasked {
+        moved: 0,
+        warnings: std::mem::take(&mut warnings),
+    };
     for (name, moves) in by_particle {
         let (n, with) = spoked[name];
         if leads_away(&moves, table) {

@@ -6,6 +6,7 @@ mod crossing;
 mod errors;
 mod events;
 mod fixtures;
+mod marks;
 mod parabola;
 mod real;
 mod scenes;
