@@ -515,8 +515,28 @@ pub(crate) fn spoke_cuts(spokes: &[[f64; 2]], radius: f64) -> Vec<([f64; 2], f64
 mod tests {
     use super::*;
 
-    /// A disc of radius `r` and level `amp` at `c`, with lines of half-width `hw` from it
-    /// along `dirs`, area-sampled 4 x 4.
+    /// A `w` x `h` image whose pixels hold the mean of `level(dx, dy)` over 8 x 8 points
+    /// spread over each, `(dx, dy)` the point's offset from `c` (px).
+    fn area_sampled(w: usize, h: usize, c: [f64; 2], level: impl Fn(f64, f64) -> f32) -> Vec<f32> {
+        let mut img = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut v = 0.0;
+                for sy in 0..8 {
+                    for sx in 0..8 {
+                        let px = x as f64 - 0.4375 + 0.125 * sx as f64 - c[0];
+                        let py = y as f64 - 0.4375 + 0.125 * sy as f64 - c[1];
+                        v += level(px, py) / 64.0;
+                    }
+                }
+                img[y * w + x] = v;
+            }
+        }
+        img
+    }
+
+    /// A disc of radius `r` and level `amp` at `c`, with lines of half-width `hw` and the
+    /// same level from it along `dirs`.
     fn disc_with_lines(
         w: usize,
         h: usize,
@@ -526,27 +546,41 @@ mod tests {
         dirs: &[[f64; 2]],
         hw: f64,
     ) -> Vec<f32> {
-        let mut img = vec![0.0f32; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let mut cover = 0.0;
-                for sy in 0..8 {
-                    for sx in 0..8 {
-                        let px = x as f64 - 0.4375 + 0.125 * sx as f64 - c[0];
-                        let py = y as f64 - 0.4375 + 0.125 * sy as f64 - c[1];
-                        let on_line = dirs.iter().any(|u| {
-                            let along = px * u[0] + py * u[1];
-                            along > 0.0 && (px * u[1] - py * u[0]).abs() <= hw
-                        });
-                        if px.hypot(py) <= r || on_line {
-                            cover += 1.0 / 64.0;
-                        }
-                    }
-                }
-                img[y * w + x] = amp * cover;
+        area_sampled(w, h, c, |px, py| {
+            let on_line = dirs
+                .iter()
+                .any(|u| px * u[0] + py * u[1] > 0.0 && (px * u[1] - py * u[0]).abs() <= hw);
+            if px.hypot(py) <= r || on_line {
+                amp
+            } else {
+                0.0
             }
-        }
-        img
+        })
+    }
+
+    /// A disc of radius `r` and level `amp` at `c` with a line of half-width `hw` and level
+    /// `line` drawn over it from its centre to its edge along `u` (a physics engine's mark of
+    /// a body's angle).
+    #[allow(clippy::too_many_arguments)]
+    fn disc_with_radius_line(
+        w: usize,
+        h: usize,
+        c: [f64; 2],
+        r: f64,
+        amp: f32,
+        u: [f64; 2],
+        hw: f64,
+        line: f32,
+    ) -> Vec<f32> {
+        area_sampled(w, h, c, |px, py| {
+            if px.hypot(py) > r {
+                0.0
+            } else if px * u[0] + py * u[1] >= 0.0 && (px * u[1] - py * u[0]).abs() <= hw {
+                line
+            } else {
+                amp
+            }
+        })
     }
 
     #[test]
@@ -572,41 +606,6 @@ mod tests {
             }
         }
         assert!(spokes(&spot, 64, 64, [31.3, 30.7], 6.0, 7.0, 100.0, 0.5, &[]).is_empty());
-    }
-
-    /// A disc of radius `r` and level `amp` at `c` with a line of half-width `hw` and level
-    /// `line` drawn over it from its centre to its edge along `u` (a physics engine's mark of
-    /// a body's angle), area-sampled 8 x 8.
-    #[allow(clippy::too_many_arguments)]
-    fn disc_with_radius_line(
-        w: usize,
-        h: usize,
-        c: [f64; 2],
-        r: f64,
-        amp: f32,
-        u: [f64; 2],
-        hw: f64,
-        line: f32,
-    ) -> Vec<f32> {
-        let mut img = vec![0.0f32; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let mut v = 0.0;
-                for sy in 0..8 {
-                    for sx in 0..8 {
-                        let px = x as f64 - 0.4375 + 0.125 * sx as f64 - c[0];
-                        let py = y as f64 - 0.4375 + 0.125 * sy as f64 - c[1];
-                        if px.hypot(py) <= r {
-                            let along = px * u[0] + py * u[1];
-                            let on_line = along >= 0.0 && (px * u[1] - py * u[0]).abs() <= hw;
-                            v += if on_line { line } else { amp } / 64.0;
-                        }
-                    }
-                }
-                img[y * w + x] = v;
-            }
-        }
-        img
     }
 
     /// A dark line from the centre of a disc of 12 px to its edge, 2 px wide: the plain
