@@ -49,49 +49,32 @@ fn spoke_ring(radius: f64, window: f64) -> (f64, f64) {
     (inner, inner + 2.0 + 0.25 * radius)
 }
 
-/// The directions (unit vectors, y down) of the lines leaving the particle at `c` (px) in
-/// `signal` (`width * height`, row-major, particles positive), a particle of radius `radius`
-/// px located in a window of radius `window` px whose mean level is `level` (grey levels),
-/// under pixel noise `noise_sigma` (grey levels); pixels nearer one of `others` (other
-/// particles' positions, px) than `c` are left out. A line stands out in the ring just beyond
-/// the window and again, within a sector either way, in the ring of the same width beyond
-/// that one: a corner of a square, a neighbour's edge or a speck ends within a few pixels, a
-/// line goes on; and it is narrower than the particle's radius (or three sectors) across
-/// the ring, where a reflection below a ball, a shadow or a neighbour's edge is about as wide
-/// as a particle. Empty where no line is found.
-#[allow(clippy::too_many_arguments)]
+/// The directions (unit vectors, y down) of the lines leaving the particle `image` is about,
+/// a particle of radius `radius` px located in a window of radius `window` px whose mean level
+/// is `level` (grey levels), under pixel noise `noise_sigma` (grey levels). A line stands out
+/// in the ring just beyond the window and again, within a sector either way, in the ring of
+/// the same width beyond that one: a corner of a square, a neighbour's edge or a speck ends
+/// within a few pixels, a line goes on; and it is narrower than the particle's radius (or
+/// three sectors) across the ring, where a reflection below a ball, a shadow or a neighbour's
+/// edge is about as wide as a particle. Empty where no line is found.
 pub(crate) fn spokes(
-    signal: &[f32],
-    width: usize,
-    height: usize,
-    c: [f64; 2],
+    image: &About<'_>,
     radius: f64,
     window: f64,
     level: f64,
     noise_sigma: f64,
-    others: &[[f64; 2]],
 ) -> Vec<[f64; 2]> {
     let (inner, outer) = spoke_ring(radius, window);
     let middle = 0.5 * (inner + outer);
     let count = sector_count(inner, outer);
-    let image = SectorImage {
-        signal,
-        width,
-        height,
-        c,
-        others,
-    };
-    let threshold = |pixels: usize| {
-        let sigmas = (2.0 * (count as f64 / FALSE_RATE).ln()).sqrt();
-        (sigmas * noise_sigma / (pixels as f64).sqrt()).max(LEAST_EXCESS * level.abs())
-    };
-    let Some(near) = image.sector_excess((inner, outer), count, &threshold) else {
+    let test = SectorTest::new(count, level, noise_sigma);
+    let Some(near) = image.sector_excess((inner, outer), count, &test) else {
         return Vec::new();
     };
     if near.iter().all(|&e| e <= 0.0) {
         return Vec::new();
     }
-    let Some(far) = image.sector_excess((outer, 2.0 * outer - inner), count, &threshold) else {
+    let Some(far) = image.sector_excess((outer, 2.0 * outer - inner), count, &test) else {
         return Vec::new();
     };
     // A line is narrower than the particle (a reflection, a shadow or a neighbour's edge is
@@ -106,6 +89,35 @@ pub(crate) fn spokes(
     };
     let span = 2.0 * ((radius - 0.5).max(0.0) / (window + 0.5)).acos();
     runs_to_directions(&near, WIDEST_CUT * span, &line)
+}
+
+/// When a sector of a ring stands out (see [`spokes`]): by more than the noise can put in
+/// any of the ring's `n` sectors (`sqrt(2 ln(n / FALSE_RATE))` standard errors of a sector's
+/// mean) and by [`LEAST_EXCESS`] of the particle's mean level.
+struct SectorTest {
+    /// Standard errors of a sector's mean.
+    sigmas: f64,
+    /// Pixel noise, grey levels.
+    noise_sigma: f64,
+    /// The least deviation however many pixels, grey levels.
+    floor: f64,
+}
+
+impl SectorTest {
+    /// The test for a ring of `count` sectors about a particle of mean level `level` under
+    /// pixel noise `noise_sigma` (grey levels).
+    fn new(count: usize, level: f64, noise_sigma: f64) -> SectorTest {
+        SectorTest {
+            sigmas: (2.0 * (count as f64 / FALSE_RATE).ln()).sqrt(),
+            noise_sigma,
+            floor: LEAST_EXCESS * level.abs(),
+        }
+    }
+
+    /// The deviation a sector of `pixels` pixels must pass, grey levels.
+    fn threshold(&self, pixels: usize) -> f64 {
+        (self.sigmas * self.noise_sigma / (pixels as f64).sqrt()).max(self.floor)
+    }
 }
 
 /// Share of the exact search's threshold a sector must pass in the coarse first look of
@@ -154,49 +166,27 @@ impl SpokeSearch {
         }
     }
 
-    /// [`spokes`] about `c` (px) where the coarse look finds a sector standing out; the
-    /// arguments as there.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn lines(
-        &self,
-        signal: &[f32],
-        width: usize,
-        height: usize,
-        c: [f64; 2],
-        level: f64,
-        noise_sigma: f64,
-        others: &[[f64; 2]],
-    ) -> Vec<[f64; 2]> {
-        if !self.may_hold_lines(signal, width, height, c, level, noise_sigma, others) {
+    /// [`spokes`] about the point `image` is about where the coarse look finds a sector
+    /// standing out; the arguments as there.
+    pub(crate) fn lines(&self, image: &About<'_>, level: f64, noise_sigma: f64) -> Vec<[f64; 2]> {
+        let test = SectorTest::new(self.count, level, noise_sigma);
+        if !self.may_hold_lines(image, &test) {
             return Vec::new();
         }
-        spokes(
+        spokes(image, self.radius, self.window, level, noise_sigma)
+    }
+
+    /// Whether a sector of the ring about the pixel nearest the point stands out by
+    /// [`COARSE`] of what `test` asks (see [`SpokeSearch`]); true where the ring leaves the
+    /// frame (the exact search decides).
+    fn may_hold_lines(&self, image: &About<'_>, test: &SectorTest) -> bool {
+        let &About {
             signal,
             width,
             height,
             c,
-            self.radius,
-            self.window,
-            level,
-            noise_sigma,
             others,
-        )
-    }
-
-    /// Whether a sector of the ring about the pixel nearest `c` stands out by [`COARSE`] of
-    /// what [`spokes`] asks (see [`SpokeSearch`]); true where the ring leaves the frame (the
-    /// exact search decides).
-    #[allow(clippy::too_many_arguments)]
-    fn may_hold_lines(
-        &self,
-        signal: &[f32],
-        width: usize,
-        height: usize,
-        c: [f64; 2],
-        level: f64,
-        noise_sigma: f64,
-        others: &[[f64; 2]],
-    ) -> bool {
+        } = image;
         let (cx, cy) = (c[0].round() as i64, c[1].round() as i64);
         let reach = i64::from(self.reach);
         if cx - reach < 0 || cy - reach < 0 || cx + reach >= width as i64 || cy + reach >= height as i64 {
@@ -227,7 +217,7 @@ impl SpokeSearch {
             sum[k] += f64::from(signal[at]);
             n[k] += 1;
         }
-        let mut means: Vec<(f64, usize)> = sum
+        let means: Vec<(f64, usize)> = sum
             .iter()
             .zip(&n)
             .filter(|(_, &m)| m >= LEAST_PIXELS)
@@ -239,12 +229,9 @@ impl SpokeSearch {
         let mut sorted: Vec<f64> = means.iter().map(|m| m.0).collect();
         sorted.sort_by(f64::total_cmp);
         let typical = sorted[sorted.len() / 2];
-        let sigmas = (2.0 * (self.count as f64 / FALSE_RATE).ln()).sqrt();
-        means.retain(|&(m, pixels)| {
-            let threshold = (sigmas * noise_sigma / (pixels as f64).sqrt()).max(LEAST_EXCESS * level.abs());
-            m - typical > COARSE * threshold
-        });
-        !means.is_empty()
+        means
+            .iter()
+            .any(|&(m, pixels)| m - typical > COARSE * test.threshold(pixels))
     }
 }
 
@@ -270,41 +257,22 @@ const LEAST_MARK_PIXELS: f64 = 6.0;
 /// How far a mark inside a particle (a line drawn from its centre to its edge for its angle,
 /// a texture's bump, a highlight) pulls its centroid, as the first moment of the mark's
 /// signal about the point, grey levels · px³ (to be divided by the window's mass); `None`
-/// where no sector of the ring from a quarter to 0.85 of the radius `radius` (px) about `c`
-/// stands out from the ring's typical sector either way (as [`spokes`] judges a sector, its
+/// where no sector of the ring from a quarter to 0.85 of the radius `radius` (px) about the
+/// point `image` is about stands out from the ring's typical sector either way (as [`spokes`] judges a sector, its
 /// shells' medians taken out), or where the particle is too small to judge
 /// ([`LEAST_MARK_PIXELS`]). The ring leaves out the centre, where sectors hold a pixel or two,
 /// and the edge, which a centroid off the centre by a little makes uneven: the moment is
 /// that of the part of the mark the ring holds, about two thirds of a line from centre to
 /// edge.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn mark_pull(
-    signal: &[f32],
-    width: usize,
-    height: usize,
-    c: [f64; 2],
-    radius: f64,
-    level: f64,
-    noise_sigma: f64,
-    others: &[[f64; 2]],
-) -> Option<[f64; 2]> {
+pub(crate) fn mark_pull(image: &About<'_>, radius: f64, level: f64, noise_sigma: f64) -> Option<[f64; 2]> {
     let (inner, outer) = (0.25 * radius, 0.85 * radius);
     let count = sector_count(inner, outer);
     let area = std::f64::consts::PI * (outer * outer - inner * inner);
     if area / (count as f64) < LEAST_MARK_PIXELS {
         return None;
     }
-    let image = SectorImage {
-        signal,
-        width,
-        height,
-        c,
-        others,
-    };
-    let sigmas = (2.0 * (count as f64 / FALSE_RATE).ln()).sqrt();
-    let threshold =
-        |pixels: usize| (sigmas * noise_sigma / (pixels as f64).sqrt()).max(LEAST_EXCESS * level.abs());
-    let deviations = image.sector_deviations((inner, outer), count, &threshold)?;
+    let test = SectorTest::new(count, level, noise_sigma);
+    let deviations = image.sector_deviations((inner, outer), count, &test)?;
     let middle = 0.5 * (inner + outer);
     let mut pull = [0.0, 0.0];
     for (k, &(d, pixels)) in deviations.iter().enumerate() {
@@ -315,45 +283,41 @@ pub(crate) fn mark_pull(
     deviations.iter().any(|d| d.0.abs() > 0.0).then_some(pull)
 }
 
-/// What [`SectorImage::sector_excess`] reads: the signal (`width * height`, row-major), the
-/// particle's position `c` and its neighbours' `others` (px).
-struct SectorImage<'a> {
-    signal: &'a [f32],
-    width: usize,
-    height: usize,
-    c: [f64; 2],
-    others: &'a [[f64; 2]],
+/// The image about one particle, as the ring searches read it: the signal (`width * height`,
+/// row-major, particles positive), the particle's position `c` and its neighbours' `others`
+/// (px), whose nearer pixels are left out.
+pub(crate) struct About<'a> {
+    pub(crate) signal: &'a [f32],
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) c: [f64; 2],
+    pub(crate) others: &'a [[f64; 2]],
 }
 
-impl SectorImage<'_> {
+impl About<'_> {
     /// How far each of `count` sectors of the ring `(inner, outer)` (px) about `c` stands
     /// above the ring's typical sector (the median of the sectors' means), grey levels, where
-    /// that is over `threshold(pixels in the sector)`, else 0; `None` where fewer than half
+    /// that passes `test` for the pixels the sector holds, else 0; `None` where fewer than half
     /// the sectors hold [`LEAST_PIXELS`] (the ring leaves the frame). Pixels nearer one of
     /// `others` than `c` are left out, and each half-pixel shell's median is taken out first,
     /// so the sectors compare what lies off the ring's own radial profile (a spot's skirt
     /// falls steeply across the ring, and sectors holding pixels at different radii would
     /// differ).
-    fn sector_excess(
-        &self,
-        (inner, outer): (f64, f64),
-        count: usize,
-        threshold: &dyn Fn(usize) -> f64,
-    ) -> Option<Vec<f64>> {
-        let deviations = self.sector_deviations((inner, outer), count, threshold)?;
+    fn sector_excess(&self, (inner, outer): (f64, f64), count: usize, test: &SectorTest) -> Option<Vec<f64>> {
+        let deviations = self.sector_deviations((inner, outer), count, test)?;
         Some(deviations.iter().map(|d| d.0.max(0.0)).collect())
     }
 
     /// Each of `count` sectors' deviation from the ring's typical sector (see
-    /// [`SectorImage::sector_excess`]), either way, where its size is over
-    /// `threshold(pixels)`, else 0, with the pixels the sector holds.
+    /// [`About::sector_excess`]), either way, where its size passes `test`, else 0, with the
+    /// pixels the sector holds.
     fn sector_deviations(
         &self,
         (inner, outer): (f64, f64),
         count: usize,
-        threshold: &dyn Fn(usize) -> f64,
+        test: &SectorTest,
     ) -> Option<Vec<(f64, usize)>> {
-        let SectorImage {
+        let About {
             signal,
             width,
             height,
@@ -427,7 +391,7 @@ impl SectorImage<'_> {
                 .iter()
                 .zip(&n)
                 .map(|(m, &pixels)| match m {
-                    Some(m) if (m - typical).abs() > threshold(pixels) => (m - typical, pixels),
+                    Some(m) if (m - typical).abs() > test.threshold(pixels) => (m - typical, pixels),
                     _ => (0.0, pixels),
                 })
                 .collect(),
@@ -515,6 +479,17 @@ pub(crate) fn spoke_cuts(spokes: &[[f64; 2]], radius: f64) -> Vec<([f64; 2], f64
 mod tests {
     use super::*;
 
+    /// The view of `img` (`w` x `h`) about `c`, no neighbours.
+    fn about(img: &[f32], w: usize, h: usize, c: [f64; 2]) -> About<'_> {
+        About {
+            signal: img,
+            width: w,
+            height: h,
+            c,
+            others: &[],
+        }
+    }
+
     /// A `w` x `h` image whose pixels hold the mean of `level(dx, dy)` over 8 x 8 points
     /// spread over each, `(dx, dy)` the point's offset from `c` (px).
     fn area_sampled(w: usize, h: usize, c: [f64; 2], level: impl Fn(f64, f64) -> f32) -> Vec<f32> {
@@ -587,7 +562,7 @@ mod tests {
     fn a_line_leaving_a_disc_is_found_along_its_direction() {
         let u = [0.6f64, 0.8];
         let img = disc_with_lines(64, 64, [31.3, 30.7], 6.0, 200.0, &[u], 1.0);
-        let found = spokes(&img, 64, 64, [31.3, 30.7], 6.0, 7.0, 200.0, 1.0, &[]);
+        let found = spokes(&about(&img, 64, 64, [31.3, 30.7]), 6.0, 7.0, 200.0, 1.0);
         assert_eq!(found.len(), 1, "{found:?}");
         let cos = found[0][0] * u[0] + found[0][1] * u[1];
         assert!(cos > 0.99, "found {found:?} for {u:?}");
@@ -596,7 +571,7 @@ mod tests {
     #[test]
     fn a_plain_disc_or_a_blurred_skirt_has_no_spokes() {
         let img = disc_with_lines(64, 64, [31.3, 30.7], 6.0, 200.0, &[], 1.0);
-        assert!(spokes(&img, 64, 64, [31.3, 30.7], 6.0, 7.0, 200.0, 1.0, &[]).is_empty());
+        assert!(spokes(&about(&img, 64, 64, [31.3, 30.7]), 6.0, 7.0, 200.0, 1.0).is_empty());
         // A wide Gaussian spot: its skirt fills the ring evenly.
         let mut spot = vec![0.0f32; 64 * 64];
         for y in 0..64 {
@@ -605,7 +580,7 @@ mod tests {
                 spot[y * 64 + x] = (200.0 * (-d2 / (2.0 * 36.0)).exp()) as f32;
             }
         }
-        assert!(spokes(&spot, 64, 64, [31.3, 30.7], 6.0, 7.0, 100.0, 0.5, &[]).is_empty());
+        assert!(spokes(&about(&spot, 64, 64, [31.3, 30.7]), 6.0, 7.0, 100.0, 0.5).is_empty());
     }
 
     /// A dark line from the centre of a disc of 12 px to its edge, 2 px wide: the plain
@@ -616,7 +591,7 @@ mod tests {
     fn a_mark_inside_a_disc_is_measured_by_its_pull() {
         let c = [40.3, 39.6];
         let plain = disc_with_radius_line(80, 80, c, 12.0, 200.0, [1.0, 0.0], 1.0, 200.0);
-        assert!(mark_pull(&plain, 80, 80, c, 12.0, 200.0, 1.0, &[]).is_none());
+        assert!(mark_pull(&about(&plain, 80, 80, c), 12.0, 200.0, 1.0).is_none());
         for a in [0.3f64, 2.0, 4.4] {
             let u = [a.cos(), a.sin()];
             let img = disc_with_radius_line(80, 80, c, 12.0, 200.0, u, 1.0, 20.0);
@@ -627,7 +602,7 @@ mod tests {
                 moved > 0.2 && off[0] * u[0] + off[1] * u[1] < 0.0,
                 "{off:?} for {u:?}"
             );
-            let pull = mark_pull(&img, 80, 80, [found.x, found.y], 12.0, 200.0, 1.0, &[]).expect("a mark");
+            let pull = mark_pull(&about(&img, 80, 80, [found.x, found.y]), 12.0, 200.0, 1.0).expect("a mark");
             let said = pull[0].hypot(pull[1]) / found.mass;
             assert!(pull[0] * u[0] + pull[1] * u[1] < 0.0, "{pull:?} for {u:?}");
             assert!(
@@ -689,7 +664,7 @@ mod tests {
                 let plain = crate::refine_centroids(&img, 64, 64, &[[31.0, 31.0]], &[0.0], 7.0, 1.0);
                 let at = [plain[0].x, plain[0].y];
                 plain_sq += (at[0] - c[0]).powi(2) + (at[1] - c[1]).powi(2);
-                let found = spokes(&img, 64, 64, at, 6.0, 7.0, 200.0, 1.0, &[]);
+                let found = spokes(&about(&img, 64, 64, at), 6.0, 7.0, 200.0, 1.0);
                 assert_eq!(found.len(), lines, "{k}: {found:?} for {dirs:?}");
                 let mut scratch = crate::LocateScratch::default();
                 let cut = crate::locate::refine_centroids_with_cuts(

@@ -18,7 +18,7 @@ use super::finder::locate_window;
 use super::window_frames::ClassFrames;
 use crate::locate::refine_centroids_with_cuts;
 use crate::point_grid::PointGrid;
-use crate::spokes::{cut_sampling_error, mark_pull, spoke_cuts, SpokeSearch};
+use crate::spokes::{cut_sampling_error, mark_pull, spoke_cuts, About, SpokeSearch};
 use crate::{Detection, FrameDetections, LocateScratch, PointFlag, TrackError, TrackPoint, TrackTable};
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
@@ -107,21 +107,10 @@ pub(super) struct SpokesMasked {
     pub(super) warnings: Vec<String>,
 }
 
-/// The lines about `p` (`(x, y, mass)`, px and grey levels · px²) in `signal` (of `size`,
-/// width and height), for particles of radius `radius` px (`search` made for it), the pixels
-/// nearer one of `others` (px) left out.
-fn lines_about(
-    search: &SpokeSearch,
-    signal: &[f32],
-    size: (usize, usize),
-    p: [f64; 3],
-    others: &[[f64; 2]],
-    radius: f64,
-    noise: f64,
-) -> Vec<[f64; 2]> {
-    // The particle's mean level over its disc.
-    let level = p[2] / (std::f64::consts::PI * radius * radius);
-    search.lines(signal, size.0, size.1, [p[0], p[1]], level, noise, others)
+/// A particle's mean level over its disc of radius `radius` px, from its window's `mass`
+/// (grey levels · px²), grey levels: what a sector's deviation is measured against.
+fn level_of(mass: f64, radius: f64) -> f64 {
+    mass / (std::f64::consts::PI * radius * radius)
 }
 
 /// A frame's particles as a spoke search sees its neighbours: the frame's tracked points
@@ -214,15 +203,18 @@ pub(super) fn mask_spokes(
                     .map(|&i| {
                         let p = at(i);
                         let others = near.about(&grid, [p[0], p[1]], radius);
-                        let lines = lines_about(&search, signal, (width, height), p, &others, radius, noise);
-                        let level = p[2] / (std::f64::consts::PI * radius * radius);
-                        let mark =
-                            mark_pull(signal, width, height, [p[0], p[1]], radius, level, noise, &others)
-                                .map(|m| m[0].hypot(m[1]) / p[2]);
+                        let image = About {
+                            signal,
+                            width,
+                            height,
+                            c: [p[0], p[1]],
+                            others: &others,
+                        };
+                        let level = level_of(p[2], radius);
                         Look {
                             point: i,
-                            lines: !lines.is_empty(),
-                            mark,
+                            lines: !search.lines(&image, level, noise).is_empty(),
+                            mark: mark_pull(&image, radius, level, noise).map(|m| m[0].hypot(m[1]) / p[2]),
                         }
                     })
                     .collect()
@@ -238,14 +230,17 @@ pub(super) fn mask_spokes(
         e.0 += 1;
         e.1 += usize::from(look.lines);
     }
-    let mut warnings = mark_warnings(&looked, table);
+    let mut out = SpokesMasked {
+        moved: 0,
+        warnings: mark_warnings(&looked, table),
+    };
     let spoked: BTreeMap<String, (usize, usize)> = seen
         .into_iter()
         .filter(|&(_, (n, with))| with > 1 && 4 * with >= n)
         .map(|(name, counts)| (name.to_string(), counts))
         .collect();
     if spoked.is_empty() {
-        return Ok(SpokesMasked { moved: 0, warnings });
+        return Ok(out);
     }
     let window = locate_window(radius);
     let frames_of_spoked: BTreeSet<usize> = table
@@ -275,7 +270,14 @@ pub(super) fn mask_spokes(
                         }
                         let p = at(i);
                         let others = near.about(&grid, [p[0], p[1]], radius);
-                        lines_about(&search, signal, (width, height), p, &others, radius, noise)
+                        let image = About {
+                            signal,
+                            width,
+                            height,
+                            c: [p[0], p[1]],
+                            others: &others,
+                        };
+                        search.lines(&image, level_of(p[2], radius), noise)
                     })
                     .collect();
                 let cuts: Vec<Vec<([f64; 2], f64)>> = lines.iter().map(|l| spoke_cuts(l, radius)).collect();
@@ -326,10 +328,6 @@ pub(super) fn mask_spokes(
     let mut kept: Vec<Moved> = Vec::new();
     let mut named: Vec<String> = Vec::new();
     let mut refused: Vec<String> = Vec::new();
-    let mut out = SpokesMasked {
-        moved: 0,
-        warnings: std::mem::take(&mut warnings),
-    };
     for (name, moves) in by_particle {
         let (n, with) = spoked[name];
         if leads_away(&moves, table) {
@@ -388,7 +386,7 @@ const AWAY_SIGMAS: f64 = 3.0;
 /// least `n / 2 + AWAY_SIGMAS sqrt(n) / 2` of the `n` moves (all of them for up to 9). Lines
 /// that pulled each point move every point away (drawn springs, 21-40 frames: all but 0-2);
 /// cuts that move a particle by their own sampling move it either way, as a coin falls
-/// (pendulum-scale's bob: 27 of 52).
+/// (pendulum-scale's bob: 26 of 52).
 fn leads_away(moves: &[Moved], table: &TrackTable) -> bool {
     let away = moves
         .iter()
