@@ -133,17 +133,33 @@ impl FrameNeighbours {
         FrameNeighbours { points }
     }
 
-    /// The particles about `p` (px) that a spoke search for radius `radius` (px) reaches,
-    /// those nearer than half the radius (`p` itself, or its own detection) left out.
-    fn about(&self, grid: &PointGrid<'_>, p: [f64; 2], radius: f64) -> Vec<[f64; 2]> {
+    /// `f` on the view of `signal` (of `size`, width and height) about `p` (px), its
+    /// neighbours those particles (`grid` over them) that a ring search for radius `radius`
+    /// (px) reaches, those nearer than half the radius (`p` itself, or its own detection)
+    /// left out.
+    fn view<R>(
+        &self,
+        grid: &PointGrid<'_>,
+        signal: &[f32],
+        size: (usize, usize),
+        p: [f64; 2],
+        radius: f64,
+        f: impl FnOnce(&About<'_>) -> R,
+    ) -> R {
         let reach = 2.0 * (locate_window(radius) + 3.0 + 0.25 * radius);
-        let mut out = Vec::new();
+        let mut others = Vec::new();
         grid.within(&p, reach, |j, d2| {
             if d2 > 0.25 * radius * radius {
-                out.push(self.points[j]);
+                others.push(self.points[j]);
             }
         });
-        out
+        f(&About {
+            signal,
+            width: size.0,
+            height: size.1,
+            c: p,
+            others: &others,
+        })
     }
 }
 
@@ -202,20 +218,14 @@ pub(super) fn mask_spokes(
                     .filter(|&&i| !hollow.contains(&table.points[i].particle))
                     .map(|&i| {
                         let p = at(i);
-                        let others = near.about(&grid, [p[0], p[1]], radius);
-                        let image = About {
-                            signal,
-                            width,
-                            height,
-                            c: [p[0], p[1]],
-                            others: &others,
-                        };
                         let level = level_of(p[2], radius);
-                        Look {
-                            point: i,
-                            lines: !search.lines(&image, level, noise).is_empty(),
-                            mark: mark_pull(&image, radius, level, noise).map(|m| m[0].hypot(m[1]) / p[2]),
-                        }
+                        near.view(&grid, signal, (width, height), [p[0], p[1]], radius, |image| {
+                            Look {
+                                point: i,
+                                lines: !search.lines(image, level, noise).is_empty(),
+                                mark: mark_pull(image, radius, level, noise).map(|m| m[0].hypot(m[1]) / p[2]),
+                            }
+                        })
                     })
                     .collect()
             })
@@ -269,15 +279,9 @@ pub(super) fn mask_spokes(
                             return Vec::new();
                         }
                         let p = at(i);
-                        let others = near.about(&grid, [p[0], p[1]], radius);
-                        let image = About {
-                            signal,
-                            width,
-                            height,
-                            c: [p[0], p[1]],
-                            others: &others,
-                        };
-                        search.lines(&image, level_of(p[2], radius), noise)
+                        near.view(&grid, signal, (width, height), [p[0], p[1]], radius, |image| {
+                            search.lines(image, level_of(p[2], radius), noise)
+                        })
                     })
                     .collect();
                 let cuts: Vec<Vec<([f64; 2], f64)>> = lines.iter().map(|l| spoke_cuts(l, radius)).collect();
