@@ -57,8 +57,8 @@ pub use limits::{
     frame_limits, set_frame_limits, FrameLimits, DEFAULT_MAX_DECOMPRESSION_RATIO, DEFAULT_MAX_MEGAPIXELS,
 };
 pub use link::{
-    link_detections, Ambiguity, AmbiguityKind, FrameDetections, LinkOptions, LinkOutcome,
-    APPEARANCE_GATE_SIGMAS,
+    backward_disagreements, link_detections, Ambiguity, AmbiguityKind, Disagreement, FrameDetections,
+    LinkOptions, LinkOutcome, APPEARANCE_GATE_SIGMAS,
 };
 pub use locate::{refine_centroids, refine_centroids_with_scratch, Detection, LocateScratch};
 pub use naming::name_tracks_by_position;

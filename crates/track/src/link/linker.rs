@@ -148,7 +148,14 @@ impl<'o> Linker<'o> {
         let positions: Vec<[f64; 2]> = starts.iter().map(|s| s.1).collect();
         let joined = join_fragments(dets, &sharing, &positions, &self.one, self.r);
         for (i, (name, p)) in starts.iter().enumerate() {
-            let init = (0.5 * nn[i]).min(diagonal(self.options)) / GATE_SIGMAS;
+            // The first step is not known: a gate of half the way to the nearest other
+            // named particle, or to the nearest other blob where that is nearer (an
+            // unnamed neighbour's blob is as likely a first step for the track as its own,
+            // by position, and appearance would then choose among identical particles).
+            let clear = assign[i]
+                .filter(|&j| sharing[j].len() == 1)
+                .map_or(nn[i], |j| nn[i].min(det_nn[j]));
+            let init = (0.5 * clear).min(diagonal(self.options)) / GATE_SIGMAS;
             let point = match assign[i] {
                 Some(j) if sharing[j].len() == 1 => match joined.iter().find(|f| f.0 == j) {
                     Some((_, whole)) => point_from(whole, PointFlag::Detected, true),

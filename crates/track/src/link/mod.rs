@@ -31,8 +31,11 @@
 //! With named start positions (a structure), exactly those particles are followed for the
 //! whole window: unmatched detections never start tracks, and a track is never dropped
 //! while it is in the image. Without them, every unmatched detection starts a track named
-//! by an integer, and tracks unseen for more than `memory` frames end.
+//! by an integer, and tracks unseen for more than `memory` frames end. Named tracks are
+//! checked by linking the same detections backward in time ([`backward_disagreements`]):
+//! where the two directions put a particle on different blobs, which is which is uncertain.
 
+mod backward;
 mod claimants;
 mod fragments;
 mod link_detections;
@@ -45,6 +48,7 @@ mod single_particle;
 mod step_bound;
 mod track;
 
+pub use backward::{backward_disagreements, Disagreement};
 pub use link_detections::link_detections;
 pub use options::{FrameDetections, LinkOptions};
 pub use outcome::{Ambiguity, AmbiguityKind, LinkOutcome};

@@ -1,6 +1,7 @@
 //! The skirt self-check's samples: signal around each tracked particle, located unfiltered.
 
 use super::finder::{locate_window, Finder, Parts, Workers};
+use super::neighbours::with_detections;
 use super::radius::nearest_each;
 use super::rims::rim_reach;
 use super::size_class::Sizes;
@@ -8,7 +9,8 @@ use super::window_frames::{ClassFrames, WindowFrames};
 use crate::checks::{clipped_ring, skirts, Skirt};
 use crate::rim::rim_centre;
 use crate::{
-    Background, DetectParameters, Detection, FrameView, PointFlag, TrackError, TrackPoint, TrackTable,
+    Background, DetectParameters, Detection, FrameDetections, FrameView, PointFlag, TrackError, TrackPoint,
+    TrackTable,
 };
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
@@ -28,6 +30,7 @@ const HOLLOW: f64 = 0.9;
 /// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
 pub(super) fn sample_skirts(
     table: &TrackTable,
+    located: &[FrameDetections],
     class: &ClassFrames<'_>,
 ) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
     let ClassFrames {
@@ -50,7 +53,20 @@ pub(super) fn sample_skirts(
         .map(|(k, points)| {
             frames.with_signal(k, background, workers, |signal, width, height| {
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
-                let mut s = skirts(signal, width, height, &at, radius, background.noise_sigma);
+                // Every object of the frame bounds a ring, tracked or not.
+                let found = located
+                    .iter()
+                    .find(|f| f.frame == k)
+                    .map_or(&[][..], |f| &f.detections[..]);
+                let near = with_detections(&at, found, radius);
+                let mut s = skirts(
+                    signal,
+                    width,
+                    height,
+                    (&near, at.len()),
+                    radius,
+                    background.noise_sigma,
+                );
                 // Hollow about the point (a ring): where its rim is centred.
                 let reach = rim_reach(radius);
                 for (i, skirt) in s.iter_mut().enumerate() {
@@ -62,7 +78,7 @@ pub(super) fn sample_skirts(
                         continue;
                     }
                     let p = at[i];
-                    let others: Vec<[f64; 2]> = at
+                    let others: Vec<[f64; 2]> = near
                         .iter()
                         .enumerate()
                         .filter(|&(j, q)| {

@@ -17,8 +17,8 @@ use crate::checks::{check_tracks, lost_inside, saturated_edges, shared_images, C
 use crate::excursion::excursion_warnings;
 use crate::shared_blobs::{relocate_shared, Relocated, SharedBlobs, Starts};
 use crate::{
-    link_detections, Ambiguity, Background, FrameDetections, LinkOptions, LinkOutcome, TrackError,
-    TrackPoint, TrackTable,
+    backward_disagreements, link_detections, Ambiguity, Background, FrameDetections, LinkOptions,
+    LinkOutcome, TrackError, TrackPoint, TrackTable,
 };
 use rayon::prelude::*;
 use std::collections::{BTreeSet, HashMap};
@@ -142,16 +142,23 @@ impl Stage<'_> {
         let mut class_tracks: Vec<(f64, Vec<String>)> = Vec::with_capacity(classes.len());
         for (class, located) in classes.iter().zip(&by_class) {
             let named = options.named_start.as_deref().map(|n| class.starts(n));
-            let linked = link_detections(
-                located,
-                &LinkOptions {
-                    named_start: named.clone(),
-                    radius: class.sizes.radius,
-                    width: size.0,
-                    height: size.1,
-                    memory: options.memory,
-                },
-            );
+            let link = LinkOptions {
+                named_start: named.clone(),
+                radius: class.sizes.radius,
+                width: size.0,
+                height: size.1,
+                memory: options.memory,
+            };
+            let linked = link_detections(located, &link);
+            // Named identities the recording leaves open: linked backward in time, the
+            // particles join other blobs (see `crate::link::backward_disagreements`).
+            if named.is_some() {
+                warnings.extend(
+                    backward_disagreements(located, &link, &linked.table)
+                        .iter()
+                        .map(ToString::to_string),
+                );
+            }
             let LinkOutcome {
                 table: mut class_table,
                 ambiguities: mut class_ambiguities,
@@ -230,7 +237,7 @@ impl Stage<'_> {
                 workers,
             };
             let located_frames: &[FrameDetections] = located;
-            let located = sample_skirts(&class_table, &reading)?;
+            let located = sample_skirts(&class_table, located_frames, &reading)?;
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
@@ -243,7 +250,7 @@ impl Stage<'_> {
             let fitted = fit_profiles(&mut class_table, &hollow, &reading)?;
             let remeasured;
             let skirts = if spoked.moved + rims.moved + fitted.moved > 0 {
-                remeasured = sample_skirts(&class_table, &reading)?;
+                remeasured = sample_skirts(&class_table, located_frames, &reading)?;
                 &remeasured
             } else {
                 &located
