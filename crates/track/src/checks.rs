@@ -752,7 +752,7 @@ pub(crate) fn shared_images(
 
 /// The inner and outer radius of the ring round a point of a particle of radius `radius`
 /// (px) whose signal is its skirt: `radius + 1` and `2 radius + 1`, px.
-fn skirt_ring(radius: f64) -> [f64; 2] {
+pub(crate) fn skirt_ring(radius: f64) -> [f64; 2] {
     [radius + 1.0, 2.0 * radius + 1.0]
 }
 

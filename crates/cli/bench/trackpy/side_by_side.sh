@@ -14,8 +14,8 @@ python3 -m venv "$work/venv"
 (cd "$root" && cargo build --release -q)
 # Where cargo put it: CARGO_TARGET_DIR when set (a worktree with its own target directory).
 physfit="${CARGO_TARGET_DIR:-$root/target}/release/physfit"
-echo "| particles | frames | physfit (s) | physfit tracks | trackpy (s) | trackpy tracks | trackpy / physfit |"
-echo "|---:|---:|---:|---:|---:|---:|---:|"
+echo "| particles | frames | physfit (s) | physfit tracks | physfit identity switches | trackpy (s) | trackpy tracks | trackpy / physfit |"
+echo "|---:|---:|---:|---:|---:|---:|---:|---:|"
 for n in 10 100 1000; do
   "$work/venv/bin/python" "$here/frames.py" "$n" "$frames" "$work/n$n"
   # Best of three for each, one thread.
@@ -30,6 +30,9 @@ for n in 10 100 1000; do
     if [ -z "$best_t" ] || [ "$(echo "$t < $best_t" | bc -l)" = 1 ]; then best_t=$t; fi
   done
   tracks_p=$(tail -n +2 "$work/n$n/tracks.csv" | cut -d, -f2 | sort -u | wc -l)
-  printf "| %d | %d | %.3f | %d | %.3f | %d | %.1fx |\n" "$n" "$frames" "$best_p" "$tracks_p" "$best_t" "$tracks_t" \
+  # Scored against the drawn walks (not timed): a track that changes particle counts.
+  switches_p=$("$physfit" track "$work/n$n/frames" --truth "$work/n$n/truth.csv" --out "$work/n$n/scored.csv" 2>&1 \
+    | awk -F'|' '/identity switches/ {gsub(/ /, "", $3); print $3}')
+  printf "| %d | %d | %.3f | %d | %s | %.3f | %d | %.1fx |\n" "$n" "$frames" "$best_p" "$tracks_p" "$switches_p" "$best_t" "$tracks_t" \
     "$(echo "$best_t / $best_p" | bc -l)"
 done

@@ -8,7 +8,7 @@
 //! forward tracks end, the same detections are joined from the other side of that frame,
 //! where the motion before the turn is what the predictions extrapolate; where the two
 //! directions put a name on different blobs, the recording does not say which particle is
-//! which, and the tracks are named in a warning instead of written as though it did.
+//! which, and the tracks are named in a warning (`uncertain identities`) instead of written as though it did.
 //! (Fast-motion style 6119: two shaded spheres of 1.6 px, 10 px apart as one turned back,
 //! exchanged at frame 11; 6064: rings of 3.2 px stepping 7 px a frame as one stopped dead
 //! beside another. Judging the exchange by how straight lines fitted before and after the
@@ -99,29 +99,34 @@ pub fn backward_disagreements(
     };
     let (ahead, behind) = (located(forward, false), located(&backward, true));
     let apart = 0.5 * options.radius;
-    // The names that disagree, by frame.
-    let mut by_frame: BTreeMap<usize, BTreeSet<String>> = BTreeMap::new();
+    // The frames in which each name disagrees.
+    let mut by_name: BTreeMap<String, BTreeSet<usize>> = BTreeMap::new();
     for ((frame, name), p) in &ahead {
         if let Some(q) = behind.get(&(*frame, name.clone())) {
             if (p[0] - q[0]).hypot(p[1] - q[1]) > apart {
-                by_frame.entry(*frame).or_default().insert(name.clone());
+                by_name.entry(name.clone()).or_default().insert(*frame);
             }
         }
     }
-    // Runs of consecutive frames whose names overlap.
-    let mut runs: Vec<(BTreeSet<String>, usize, usize)> = Vec::new();
-    for (frame, names) in by_frame {
-        match runs.last_mut() {
-            Some((run, _, end)) if *end + 1 == frame && !run.is_disjoint(&names) => {
-                run.extend(names);
-                *end = frame;
+    // Each name's runs of consecutive frames; names with the same run are one disagreement
+    // (two named particles exchanged).
+    let mut runs: BTreeMap<(usize, usize), Vec<String>> = BTreeMap::new();
+    for (name, frames) in by_name {
+        let mut frames = frames.into_iter();
+        let Some(mut start) = frames.next() else { continue };
+        let mut end = start;
+        for f in frames.chain(std::iter::once(usize::MAX)) {
+            if f == end + 1 {
+                end = f;
+                continue;
             }
-            _ => runs.push((names, frame, frame)),
+            runs.entry((start, end)).or_default().push(name.clone());
+            (start, end) = (f, f);
         }
     }
     runs.into_iter()
-        .map(|(names, first_frame, last_frame)| Disagreement {
-            particles: names.into_iter().collect(),
+        .map(|((first_frame, last_frame), particles)| Disagreement {
+            particles,
             first_frame,
             last_frame,
             linked: (first, last),
@@ -130,7 +135,7 @@ pub fn backward_disagreements(
 }
 
 impl std::fmt::Display for Disagreement {
-    /// `p2 and p6: which is which is uncertain: their tracks before frame 11 and ...`
+    /// `p2 and p6: uncertain identities: their tracks before frame 11 and ...`
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let names = match self.particles.split_last() {
             Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
@@ -141,13 +146,6 @@ impl std::fmt::Display for Disagreement {
         } else {
             format!("frames {}-{}", self.first_frame, self.last_frame)
         };
-        if self.particles.len() == 1 {
-            return write!(
-                f,
-                "{names}: which blob is its own is uncertain in {frames}: linked again backward in time \
-                 from where its track ends, it takes another blob there"
-            );
-        }
         // Backward tracks start where the forward ones end: an exchange shows as a run that
         // reaches one end of the recording, and the doubt is about either side of its other
         // end.
@@ -158,17 +156,28 @@ impl std::fmt::Display for Disagreement {
         } else {
             None
         };
-        let doubt = match across {
-            Some(b) => {
+        let (one, whose) = (
+            self.particles.len() == 1,
+            if self.particles.len() == 1 { "its" } else { "their" },
+        );
+        let doubt = match (across, one) {
+            (Some(b), true) => {
+                format!("its track before frame {b} and from it on may follow different particles")
+            }
+            (Some(b), false) => {
                 format!("their tracks before frame {b} and from it on may each belong to another of them")
             }
-            None => format!("their tracks may each follow another of them in {frames}"),
+            (None, true) => format!("its track may follow another particle in {frames}"),
+            (None, false) => format!("their tracks may each follow another of them in {frames}"),
         };
+        let what = if one { "identity" } else { "identities" };
         write!(
             f,
-            "{names}: which is which is uncertain: {doubt} (linked again backward in time from where \
-             they end, the blobs of {frames} join into other tracks; particles that pass close as one \
-             turns or stops can be handed each other's blobs)"
+            "{names}: uncertain {what}: {doubt} (linked again backward in time from where {whose} \
+             track{} end{}, the blobs of {frames} join other tracks; particles that pass close as one turns or \
+             stops can be handed each other's blobs)",
+            if one { "" } else { "s" },
+            if one { "s" } else { "" },
         )
     }
 }
@@ -269,9 +278,7 @@ mod tests {
         );
         let said = found[0].to_string();
         assert!(
-            said.starts_with(
-                "a and b: which is which is uncertain: their tracks before frame 6 and from it on"
-            ),
+            said.starts_with("a and b: uncertain identities: their tracks before frame 6 and from it on"),
             "{said}"
         );
     }

@@ -40,9 +40,16 @@ pub(super) struct Linker<'o> {
     r: f64,
     /// Smallest prediction scale, px.
     floor: f64,
-    /// Detections closer than this share light through their centroid windows (radius
-    /// `r + 1` each, reaching the other's disc), px.
+    /// Detections closer than this are near enough to compete (their windows, radius
+    /// `r + 1` each, reach the other's disc), px.
     crowd: f64,
+    /// Detections closer than this share light, px: the soft Voronoi split leaves out of
+    /// each window the pixels nearer the other estimate, so a neighbour's light enters only
+    /// where its disc (with its anti-aliased edge, `r + 1/2`) crosses the bisector, `d - r -
+    /// 1/2 < d / 2`: `d < 2 r + 1`. (At `2 r + 2`, the side-by-side frames' 1000 random walks
+    /// made two pairs of points 9.97 px apart crowded, their tracks predicted from points
+    /// three frames old, and each pair exchanged its particles.)
+    shares: f64,
     /// What one particle's blob looks like in the recording.
     one: SingleParticle,
     /// Each frame's common change of appearance (exposure), taken out of every appearance
@@ -101,6 +108,7 @@ impl<'o> Linker<'o> {
             r,
             floor: (0.25 * r).max(0.5),
             crowd: 2.0 * r + 2.0,
+            shares: 2.0 * r + 1.0,
             one: SingleParticle::measure(frames),
             pooled: AppearanceSpread::pooled(frames, &levels),
             levels,
@@ -123,7 +131,7 @@ impl<'o> Linker<'o> {
                 &taken,
                 linker.floor,
                 options,
-                linker.crowd,
+                linker.shares,
             );
         }
         linker
@@ -159,7 +167,7 @@ impl<'o> Linker<'o> {
             let point = match assign[i] {
                 Some(j) if sharing[j].len() == 1 => match joined.iter().find(|f| f.0 == j) {
                     Some((_, whole)) => point_from(whole, PointFlag::Detected, true),
-                    None => point_from(&dets[j], PointFlag::Detected, det_nn[j] < self.crowd),
+                    None => point_from(&dets[j], PointFlag::Detected, det_nn[j] < self.shares),
                 },
                 Some(j) => split_start(&dets[j], &sharing[j], starts, *p, init),
                 None => {
@@ -267,7 +275,7 @@ impl<'o> Linker<'o> {
                 &taken,
                 self.floor,
                 self.options,
-                self.crowd,
+                self.shares,
             );
         }
         self.end_frame = fd.frame + 1;
@@ -376,7 +384,26 @@ impl<'o> Linker<'o> {
                 0.0
             };
             view.grid.within(&p, GATE_SIGMAS * s, |j, d2| {
-                if let Some(look) = self.look_cost(view, k, j, APPEARANCE_GATE_SIGMAS) {
+                let lc = self.look_cost(view, k, j, APPEARANCE_GATE_SIGMAS);
+                let dbg: Vec<f64> = std::env::var("DBGR")
+                    .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
+                    .unwrap_or_default();
+                if dbg.len() == 4
+                    && (view.t as f64) >= dbg[2]
+                    && (view.t as f64) <= dbg[3]
+                    && (p[0] - dbg[0]).abs() < 6.0
+                    && (p[1] - dbg[1]).abs() < 6.0
+                {
+                    eprintln!(
+                        "DBGR t {} k {k} p {p:?} s {s} det {:?} d {} look {lc:?} lone {} cost {}",
+                        view.t,
+                        view.points[j],
+                        d2.sqrt(),
+                        view.lone[k],
+                        d2 / (s * s) + lc.unwrap_or(0.0) + breadth
+                    );
+                }
+                if let Some(look) = lc {
                     cols.push_pairs(&mut problem, k, j, d2 / (s * s) + look + breadth);
                 }
             });
@@ -534,7 +561,7 @@ impl<'o> Linker<'o> {
         let taken_grid = PointGrid::new(&taken_points);
         let mut clean = vec![true; view.dets.len()];
         for (j, p) in &taken {
-            clean[*j] = !taken_grid.any_other_within(p, self.crowd);
+            clean[*j] = !taken_grid.any_other_within(p, self.shares);
         }
         clean
     }

@@ -235,7 +235,7 @@ pub(super) fn start_tracks(
     taken: &[bool],
     floor: f64,
     o: &LinkOptions,
-    crowd: f64,
+    shares: f64,
 ) {
     // Most frames start no track (every detection is taken): the neighbour search is only
     // built for the others.
@@ -254,7 +254,7 @@ pub(super) fn start_tracks(
         let mut track = Track::new(
             name,
             fd.frame,
-            point_from(d, PointFlag::Detected, nn < crowd),
+            point_from(d, PointFlag::Detected, nn < shares),
             init.max(floor),
         );
         if let (Some(a), false) = (Appearance::of(d, 1), d.clipped) {

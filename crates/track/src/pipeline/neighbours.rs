@@ -17,15 +17,15 @@ use crate::Detection;
 /// the exact test keeps is lost to the rounding of a squared distance (about 1e-16).
 const SEARCH_MARGIN: f64 = 1e-6;
 
-/// The tracked points of a frame (px) followed by its detections `found` that are not theirs
-/// (farther than half the radius `radius`, px, from every one): every object a tracked
-/// point's ring may meet, named or not (a structure may name a few of many lookalikes).
-pub(super) fn with_detections(tracked: &[[f64; 2]], found: &[Detection], radius: f64) -> Vec<[f64; 2]> {
+/// The tracked points of a frame (px) followed by its detections `found` that lie farther
+/// than `apart` (px) from every one: the objects a tracked point's ring may meet, named or
+/// not (a structure may name a few of many lookalikes).
+pub(super) fn with_detections(tracked: &[[f64; 2]], found: &[Detection], apart: f64) -> Vec<[f64; 2]> {
     let own = PointGrid::new(tracked);
     let mut points = tracked.to_vec();
     points.extend(found.iter().map(|d| [d.x, d.y]).filter(|q| {
         let mut mine = false;
-        own.within(q, 0.5 * radius, |_, _| mine = true);
+        own.within(q, apart, |_, _| mine = true);
         !mine
     }));
     points

@@ -125,7 +125,8 @@ impl FrameNeighbours {
     /// half the radius `radius`, px, from every one).
     fn new(tracked: &[[f64; 2]], found: &[Detection], radius: f64) -> FrameNeighbours {
         FrameNeighbours {
-            points: with_detections(tracked, found, radius),
+            // A detection within half a radius is the tracked point's own.
+            points: with_detections(tracked, found, 0.5 * radius),
         }
     }
 

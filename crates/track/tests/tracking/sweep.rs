@@ -235,10 +235,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
             && w.contains("cut out of the centroid window")
             && !w.contains("plain centroids")
     });
-    row.identities_doubted = outcome
-        .warnings
-        .iter()
-        .any(|w| w.contains("which is which is uncertain"));
+    row.identities_doubted = outcome.warnings.iter().any(|w| w.contains("uncertain identit"));
     // The tracker writes no point of a particle cut by the border (its centre within the
     // radius in use of the edge: the centroid of the part in view leans inward), and says
     // so; those truth points are not asked for.
@@ -360,7 +357,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
             });
             // Which particle a track follows on either side of a frame is in doubt.
             let doubted = outcome.warnings.iter().any(|w| {
-                w.contains("which is which is uncertain")
+                w.contains("uncertain identit")
                     && w.split_once(':')
                         .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == t.particle))
             });
