@@ -752,7 +752,7 @@ pub(crate) fn shared_images(
 
 /// The inner and outer radius of the ring round a point of a particle of radius `radius`
 /// (px) whose signal is its skirt: `radius + 1` and `2 radius + 1`, px.
-pub(crate) fn skirt_ring(radius: f64) -> [f64; 2] {
+fn skirt_ring(radius: f64) -> [f64; 2] {
     [radius + 1.0, 2.0 * radius + 1.0]
 }
 
@@ -822,14 +822,11 @@ pub(crate) fn saturated_edges(clipping: &BTreeMap<String, Vec<(usize, f64)>>, ra
 /// how lopsided and how elongated the ring's signal is, and its mean magnitude beyond the
 /// pixel noise `noise_sigma` (grey levels); `None` where either region is empty or the disc
 /// holds no signal.
-///
-/// Only the first `targets` of `points` are measured; the rest are untracked objects that
-/// bound the rings as well.
 pub(crate) fn skirts(
     signal: &[f32],
     width: usize,
     height: usize,
-    (points, targets): (&[[f64; 2]], usize),
+    points: &[[f64; 2]],
     radius: f64,
     noise_sigma: f64,
 ) -> Vec<Option<Skirt>> {
@@ -840,7 +837,7 @@ pub(crate) fn skirts(
     by_x.sort_by(|&a, &b| points[a][0].total_cmp(&points[b][0]));
     let xs: Vec<f64> = by_x.iter().map(|&i| points[i][0]).collect();
     let mut others: Vec<[f64; 2]> = Vec::new();
-    points[..targets.min(points.len())]
+    points
         .iter()
         .enumerate()
         .map(|(i, p)| {
@@ -950,12 +947,12 @@ mod tests {
         let centres = [[30.0, 30.0], [50.0, 30.0]];
         let img = discs(80, 60, &centres, 9.0);
         // At the discs' own radius, touching neighbours at 20 px do not count.
-        for s in skirts(&img, 80, 60, (&centres, centres.len()), 9.0, 0.0) {
+        for s in skirts(&img, 80, 60, &centres, 9.0, 0.0) {
             assert!(s.unwrap().level < 0.01, "{s:?}");
         }
         // Parts of the discs at 3.7 px: the rest of each disc lies in the ring.
         let parts = [[26.0, 30.0], [50.0, 33.0]];
-        for s in skirts(&img, 80, 60, (&parts, parts.len()), 3.7, 0.0) {
+        for s in skirts(&img, 80, 60, &parts, 3.7, 0.0) {
             assert!(s.unwrap().level > 0.3, "{s:?}");
         }
     }
@@ -972,7 +969,7 @@ mod tests {
                 (100.0 * 0.5f64.powf((r / 20.0).powi(2))) as f32
             })
             .collect();
-        let s = skirts(&spot, w, h, (&[[80.0, 80.0]], 1), 17.4, 0.0)[0].unwrap();
+        let s = skirts(&spot, w, h, &[[80.0, 80.0]], 17.4, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
         assert!(s.lopsided < 0.05, "{s:?}");
         let ring: Vec<f32> = (0..w * h)
@@ -985,7 +982,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&ring, w, h, (&[[96.0, 80.0]], 1), 5.0, 0.0)[0].unwrap();
+        let s = skirts(&ring, w, h, &[[96.0, 80.0]], 5.0, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let t = TrackTable {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
@@ -1012,7 +1009,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&ring, w, h, (&[[77.0, 60.0]], 1), 3.1, 0.0)[0].unwrap();
+        let s = skirts(&ring, w, h, &[[77.0, 60.0]], 3.1, 0.0)[0].unwrap();
         assert!(s.level > LOPSIDED_SKIRT && s.level < MAX_SKIRT, "{s:?}");
         assert!(s.lopsided < MAX_LOPSIDED && s.elongated > MAX_ELONGATED, "{s:?}");
         let t = TrackTable {
@@ -1034,7 +1031,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&dark, w, h, (&[[60.0, 60.0]], 1), 6.0, 0.0)[0].unwrap();
+        let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level < -LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
         assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
@@ -1056,7 +1053,7 @@ mod tests {
                 }
             })
             .collect();
-        let s = skirts(&split, w, h, (&[[60.0, 60.0]], 1), 6.0, 0.0)[0].unwrap();
+        let s = skirts(&split, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(
             s.level.abs() < 0.05 && s.magnitude > 0.4 && s.lopsided > MAX_LOPSIDED,
             "{s:?}"
@@ -1064,7 +1061,7 @@ mod tests {
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
         assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
         let disc: Vec<f32> = dark.iter().map(|v| v.max(0.0)).collect();
-        let s = skirts(&disc, w, h, (&[[60.0, 60.0]], 1), 6.0, 0.0)[0].unwrap();
+        let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level.abs() < 0.01 && s.elongated < 0.01, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
         assert!(check_tracks(&t, 6.0, &measured, &measured).is_empty());

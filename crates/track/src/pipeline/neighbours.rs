@@ -11,25 +11,10 @@
 
 use crate::distance::{closer_than, nearest_distance};
 use crate::point_grid::PointGrid;
-use crate::Detection;
 
 /// Relative margin by which a candidate search reaches beyond its radius, so that no point
 /// the exact test keeps is lost to the rounding of a squared distance (about 1e-16).
 const SEARCH_MARGIN: f64 = 1e-6;
-
-/// The tracked points of a frame (px) followed by its detections `found` that lie farther
-/// than `apart` (px) from every one: the objects a tracked point's ring may meet, named or
-/// not (a structure may name a few of many lookalikes).
-pub(super) fn with_detections(tracked: &[[f64; 2]], found: &[Detection], apart: f64) -> Vec<[f64; 2]> {
-    let own = PointGrid::new(tracked);
-    let mut points = tracked.to_vec();
-    points.extend(found.iter().map(|d| [d.x, d.y]).filter(|q| {
-        let mut mine = false;
-        own.within(q, apart, |_, _| mine = true);
-        !mine
-    }));
-    points
-}
 
 /// One frame's estimates (px) and their grid.
 pub(super) struct Neighbours<'a> {

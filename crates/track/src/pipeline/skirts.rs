@@ -1,16 +1,14 @@
 //! The skirt self-check's samples: signal around each tracked particle, located unfiltered.
 
 use super::finder::{locate_window, Finder, Parts, Workers};
-use super::neighbours::with_detections;
 use super::radius::nearest_each;
 use super::rims::rim_reach;
 use super::size_class::Sizes;
 use super::window_frames::{ClassFrames, WindowFrames};
-use crate::checks::{clipped_ring, skirt_ring, skirts, Skirt};
+use crate::checks::{clipped_ring, skirts, Skirt};
 use crate::rim::rim_centre;
 use crate::{
-    Background, DetectParameters, Detection, FrameDetections, FrameView, PointFlag, TrackError, TrackPoint,
-    TrackTable,
+    Background, DetectParameters, Detection, FrameView, PointFlag, TrackError, TrackPoint, TrackTable,
 };
 use physfit_tracks::stats::median;
 use rayon::prelude::*;
@@ -30,7 +28,6 @@ const HOLLOW: f64 = 0.9;
 /// [`SKIRT_FRAMES`] of the sample frames of the window, by particle: frame and skirt each.
 pub(super) fn sample_skirts(
     table: &TrackTable,
-    located: &[FrameDetections],
     class: &ClassFrames<'_>,
 ) -> Result<BTreeMap<String, Vec<(usize, Skirt)>>, TrackError> {
     let ClassFrames {
@@ -53,24 +50,7 @@ pub(super) fn sample_skirts(
         .map(|(k, points)| {
             frames.with_signal(k, background, workers, |signal, width, height| {
                 let at: Vec<[f64; 2]> = points.iter().map(|p| [p.x, p.y]).collect();
-                // Untracked objects beyond the ring bound it too (a structure naming a few of
-                // many lookalikes: seed 44 of the named-few test was refused for the light
-                // of unnamed discs in its rings); a blob inside the ring may be the
-                // particle's own part or arc (rings found as arcs of 2-49 px, fresh styles
-                // 6503, 6821 and 6905, were written 0.26-33 px off, warned, taken so).
-                let found = located
-                    .iter()
-                    .find(|f| f.frame == k)
-                    .map_or(&[][..], |f| &f.detections[..]);
-                let near = with_detections(&at, found, skirt_ring(radius)[1]);
-                let mut s = skirts(
-                    signal,
-                    width,
-                    height,
-                    (&near, at.len()),
-                    radius,
-                    background.noise_sigma,
-                );
+                let mut s = skirts(signal, width, height, &at, radius, background.noise_sigma);
                 // Hollow about the point (a ring): where its rim is centred.
                 let reach = rim_reach(radius);
                 for (i, skirt) in s.iter_mut().enumerate() {
@@ -82,7 +62,7 @@ pub(super) fn sample_skirts(
                         continue;
                     }
                     let p = at[i];
-                    let others: Vec<[f64; 2]> = near
+                    let others: Vec<[f64; 2]> = at
                         .iter()
                         .enumerate()
                         .filter(|&(j, q)| {

@@ -15,7 +15,6 @@
 //! size stay those of the whole window, which describe the particle's image.
 
 use super::finder::locate_window;
-use super::neighbours::with_detections;
 use super::window_frames::ClassFrames;
 use crate::locate::refine_centroids_with_cuts;
 use crate::point_grid::PointGrid;
@@ -124,10 +123,14 @@ impl FrameNeighbours {
     /// The tracked points (px) and the detections `found` that are not theirs (farther than
     /// half the radius `radius`, px, from every one).
     fn new(tracked: &[[f64; 2]], found: &[Detection], radius: f64) -> FrameNeighbours {
-        FrameNeighbours {
-            // A detection within half a radius is the tracked point's own.
-            points: with_detections(tracked, found, 0.5 * radius),
-        }
+        let own = PointGrid::new(tracked);
+        let mut points = tracked.to_vec();
+        points.extend(found.iter().map(|d| [d.x, d.y]).filter(|q| {
+            let mut mine = false;
+            own.within(q, 0.5 * radius, |_, _| mine = true);
+            !mine
+        }));
+        FrameNeighbours { points }
     }
 
     /// `f` on the view of `signal` (of `size`, width and height) about `p` (px), its

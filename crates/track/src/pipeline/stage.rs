@@ -237,7 +237,7 @@ impl Stage<'_> {
                 workers,
             };
             let located_frames: &[FrameDetections] = located;
-            let located = sample_skirts(&class_table, located_frames, &reading)?;
+            let located = sample_skirts(&class_table, &reading)?;
             // Rings are located by their rim's centre (see `rims`), and their skirts measured
             // again about it.
             let hollow = hollow_particles(&located);
@@ -250,7 +250,7 @@ impl Stage<'_> {
             let fitted = fit_profiles(&mut class_table, &hollow, &reading)?;
             let remeasured;
             let skirts = if spoked.moved + rims.moved + fitted.moved > 0 {
-                remeasured = sample_skirts(&class_table, located_frames, &reading)?;
+                remeasured = sample_skirts(&class_table, &reading)?;
                 &remeasured
             } else {
                 &located
