@@ -185,7 +185,7 @@ impl std::fmt::Display for Disagreement {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::locate::Detection;
+    use crate::link::tests::frame;
     use crate::track_table::TrackPoint;
 
     /// Two particles 20 px apart moving side by side, 2 px a frame, over 10 frames.
@@ -199,26 +199,7 @@ mod tests {
     }
 
     fn frames() -> Vec<FrameDetections> {
-        paths()
-            .iter()
-            .enumerate()
-            .map(|(frame, at)| FrameDetections {
-                frame,
-                detections: at
-                    .iter()
-                    .map(|p| Detection {
-                        x: p[0],
-                        y: p[1],
-                        mass: 100.0,
-                        size: 2.0,
-                        ep: 0.05,
-                        follow: 0.0,
-                        area: 12.0,
-                        clipped: false,
-                    })
-                    .collect(),
-            })
-            .collect()
+        paths().iter().enumerate().map(|(k, at)| frame(k, at)).collect()
     }
 
     fn options() -> LinkOptions {

@@ -787,26 +787,7 @@ fn split_start(
 mod tests {
     use super::*;
 
-    /// A detection of one particle's mass and size at `(x, y)`.
-    fn det(x: f64, y: f64) -> Detection {
-        Detection {
-            x,
-            y,
-            mass: 100.0,
-            size: 2.0,
-            ep: 0.05,
-            follow: 0.0,
-            area: 12.0,
-            clipped: false,
-        }
-    }
-
-    fn frame(frame: usize, at: &[[f64; 2]]) -> FrameDetections {
-        FrameDetections {
-            frame,
-            detections: at.iter().map(|p| det(p[0], p[1])).collect(),
-        }
-    }
+    use crate::link::tests::{det, frame};
 
     /// Unnamed tracks of radius 2 px in a 100 × 100 frame, remembered `memory` frames.
     fn options(memory: usize) -> LinkOptions {
