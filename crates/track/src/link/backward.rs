@@ -18,7 +18,7 @@
 use super::link_detections::link_detections;
 use super::options::{FrameDetections, LinkOptions};
 use crate::track_table::{PointFlag, TrackTable};
-use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::collections::{BTreeMap, HashMap};
 
 /// Named particles that the forward and backward linkings put on different blobs in a run
 /// of frames.
@@ -55,16 +55,13 @@ pub fn backward_disagreements(
         return Vec::new();
     }
     // Each name's last point forward is its start backward.
-    let mut ends: HashMap<&str, (usize, [f64; 2])> = HashMap::new();
-    for p in &forward.points {
-        let e = ends.entry(p.particle.as_str()).or_insert((p.frame, [p.x, p.y]));
-        if p.frame >= e.0 {
-            *e = (p.frame, [p.x, p.y]);
-        }
-    }
+    let ends = forward.by_particle();
     let starts: Vec<(String, [f64; 2])> = named
         .iter()
-        .filter_map(|(name, _)| ends.get(name.as_str()).map(|e| (name.clone(), e.1)))
+        .filter_map(|(name, _)| {
+            let end = ends.get(name.as_str())?.last()?;
+            Some((name.clone(), [end.x, end.y]))
+        })
         .collect();
     if starts.len() < 2 {
         return Vec::new();
@@ -87,41 +84,45 @@ pub fn backward_disagreements(
         },
     )
     .table;
-    let located = |t: &TrackTable, mirrored: bool| -> HashMap<(usize, String), [f64; 2]> {
-        t.points
-            .iter()
-            .filter(|p| p.flag == PointFlag::Detected)
-            .map(|p| {
-                let frame = if mirrored { mirror(p.frame) } else { p.frame };
-                ((frame, p.particle.clone()), [p.x, p.y])
-            })
-            .collect()
-    };
-    let (ahead, behind) = (located(forward, false), located(&backward, true));
-    let apart = 0.5 * options.radius;
-    // The frames in which each name disagrees.
-    let mut by_name: BTreeMap<String, BTreeSet<usize>> = BTreeMap::new();
-    for ((frame, name), p) in &ahead {
-        if let Some(q) = behind.get(&(*frame, name.clone())) {
-            if (p[0] - q[0]).hypot(p[1] - q[1]) > apart {
-                by_name.entry(name.clone()).or_default().insert(*frame);
+    // Each name's located point in each frame, one row of `span` frames a name.
+    let index: HashMap<&str, usize> = named
+        .iter()
+        .enumerate()
+        .map(|(i, (n, _))| (n.as_str(), i))
+        .collect();
+    let span = last - first + 1;
+    let located = |t: &TrackTable, frame_of: &dyn Fn(usize) -> usize| {
+        let mut at: Vec<Option<[f64; 2]>> = vec![None; named.len() * span];
+        for p in t.points.iter().filter(|p| p.flag == PointFlag::Detected) {
+            let k = frame_of(p.frame);
+            if let (Some(&i), true) = (index.get(p.particle.as_str()), (first..=last).contains(&k)) {
+                at[i * span + k - first] = Some([p.x, p.y]);
             }
         }
-    }
-    // Each name's runs of consecutive frames; names with the same run are one disagreement
-    // (two named particles exchanged).
+        at
+    };
+    let (ahead, behind) = (located(forward, &|k| k), located(&backward, &mirror));
+    let apart = 0.5 * options.radius;
+    // Each name's runs of consecutive frames where the two put it on different blobs; names
+    // with the same run are one disagreement (two named particles exchanged).
     let mut runs: BTreeMap<(usize, usize), Vec<String>> = BTreeMap::new();
-    for (name, frames) in by_name {
-        let mut frames = frames.into_iter();
-        let Some(mut start) = frames.next() else { continue };
-        let mut end = start;
-        for f in frames.chain(std::iter::once(usize::MAX)) {
-            if f == end + 1 {
-                end = f;
-                continue;
+    for (i, (name, _)) in named.iter().enumerate() {
+        let mut run: Option<(usize, usize)> = None;
+        for k in 0..=span {
+            let differ = k < span
+                && matches!(
+                    (ahead[i * span + k], behind[i * span + k]),
+                    (Some(p), Some(q)) if (p[0] - q[0]).hypot(p[1] - q[1]) > apart
+                );
+            match (differ, run) {
+                (true, Some((s, _))) => run = Some((s, first + k)),
+                (true, None) => run = Some((first + k, first + k)),
+                (false, Some(r)) => {
+                    runs.entry(r).or_default().push(name.clone());
+                    run = None;
+                }
+                (false, None) => {}
             }
-            runs.entry((start, end)).or_default().push(name.clone());
-            (start, end) = (f, f);
         }
     }
     runs.into_iter()
