@@ -384,26 +384,7 @@ impl<'o> Linker<'o> {
                 0.0
             };
             view.grid.within(&p, GATE_SIGMAS * s, |j, d2| {
-                let lc = self.look_cost(view, k, j, APPEARANCE_GATE_SIGMAS);
-                let dbg: Vec<f64> = std::env::var("DBGR")
-                    .map(|v| v.split(',').filter_map(|x| x.parse().ok()).collect())
-                    .unwrap_or_default();
-                if dbg.len() == 4
-                    && (view.t as f64) >= dbg[2]
-                    && (view.t as f64) <= dbg[3]
-                    && (p[0] - dbg[0]).abs() < 6.0
-                    && (p[1] - dbg[1]).abs() < 6.0
-                {
-                    eprintln!(
-                        "DBGR t {} k {k} p {p:?} s {s} det {:?} d {} look {lc:?} lone {} cost {}",
-                        view.t,
-                        view.points[j],
-                        d2.sqrt(),
-                        view.lone[k],
-                        d2 / (s * s) + lc.unwrap_or(0.0) + breadth
-                    );
-                }
-                if let Some(look) = lc {
+                if let Some(look) = self.look_cost(view, k, j, APPEARANCE_GATE_SIGMAS) {
                     cols.push_pairs(&mut problem, k, j, d2 / (s * s) + look + breadth);
                 }
             });
