@@ -5,7 +5,7 @@
 
 use physfit_track::{BackgroundModel, TrackOptions, TrackOutcome, TrackTable};
 
-use crate::common::{free_walk, grid_walk, issue_settings, render_to, score, track, TempDir};
+use crate::common::{free_walk, grid_walk, issue_settings, names_at_head, render_to, score, track, TempDir};
 
 /// trackpy 0.7's RMS localisation error per axis at noise 0, 5 and 20 grey levels, px.
 const TRACKPY_RMS: [(f64, f64); 3] = [(0.0, 0.004), (5.0, 0.014), (20.0, 0.05)];
@@ -229,10 +229,7 @@ fn named_particles_among_unnamed_lookalikes_are_followed_or_doubted() {
             });
             if off {
                 wrong.push(name.clone());
-                let warned = out.warnings.iter().any(|w| {
-                    w.split_once(':')
-                        .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == name.as_str()))
-                });
+                let warned = out.warnings.iter().any(|w| names_at_head(w, name));
                 if !warned {
                     silent.push(name.clone());
                 }

@@ -262,3 +262,11 @@ pub fn assert_followed(label: &str, outcome: &TrackOutcome, truth: &TrackTable) 
     );
     s
 }
+
+/// Returns true if and only if `warning` names `particle` at its head, before the first
+/// colon: `p2: ...`, or `p2 and p6: ...`, or `p1, p2 and p6: ...`.
+pub fn names_at_head(warning: &str, particle: &str) -> bool {
+    warning
+        .split_once(':')
+        .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == particle))
+}

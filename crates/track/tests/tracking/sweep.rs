@@ -32,7 +32,7 @@ use physfit_track::{
     in_view, rms_offset, score_tracks, track_folder, PointFlag, TrackOptions, TrackPoint, TrackTable,
 };
 
-use crate::common::TempDir;
+use crate::common::{names_at_head, TempDir};
 
 /// Seeds of the styles drawn by `physfit-synth`.
 const SYNTH_SEEDS: std::ops::Range<u64> = 1000..1040;
@@ -307,10 +307,7 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
             // NaN (no point matched) counts as beyond the tolerance.
             let within = s.rms_x <= tolerance[0] && s.rms_y <= tolerance[1];
             // A warning names it at its head: `p2: ...`, or `p2 and p6: ...`.
-            let named = outcome.warnings.iter().any(|w| {
-                w.split_once(':')
-                    .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == name.as_str()))
-            });
+            let named = outcome.warnings.iter().any(|w| names_at_head(w, name));
             // Or its detected points are within the tolerance and each point it was given
             // from its motion lies in a run of frames a warning names it as not seen in (the
             // CSV flags those points interpolated).
@@ -356,11 +353,10 @@ fn run(source: &'static str, seq: &Sequence, dir: &Path) -> Row {
                 a.particles.contains(&t.particle) && (a.first_frame..=a.last_frame).contains(&t.frame)
             });
             // Which particle a track follows on either side of a frame is in doubt.
-            let doubted = outcome.warnings.iter().any(|w| {
-                w.contains("uncertain identit")
-                    && w.split_once(':')
-                        .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == t.particle))
-            });
+            let doubted = outcome
+                .warnings
+                .iter()
+                .any(|w| w.contains("uncertain identit") && names_at_head(w, &t.particle));
             !(found || cut || ambiguous || doubted)
         })
         .count();
