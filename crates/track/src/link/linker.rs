@@ -121,7 +121,7 @@ impl<'o> Linker<'o> {
             end_frame: first.frame + 1,
         };
         if let Some(starts) = &options.named_start {
-            linker.start_named(first, starts);
+            linker.start_named(first, frames.get(1), starts);
         } else {
             let taken = vec![false; first.detections.len()];
             start_tracks(
@@ -138,10 +138,21 @@ impl<'o> Linker<'o> {
     }
 
     /// Starts the named particles: matched to the first frame's blobs by optimal
-    /// assignment, several particles possibly in one blob.
-    fn start_named(&mut self, first: &FrameDetections, starts: &[(String, [f64; 2])]) {
+    /// assignment, several particles possibly in one blob; `next` (the frame after `first`)
+    /// bounds their first steps (see [`Linker::first_step_reach`]).
+    fn start_named(
+        &mut self,
+        first: &FrameDetections,
+        next: Option<&FrameDetections>,
+        starts: &[(String, [f64; 2])],
+    ) {
         let dets = &first.detections;
-        let det_nn = nearest_other(&dets.iter().map(|d| [d.x, d.y]).collect::<Vec<_>>());
+        let det_points: Vec<[f64; 2]> = dets.iter().map(|d| [d.x, d.y]).collect();
+        let det_grid = PointGrid::new(&det_points);
+        let next_points: Vec<[f64; 2]> =
+            next.map_or(Vec::new(), |f| f.detections.iter().map(|d| [d.x, d.y]).collect());
+        let next_grid = PointGrid::new(&next_points);
+        let det_nn = nearest_other(&det_points);
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
         let assign = self.match_starts(dets, starts, &nn);
         // The particles that start in each blob.
@@ -157,12 +168,11 @@ impl<'o> Linker<'o> {
         let joined = join_fragments(dets, &sharing, &positions, &self.one, self.r);
         for (i, (name, p)) in starts.iter().enumerate() {
             // The first step is not known: a gate of half the way to the nearest other
-            // named particle, or to the nearest other blob where that is nearer (an
-            // unnamed neighbour's blob is as likely a first step for the track as its own,
-            // by position, and appearance would then choose among identical particles).
-            let clear = assign[i]
-                .filter(|&j| sharing[j].len() == 1)
-                .map_or(nn[i], |j| nn[i].min(det_nn[j]));
+            // named particle, or to the nearest other lookalike blob (see
+            // `first_step_reach`).
+            let clear = assign[i].filter(|&j| sharing[j].len() == 1).map_or(nn[i], |j| {
+                self.first_step_reach((first, next), (&det_grid, &next_grid), j, nn[i])
+            });
             let init = (0.5 * clear).min(diagonal(self.options)) / GATE_SIGMAS;
             let point = match assign[i] {
                 Some(j) if sharing[j].len() == 1 => match joined.iter().find(|f| f.0 == j) {
@@ -203,6 +213,58 @@ impl<'o> Linker<'o> {
         for group in sharing.iter().filter(|g| g.len() > 1) {
             self.events
                 .push((first.frame, AmbiguityKind::Merged, group.to_vec()));
+        }
+    }
+
+    /// How far (px) the first step of the particle in blob `j` of the first frame `first`
+    /// may be judged by position: half of this is its gate. Up to `reach` px (the way to the
+    /// nearest other named particle), the way to the nearest other blob of `first` that
+    /// looks like it (log mass and size within [`APPEARANCE_GATE_SIGMAS`] of the recording's
+    /// pooled frame-to-frame spreads; every blob where the spreads are unknown) — an unnamed
+    /// lookalike's blob is as likely a first step as its own, by position, and appearance
+    /// would choose by its noise — provided the frame after, `next` (indexed by `grids.1`,
+    /// `grids.0` indexing `first`), has a lookalike blob within that half way: where it has
+    /// none, the particle moved farther than its neighbours allow for (a ball thrown out of
+    /// a hand, 70 px a frame past a blob 112 px away), and appearance tells it apart.
+    fn first_step_reach(
+        &self,
+        (first, next): (&FrameDetections, Option<&FrameDetections>),
+        grids: (&PointGrid, &PointGrid),
+        j: usize,
+        reach: f64,
+    ) -> f64 {
+        let reach = reach.min(diagonal(self.options));
+        let here = [first.detections[j].x, first.detections[j].y];
+        let look = Appearance::of(&first.detections[j], 1).and_then(|a| {
+            let mut history = crate::appearance::AppearanceHistory::default();
+            history.push(first.frame, self.levels.apply(a, first.frame));
+            history.appearance(first.frame + 1, self.pooled, self.r + 1.0)
+        });
+        let alike = |d: &Detection, t: usize| match (look, Appearance::of(d, 1)) {
+            (Some(look), Some(a)) => {
+                let (zm, zs) = look.z(&self.levels.apply(a, t), true);
+                zm * zm + zs * zs <= APPEARANCE_GATE_SIGMAS * APPEARANCE_GATE_SIGMAS
+            }
+            _ => true,
+        };
+        let mut nearest = reach;
+        grids.0.within(&here, reach, |k, d2| {
+            let d = d2.sqrt();
+            if k != j && d < nearest && alike(&first.detections[k], first.frame) {
+                nearest = d;
+            }
+        });
+        let Some(next) = next.filter(|_| nearest < reach) else {
+            return nearest;
+        };
+        let mut found = false;
+        grids.1.within(&here, 0.5 * nearest, |k, _| {
+            found = found || alike(&next.detections[k], next.frame);
+        });
+        if found {
+            nearest
+        } else {
+            reach
         }
     }
 

@@ -12,3 +12,4 @@ mod real;
 mod scenes;
 mod styles;
 mod sweep;
+mod thrown;
