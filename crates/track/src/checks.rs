@@ -50,10 +50,13 @@
 use std::collections::BTreeMap;
 
 use crate::frames::FrameView;
+use crate::link::FrameDetections;
+use crate::point_grid::PointGrid;
 #[cfg(doc)]
 use crate::rim::rim_centre;
 use crate::rim::Rim;
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
+use std::cell::OnceCell;
 
 /// Largest skirt (see the module doc) of a particle whose radius is the one in use.
 pub(crate) const MAX_SKIRT: f64 = 0.6;
@@ -187,6 +190,10 @@ pub(crate) enum Concern {
         radius: f64,
         /// Runs of four consecutive detected frames measured.
         count: usize,
+        /// Steps of those runs that landed on another blob of the frame before or left one
+        /// of the frame after (see [`FrameBlobs`]), and steps looked at; `None` where the
+        /// frames' blobs were not given.
+        hops: Option<(usize, usize)>,
     },
     /// The track moves between two of its detected points far faster than before and after:
     /// it left its particle for another image.
@@ -292,14 +299,29 @@ impl std::fmt::Display for TrackConcern {
                 frames.1,
                 2.0 * step
             ),
-            Concern::Erratic { jerk, radius, count } => write!(
-                f,
-                "{p}: its positions jump about: how much the change of its step from one frame to the next itself \
-                 changes (its third difference) has a median of {jerk:.1} px over {count} runs of frames, more than its \
-                 diameter and 2 px ({:.1} px at the radius {radius:.2} px in use), where forces change smoothly: the \
-                 track hops between parts of a larger particle or between objects",
-                2.0 * (radius + 1.0)
-            ),
+            Concern::Erratic {
+                jerk,
+                radius,
+                count,
+                hops,
+            } => {
+                write!(
+                    f,
+                    "{p}: its positions jump about: how much the change of its step from one frame to the next \
+                     itself changes (its third difference) has a median of {jerk:.1} px over {count} runs of frames, \
+                     more than its diameter and 2 px ({:.1} px at the radius {radius:.2} px in use), where forces \
+                     change smoothly",
+                    2.0 * (radius + 1.0)
+                )?;
+                if let Some((hops, of)) = hops {
+                    write!(
+                        f,
+                        ", and {hops} of its {of} steps there land on another blob of the frame before or leave \
+                         one of the frame after"
+                    )?;
+                }
+                write!(f, ": the track hops between parts of a larger particle or between objects")
+            }
             Concern::Jumped {
                 frames,
                 step,
@@ -367,13 +389,17 @@ fn list(frames: &[usize]) -> String {
 /// from [`skirts`]), and the skirts of the points as located (`located`, before rings were
 /// moved to their rims' centres), whose rims say whether the located points agreed with them
 /// ([`Concern::OffRim`]); one concern a track, the first of: mostly unseen, larger than the
-/// radius ([`skirt_concern`]), off its rim, erratic ([`erratic`]).
+/// radius ([`skirt_concern`]), off its rim, erratic ([`erratic`], judged with the frames'
+/// blobs `blobs`, where given: see [`FrameBlobs`]).
 pub(crate) fn check_tracks(
     table: &TrackTable,
     radius: f64,
     skirts: &BTreeMap<String, Vec<(usize, Skirt)>>,
     located: &BTreeMap<String, Vec<(usize, Skirt)>>,
+    blobs: &[FrameDetections],
 ) -> Vec<TrackConcern> {
+    let positions = FrameBlobs::positions(blobs);
+    let blobs = FrameBlobs::new(blobs, &positions);
     let mut out = Vec::new();
     for (particle, points) in table.by_particle() {
         let detected = points.iter().filter(|p| p.flag == PointFlag::Detected).count();
@@ -389,7 +415,7 @@ pub(crate) fn check_tracks(
         }
         if let Some(concern) = skirt_concern(skirts.get(particle), radius)
             .or_else(|| located.get(particle).and_then(|m| off_rim(m)))
-            .or_else(|| erratic(&points, radius))
+            .or_else(|| erratic(&points, radius, &blobs))
             .or_else(|| jumped(&points, radius))
         {
             out.push(TrackConcern {
@@ -441,7 +467,17 @@ const ERRATIC_RUNS: usize = 3;
 /// walks of 0.5-3 px a frame change it by about 4 px. A track hopping between the arcs of a
 /// ring of 25 px under noise 28 changed it by tens of px a frame at a radius of 6.4 px, and had
 /// been written without a word.
-fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
+///
+/// A track hops between objects or parts only onto others that are there: with the frames'
+/// blobs given (`blobs`, see [`FrameBlobs::hop_site`]), at least a third of the steps of
+/// those runs (two at least) must land within half their length of another blob of the
+/// frame before, or leave the point within half their length of another blob of the frame
+/// after; or the track must not move away as a random walk does ([`spreads_as_a_walk`]: a
+/// track taking blobs that come and go about one place, such as clutter in a real video). A
+/// small particle in Brownian motion changes its step's change by as much (random walks of
+/// 0.5-3 px a frame: medians of 5-9 px, above the 5-6 px of discs of 1.5-2 px), but steps
+/// from its own blob to where no other was, and wanders off.
+fn erratic(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Concern> {
     let detected = |p: &TrackPoint| p.flag == PointFlag::Detected;
     let thirds: Vec<[f64; 2]> = points
         .windows(4)
@@ -472,7 +508,113 @@ fn erratic(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
         }
     }
     let on_a_line = total > 0.0 && c.hypot(s) / total > MAX_ERRATIC_ALIGNMENT;
-    (jerk > 2.0 * (radius + 1.0) && !on_a_line).then_some(Concern::Erratic { jerk, radius, count })
+    if jerk <= 2.0 * (radius + 1.0) || on_a_line {
+        return None;
+    }
+    // The steps of the runs measured, and how many of them hopped onto another blob: the
+    // point they land on lies nearer another blob of the frame before than half the step,
+    // or the point they leave nearer another blob of the frame after.
+    let mut steps: Vec<(&TrackPoint, &TrackPoint)> = points
+        .windows(4)
+        .filter(|w| w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1))
+        .flat_map(|w| [(w[0], w[1]), (w[1], w[2]), (w[2], w[3])])
+        .collect();
+    steps.sort_by_key(|s| s.0.frame);
+    steps.dedup_by_key(|s| s.0.frame);
+    let hops = steps.iter().try_fold((0, 0), |(hops, of), (a, b)| {
+        let (a, b) = ((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y]));
+        let hop = blobs.hop_site(a, b.1)? || blobs.hop_site(b, a.1)?;
+        Some((hops + usize::from(hop), of + 1))
+    });
+    match hops {
+        Some((hops, of)) if (hops < 2 || 3 * hops < of) && spreads_as_a_walk(points) => None,
+        _ => Some(Concern::Erratic {
+            jerk,
+            radius,
+            count,
+            hops,
+        }),
+    }
+}
+
+/// Frames over which [`spreads_as_a_walk`] compares a track's displacement with its step.
+const WALK_LAG: usize = 4;
+
+/// Whether the track `points` (frame order) moves away as a random walk does: its mean
+/// squared displacement over [`WALK_LAG`] frames at least twice its mean squared step
+/// (a random walk's is `WALK_LAG` times it, a track visiting places at random about one
+/// centre about once: of 4 000 simulated tracks of 12 steps, 5 % of walks and 1-5 % of such
+/// tracks fell the wrong side of 2), from detected points, three such displacements at
+/// least (`false` with fewer).
+fn spreads_as_a_walk(points: &[&TrackPoint]) -> bool {
+    let detected: BTreeMap<usize, [f64; 2]> = points
+        .iter()
+        .filter(|p| p.flag == PointFlag::Detected)
+        .map(|p| (p.frame, [p.x, p.y]))
+        .collect();
+    let msd = |lag: usize| {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (k, a) in &detected {
+            if let Some(b) = detected.get(&(k + lag)) {
+                sum += (b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2);
+                n += 1;
+            }
+        }
+        (sum, n)
+    };
+    let ((one, n1), (far, n4)) = (msd(1), msd(WALK_LAG));
+    n4 >= 3 && n1 > 0 && far / n4 as f64 >= 2.0 * one / n1 as f64
+}
+
+/// The blobs of a recording's frames, for asking whether a track's point had another blob
+/// near it; each frame's positions and neighbour grid are built when first asked for.
+pub(crate) struct FrameBlobs<'a> {
+    frames: &'a [FrameDetections],
+    points: &'a [OnceCell<Vec<[f64; 2]>>],
+    grids: Vec<OnceCell<PointGrid<'a>>>,
+}
+
+impl<'a> FrameBlobs<'a> {
+    /// Room for the positions of the blobs of `frames`, filled as frames are asked for.
+    pub(crate) fn positions(frames: &[FrameDetections]) -> Vec<OnceCell<Vec<[f64; 2]>>> {
+        frames.iter().map(|_| OnceCell::new()).collect()
+    }
+
+    /// The blobs of `frames` (consecutive frames, any first), their positions kept in
+    /// `points` (from [`FrameBlobs::positions`] of the same frames).
+    pub(crate) fn new(
+        frames: &'a [FrameDetections],
+        points: &'a [OnceCell<Vec<[f64; 2]>>],
+    ) -> FrameBlobs<'a> {
+        FrameBlobs {
+            frames,
+            points,
+            grids: frames.iter().map(|_| OnceCell::new()).collect(),
+        }
+    }
+
+    /// Whether a step from the point `from` (frame, position px) to `to` (px) lands on
+    /// another blob of `from`'s frame: one other than the blob nearest `from` (its own)
+    /// lies within half the step of `to`. `None` where the frame is not held.
+    fn hop_site(&self, from: (usize, [f64; 2]), to: [f64; 2]) -> Option<bool> {
+        let (frame, at) = from;
+        let first = self.frames.first()?.frame;
+        let k = frame.checked_sub(first)?;
+        let fd = self.frames.get(k).filter(|f| f.frame == frame)?;
+        if fd.detections.len() < 2 {
+            return Some(false);
+        }
+        let points = self.points[k].get_or_init(|| fd.detections.iter().map(|d| [d.x, d.y]).collect());
+        let grid = self.grids[k].get_or_init(|| PointGrid::new(points));
+        let own = grid.nearest_two(&at)[0].map(|n| n.0);
+        let half = 0.5 * (to[0] - at[0]).hypot(to[1] - at[1]);
+        let landing = grid
+            .nearest_two(&to)
+            .into_iter()
+            .flatten()
+            .find(|n| Some(n.0) != own);
+        Some(landing.is_some_and(|n| n.1 < half * half))
+    }
 }
 
 /// How many times the faster of the neighbouring steps a track's step per frame may exceed
@@ -988,7 +1130,7 @@ mod tests {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 96.0, 80.0)).collect(),
         };
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 5.0, &measured, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 5.0, &measured, &measured, &[]).len(), 1);
     }
 
     /// A ring of radii 14-20 px followed on its rim at 3.1 px: the rim runs through the point,
@@ -1016,7 +1158,7 @@ mod tests {
             points: (0..4).map(|k| TrackPoint::new(k, "r", 77.0, 60.0)).collect(),
         };
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 3.1, &measured, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 3.1, &measured, &measured, &[]).len(), 1);
         // A disc of 6 px, with the ring from 9 to 14 px 80 grey levels below the background on one side.
         let dark: Vec<f32> = (0..w * h)
             .map(|i| {
@@ -1034,7 +1176,7 @@ mod tests {
         let s = skirts(&dark, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level < -LOPSIDED_SKIRT && s.lopsided > MAX_LOPSIDED, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 6.0, &measured, &measured, &[]).len(), 1);
         // The same ring 60 grey levels above the background on one side and below it on the
         // other: its mean cancels, its magnitude does not.
         let split: Vec<f32> = dark
@@ -1059,12 +1201,12 @@ mod tests {
             "{s:?}"
         );
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert_eq!(check_tracks(&t, 6.0, &measured, &measured).len(), 1);
+        assert_eq!(check_tracks(&t, 6.0, &measured, &measured, &[]).len(), 1);
         let disc: Vec<f32> = dark.iter().map(|v| v.max(0.0)).collect();
         let s = skirts(&disc, w, h, &[[60.0, 60.0]], 6.0, 0.0)[0].unwrap();
         assert!(s.level.abs() < 0.01 && s.elongated < 0.01, "{s:?}");
         let measured = BTreeMap::from([("r".to_string(), vec![(0, s)])]);
-        assert!(check_tracks(&t, 6.0, &measured, &measured).is_empty());
+        assert!(check_tracks(&t, 6.0, &measured, &measured, &[]).is_empty());
     }
 
     #[test]
@@ -1086,7 +1228,7 @@ mod tests {
             "a".to_string(),
             vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.7))],
         );
-        let c = check_tracks(&t, 4.0, &skirts, &skirts);
+        let c = check_tracks(&t, 4.0, &skirts, &skirts, &[]);
         assert_eq!(c.len(), 1);
         assert!(matches!(c[0].concern, Concern::Larger { skirt, .. } if (skirt - 0.7).abs() < 1e-12));
         assert!(
@@ -1098,12 +1240,12 @@ mod tests {
             "a".to_string(),
             vec![(0, even(0.1)), (5, even(0.9)), (10, even(0.05))],
         );
-        assert!(check_tracks(&t, 4.0, &skirts, &skirts).is_empty());
+        assert!(check_tracks(&t, 4.0, &skirts, &skirts, &[]).is_empty());
         for p in t.points.iter_mut().skip(9) {
             p.flag = PointFlag::Interpolated;
         }
         assert_eq!(
-            check_tracks(&t, 4.0, &skirts, &skirts),
+            check_tracks(&t, 4.0, &skirts, &skirts, &[]),
             vec![TrackConcern {
                 particle: "a".into(),
                 concern: Concern::MostlyUnseen {
@@ -1113,7 +1255,7 @@ mod tests {
             }]
         );
         t.points[9].flag = PointFlag::Detected;
-        assert!(check_tracks(&t, 4.0, &skirts, &skirts).is_empty());
+        assert!(check_tracks(&t, 4.0, &skirts, &skirts, &[]).is_empty());
     }
 
     /// Whether `c` is one [`Concern::OffRim`] and nothing else.
@@ -1161,20 +1303,20 @@ mod tests {
             })
             .collect();
         let measured = BTreeMap::from([("r".to_string(), scattered.clone())]);
-        let c = check_tracks(&t, 9.0, &measured, &measured);
+        let c = check_tracks(&t, 9.0, &measured, &measured, &[]);
         assert!(only_off_rim(&c), "{c:?}");
         assert!(c[0].to_string().starts_with("r: it is a ring"), "{}", c[0]);
         let steady: Vec<(usize, Skirt)> = (0..8)
             .map(|k| with_rim(k, [0.3 + 0.04 * (k % 2) as f64, -0.2]))
             .collect();
         let measured = BTreeMap::from([("r".to_string(), steady)]);
-        assert!(check_tracks(&t, 9.0, &measured, &measured).is_empty());
+        assert!(check_tracks(&t, 9.0, &measured, &measured, &[]).is_empty());
         let mut mostly_solid = scattered.clone();
         for s in mostly_solid.iter_mut().skip(3) {
             s.1.rim = None;
         }
         let measured = BTreeMap::from([("r".to_string(), mostly_solid)]);
-        assert!(check_tracks(&t, 9.0, &measured, &measured).is_empty());
+        assert!(check_tracks(&t, 9.0, &measured, &measured, &[]).is_empty());
         // One frame of eight whose centroid a neighbour's light pulled 4.7 px off (the
         // rim's centre puts it right; ring neighbour 3001 at 14 px: a chi-square of 246 over
         // its degrees of freedom with the mean, refused) is not reported; pulls that way in
@@ -1193,9 +1335,9 @@ mod tests {
                 .collect()
         };
         let measured = BTreeMap::from([("r".to_string(), pulled(1))]);
-        assert!(check_tracks(&t, 9.0, &measured, &measured).is_empty());
+        assert!(check_tracks(&t, 9.0, &measured, &measured, &[]).is_empty());
         let measured = BTreeMap::from([("r".to_string(), pulled(5))]);
-        let c = check_tracks(&t, 9.0, &measured, &measured);
+        let c = check_tracks(&t, 9.0, &measured, &measured, &[]);
         assert!(only_off_rim(&c), "{c:?}");
     }
 
@@ -1480,7 +1622,7 @@ mod tests {
             ]
         });
         let points: Vec<&TrackPoint> = thrown.iter().collect();
-        assert_eq!(erratic(&points, 5.0), None);
+        assert_eq!(erratic(&points, 5.0, &FrameBlobs::new(&[], &[])), None);
         // A ball of 5 px on a vibrating floor, bouncing 6 px high every 3 frames (at 9 px a
         // frame): the change of its step jumps by 18 px at every bounce, always vertically.
         let bouncing = track("bouncer", &|k| {
@@ -1488,19 +1630,107 @@ mod tests {
             [100.0 + 0.5 * k as f64, 200.0 - (9.0 * t - 3.0 * t * t)]
         });
         let points: Vec<&TrackPoint> = bouncing.iter().collect();
-        assert_eq!(erratic(&points, 5.0), None);
+        assert_eq!(erratic(&points, 5.0, &FrameBlobs::new(&[], &[])), None);
         // Hops 20 px from a centre, each turned by the golden angle from the last.
         let hopping = track("hopper", &|k| {
             let a = 2.4 * k as f64;
             [100.0 + 20.0 * a.cos() + k as f64, 100.0 + 20.0 * a.sin()]
         });
         let points: Vec<&TrackPoint> = hopping.iter().collect();
-        let Some(Concern::Erratic { jerk, count, .. }) = erratic(&points, 5.0) else {
+        let Some(Concern::Erratic { jerk, count, .. }) = erratic(&points, 5.0, &FrameBlobs::new(&[], &[]))
+        else {
             panic!("a track hopping 20 px about a centre is erratic");
         };
         assert!(
             jerk > 12.0 && count == 9,
             "median third difference {jerk:.1} px over {count}"
         );
+    }
+
+    /// A random walk of 3 px steps (a small particle in Brownian motion, its step's change
+    /// changing by more than its diameter and 2 px) is no hopping where no other blob is
+    /// near, but a track taking blobs that come and go about one place is; a track taking three blobs 12 px apart in turn (A B C A A C B B ...) hops,
+    /// and says how many of its steps did.
+    #[test]
+    fn a_walk_alone_is_not_erratic_and_a_track_taking_blobs_in_turn_is() {
+        use crate::link::tests::frame;
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let walk: Vec<[f64; 2]> = (0..24)
+            .scan([100.0, 100.0], |p, _| {
+                let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+                *p = [p[0] + 3.0 * a.cos(), p[1] + 3.0 * a.sin()];
+                Some(*p)
+            })
+            .collect();
+        let far = |k: usize| [160.0 + k as f64, 40.0];
+        let frames: Vec<FrameDetections> = walk
+            .iter()
+            .enumerate()
+            .map(|(k, p)| frame(k, &[*p, far(k)]))
+            .collect();
+        let points: Vec<TrackPoint> = walk
+            .iter()
+            .enumerate()
+            .map(|(k, p)| TrackPoint::new(k, "w", p[0], p[1]))
+            .collect();
+        let refs: Vec<&TrackPoint> = points.iter().collect();
+        let positions = FrameBlobs::positions(&frames);
+        let blobs = FrameBlobs::new(&frames, &positions);
+        assert_eq!(erratic(&refs, 1.5, &blobs), None);
+        // Judged without the blobs, the walk is taken for hops.
+        assert!(erratic(&refs, 1.5, &FrameBlobs::new(&[], &[])).is_some());
+        // Blobs that come and go at random within 20 px of one place (clutter), each the only
+        // blob near when the track takes it: no blob to hop from, but no walk either.
+        let visits: Vec<[f64; 2]> = (0..24)
+            .map(|_| {
+                [
+                    100.0 + rng.gen_range(-20.0..20.0),
+                    100.0 + rng.gen_range(-20.0..20.0),
+                ]
+            })
+            .collect();
+        let frames: Vec<FrameDetections> = visits
+            .iter()
+            .enumerate()
+            .map(|(k, p)| frame(k, &[*p, far(k)]))
+            .collect();
+        let points: Vec<TrackPoint> = (visits.iter().enumerate())
+            .map(|(k, p)| TrackPoint::new(k, "c", p[0], p[1]))
+            .collect();
+        let refs: Vec<&TrackPoint> = points.iter().collect();
+        let positions = FrameBlobs::positions(&frames);
+        let blobs = FrameBlobs::new(&frames, &positions);
+        assert!(matches!(
+            erratic(&refs, 1.5, &blobs),
+            Some(Concern::Erratic {
+                hops: Some((0, _)),
+                ..
+            })
+        ));
+        let site = |k: usize, t: usize| {
+            let a = 2.1 * t as f64;
+            [110.0 + 0.5 * k as f64 + 7.0 * a.cos(), 100.0 + 7.0 * a.sin()]
+        };
+        let turns = [0, 1, 2, 0, 0, 2, 1, 1, 0, 2, 1, 0, 0, 1, 2, 2];
+        let frames: Vec<FrameDetections> = (0..16)
+            .map(|k| frame(k, &[site(k, 0), site(k, 1), site(k, 2), far(k)]))
+            .collect();
+        let points: Vec<TrackPoint> = turns
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| {
+                let p = site(k, t);
+                TrackPoint::new(k, "h", p[0], p[1])
+            })
+            .collect();
+        let refs: Vec<&TrackPoint> = points.iter().collect();
+        let positions = FrameBlobs::positions(&frames);
+        let blobs = FrameBlobs::new(&frames, &positions);
+        let Some(Concern::Erratic { hops, .. }) = erratic(&refs, 1.5, &blobs) else {
+            panic!("a track taking three blobs in turn is erratic");
+        };
+        // 11 of the 15 steps change blob, each landing on one that was there the frame before.
+        assert_eq!(hops, Some((11, 15)));
     }
 }

@@ -67,4 +67,4 @@ pub const APPEARANCE_GATE_SIGMAS: f64 = GATE_SIGMAS + 1.0;
 const CLEAN_ANCHOR_AGE: usize = 3;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

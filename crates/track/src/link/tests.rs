@@ -5,7 +5,7 @@ use super::options::FrameDetections;
 use crate::locate::Detection;
 
 /// A detection of one particle's mass and size at `(x, y)`.
-pub(super) fn det(x: f64, y: f64) -> Detection {
+pub(crate) fn det(x: f64, y: f64) -> Detection {
     Detection {
         x,
         y,
@@ -19,7 +19,7 @@ pub(super) fn det(x: f64, y: f64) -> Detection {
 }
 
 /// Frame `frame` with a detection of [`det`] at each of `at`.
-pub(super) fn frame(frame: usize, at: &[[f64; 2]]) -> FrameDetections {
+pub(crate) fn frame(frame: usize, at: &[[f64; 2]]) -> FrameDetections {
     FrameDetections {
         frame,
         detections: at.iter().map(|p| det(p[0], p[1])).collect(),

@@ -267,7 +267,7 @@ impl Stage<'_> {
                 None => Vec::new(),
             };
             concerns.extend(
-                check_tracks(&class_table, class.sizes.radius, skirts, &located)
+                check_tracks(&class_table, class.sizes.radius, skirts, &located, located_frames)
                     .iter()
                     .chain(&lost)
                     .map(PassConcern::of),

@@ -270,3 +270,63 @@ pub fn names_at_head(warning: &str, particle: &str) -> bool {
         .split_once(':')
         .is_some_and(|(head, _)| head.split([',', ' ']).any(|n| n == particle))
 }
+
+/// Adds a disc of radius `r` px at `c` (px) over `image` (grey levels, row-major, width
+/// `w`), its area-sampled coverage (4 x 4 samples a pixel) replacing the level by `level`.
+pub fn draw_disc(image: &mut [f64], w: usize, c: [f64; 2], r: f64, level: f64) {
+    let h = image.len() / w;
+    let x0 = (c[0] - r - 1.0).floor().max(0.0) as usize;
+    let y0 = (c[1] - r - 1.0).floor().max(0.0) as usize;
+    let x1 = ((c[0] + r + 1.0).ceil().max(0.0) as usize).min(w - 1);
+    let y1 = ((c[1] + r + 1.0).ceil().max(0.0) as usize).min(h - 1);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            let mut inside = 0u32;
+            for sy in 0..4 {
+                for sx in 0..4 {
+                    let px = x as f64 - 0.375 + 0.25 * f64::from(sx);
+                    let py = y as f64 - 0.375 + 0.25 * f64::from(sy);
+                    if (px - c[0]).hypot(py - c[1]) <= r {
+                        inside += 1;
+                    }
+                }
+            }
+            let cover = f64::from(inside) / 16.0;
+            let v = &mut image[y * w + x];
+            *v = *v * (1.0 - cover) + level * cover;
+        }
+    }
+}
+
+/// A standard normal deviate (Box-Muller) from `rng`.
+pub fn gauss(rng: &mut impl Rng) -> f64 {
+    let (u1, u2): (f64, f64) = (1.0 - rng.gen::<f64>(), rng.gen());
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Writes `image` (grey levels, row-major, width `w`) to `path` as an 8-bit PNG, with
+/// Gaussian noise of `noise` grey levels from `rng` added and the levels rounded and clamped.
+pub fn save_grey(image: &[f64], w: usize, noise: f64, rng: &mut impl Rng, path: &Path) {
+    let h = image.len() / w;
+    let mut out = image::GrayImage::new(w as u32, h as u32);
+    for (i, v) in image.iter().enumerate() {
+        let n = if noise > 0.0 { noise * gauss(rng) } else { 0.0 };
+        let level = (v + n).round().clamp(0.0, 255.0) as u8;
+        out.put_pixel((i % w) as u32, (i / w) as u32, image::Luma([level]));
+    }
+    out.save(path).expect("write frame");
+}
+
+/// With `PHYSFIT_SWEEP_KEEP=DIR` set, keeps the frames of `dir` in `DIR/name/frames` and
+/// `truth` in `DIR/name/truth.csv`, for a closer look with `physfit track`.
+pub fn keep_for_a_look(dir: &Path, name: &str, truth: &TrackTable) {
+    let Ok(keep) = std::env::var("PHYSFIT_SWEEP_KEEP") else {
+        return;
+    };
+    let to = Path::new(&keep).join(name);
+    std::fs::create_dir_all(to.join("frames")).expect("keep folder");
+    for entry in std::fs::read_dir(dir).expect("frames").flatten() {
+        std::fs::copy(entry.path(), to.join("frames").join(entry.file_name())).expect("copy frame");
+    }
+    truth.write_csv(&to.join("truth.csv")).expect("write truth");
+}

@@ -1,6 +1,7 @@
 //! Integration tests of the tracker on rendered sequences and real recordings.
 
 mod accuracy;
+mod brownian;
 mod common;
 mod crossing;
 mod errors;

@@ -7,7 +7,7 @@ use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackT
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::common::TempDir;
+use crate::common::{gauss, TempDir};
 
 /// One style: discs of radius 6-20 px (log-uniform), fill 120-220 over a background of
 /// 20-60, a line 1-3 px wide from each disc's centre to its edge at 0-0.5 of the fill's
@@ -65,13 +65,7 @@ fn marked_discs(seed: u64) -> (TempDir, TrackTable, f64) {
                         v += level / 16.0;
                     }
                 }
-                let n = if noise > 0.0 {
-                    // Box-Muller.
-                    let (u1, u2): (f64, f64) = (1.0 - rng.gen::<f64>(), rng.gen());
-                    noise * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-                } else {
-                    0.0
-                };
+                let n = if noise > 0.0 { noise * gauss(&mut rng) } else { 0.0 };
                 image.put_pixel(
                     x as u32,
                     y as u32,

@@ -3,42 +3,14 @@
 //! look nothing like it (a fraction of its light). The first step of a named track is not
 //! known; the marks must not narrow its gate to where the ball cannot be found.
 
-use image::{GrayImage, Luma};
-use physfit_track::{track_folder, TrackOptions};
+use physfit_track::{track_folder, TrackOptions, TrackPoint, TrackTable};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::common::{names_at_head, TempDir};
+use crate::common::{draw_disc, keep_for_a_look, names_at_head, save_grey, TempDir};
 
 /// Frames of each recording.
 const FRAMES: usize = 12;
-
-/// Adds a disc of radius `r` px at `c` (px) over `image` (grey levels, row-major, width
-/// `w`), its area-sampled coverage (4 x 4 samples a pixel) replacing the level by `level`.
-fn draw_disc(image: &mut [f64], w: usize, c: [f64; 2], r: f64, level: f64) {
-    let h = image.len() / w;
-    let x0 = (c[0] - r - 1.0).floor().max(0.0) as usize;
-    let y0 = (c[1] - r - 1.0).floor().max(0.0) as usize;
-    let x1 = ((c[0] + r + 1.0).ceil().max(0.0) as usize).min(w - 1);
-    let y1 = ((c[1] + r + 1.0).ceil().max(0.0) as usize).min(h - 1);
-    for y in y0..=y1 {
-        for x in x0..=x1 {
-            let mut inside = 0u32;
-            for sy in 0..4 {
-                for sx in 0..4 {
-                    let px = x as f64 - 0.375 + 0.25 * f64::from(sx);
-                    let py = y as f64 - 0.375 + 0.25 * f64::from(sy);
-                    if (px - c[0]).hypot(py - c[1]) <= r {
-                        inside += 1;
-                    }
-                }
-            }
-            let cover = f64::from(inside) / 16.0;
-            let v = &mut image[y * w + x];
-            *v = *v * (1.0 - cover) + level * cover;
-        }
-    }
-}
 
 /// One recording: a ball of radius 3-9 px (log-uniform), 100-200 grey levels over a
 /// background of 20-60, thrown on a parabola at 4-10 of its radii a frame along x (a field
@@ -101,34 +73,15 @@ fn thrown_ball(seed: u64) -> (TempDir, Vec<[f64; 2]>, f64) {
             draw_disc(&mut image, w, *c, *r, background + level);
         }
         draw_disc(&mut image, w, *b, radius, background + contrast);
-        let mut out = GrayImage::new(w as u32, h as u32);
-        for (i, v) in image.iter().enumerate() {
-            let n = if noise > 0.0 {
-                let (u1, u2): (f64, f64) = (1.0 - rng.gen::<f64>(), rng.gen());
-                noise * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-            } else {
-                0.0
-            };
-            let level = (v + n).round().clamp(0.0, 255.0) as u8;
-            out.put_pixel((i % w) as u32, (i / w) as u32, Luma([level]));
-        }
-        out.save(dir.path().join(format!("frame_{k:05}.png")))
-            .expect("write frame");
+        let path = dir.path().join(format!("frame_{k:05}.png"));
+        save_grey(&image, w, noise, &mut rng, &path);
     }
-    // PHYSFIT_SWEEP_KEEP=DIR keeps the frames and truth in DIR/thrown-SEED for a closer look.
-    if let Ok(keep) = std::env::var("PHYSFIT_SWEEP_KEEP") {
-        let to = std::path::Path::new(&keep).join(format!("thrown-{seed}"));
-        std::fs::create_dir_all(to.join("frames")).expect("keep folder");
-        for entry in std::fs::read_dir(dir.path()).expect("frames").flatten() {
-            std::fs::copy(entry.path(), to.join("frames").join(entry.file_name())).expect("copy frame");
-        }
-        let rows: String = ball
-            .iter()
-            .enumerate()
-            .map(|(k, b)| format!("{k},ball,{},{}\n", b[0], b[1]))
-            .collect();
-        std::fs::write(to.join("truth.csv"), format!("frame,particle,x,y\n{rows}")).expect("truth");
-    }
+    let truth = TrackTable {
+        points: (ball.iter().enumerate())
+            .map(|(k, b)| TrackPoint::new(k, "ball", b[0], b[1]))
+            .collect(),
+    };
+    keep_for_a_look(dir.path(), &format!("thrown-{seed}"), &truth);
     (dir, ball, radius)
 }
 
