@@ -249,7 +249,13 @@ pub(super) fn start_tracks(
             continue;
         }
         let nn = grid.nearest_other(&pts[j]);
-        let init = (0.5 * nn).min(diagonal(o)) / GATE_SIGMAS;
+        // The first step is gated by the whole way to the nearest other blob: two
+        // neighbours' first steps then compete in the assignment, which gives each blob to
+        // the nearer. Gated by half the way, discs in Brownian motion stepping farther lost
+        // their first step, and their tracks, extrapolated, took other discs' blobs (40
+        // discs of 1.5-4 px at steps of 0.3-1.0 of (R + 1) a frame per axis: 199 identity
+        // switches in 12 recordings, against 25 for linking each to the nearest blob; 14 since).
+        let init = nn.min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
         let mut track = Track::new(
             name,
