@@ -543,9 +543,9 @@ const WALK_LAG: usize = 4;
 /// Whether the track `points` (frame order) moves away as a random walk does: its mean
 /// squared displacement over [`WALK_LAG`] frames at least twice its mean squared step
 /// (a random walk's is `WALK_LAG` times it, a track visiting places at random about one
-/// centre about once: of 4 000 simulated tracks of 12 steps, 5 % of walks and 1-5 % of such
-/// tracks fell the wrong side of 2), from detected points, three such displacements at
-/// least (`false` with fewer).
+/// centre about once: of 4 000 simulated tracks of 20 steps each, about 4 % of walks and 1-4
+/// % of such tracks fell the wrong side of 2; of 12 steps, about 9 % and 3-8 %), from
+/// detected points, three such displacements at least (`false` with fewer).
 fn spreads_as_a_walk(points: &[&TrackPoint]) -> bool {
     let detected: BTreeMap<usize, [f64; 2]> = points
         .iter()

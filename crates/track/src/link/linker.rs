@@ -24,7 +24,7 @@ use super::single_particle::SingleParticle;
 use super::step_bound::StepBound;
 use super::track::{point_from, smooth_bridges, speed, start_tracks, Point, Prediction, Track};
 use super::{APPEARANCE_GATE_SIGMAS, GATE_SIGMAS};
-use crate::appearance::{Appearance, AppearanceLevels, AppearanceSpread, TrackAppearance};
+use crate::appearance::{Appearance, AppearanceHistory, AppearanceLevels, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
 use crate::locate::Detection;
 use crate::point_grid::{nearest_other, PointGrid};
@@ -236,7 +236,7 @@ impl<'o> Linker<'o> {
         let reach = reach.min(diagonal(self.options));
         let here = [first.detections[j].x, first.detections[j].y];
         let look = Appearance::of(&first.detections[j], 1).and_then(|a| {
-            let mut history = crate::appearance::AppearanceHistory::default();
+            let mut history = AppearanceHistory::default();
             history.push(first.frame, self.levels.apply(a, first.frame));
             history.appearance(first.frame + 1, self.pooled, self.r + 1.0)
         });

@@ -88,8 +88,8 @@ fn brownian_discs(seed: u64, crowded: bool) -> (TempDir, TrackTable, f64, f64) {
 
 /// Twelve recordings (seeds 7500-7511, 300 discs): every disc found in every frame (recall
 /// 1, RMS error under 0.1 px per axis), and at most 1 % of the tracks said to hop (a walk's
-/// displacement over 4 frames falls under twice its step's by chance: 3 % of simulated
-/// walks of 20 steps). Measured: RMS 0.012-0.026 px, 1 track of 300 said to hop (7502);
+/// displacement over 4 frames falls under twice its step's by chance: about 4 % of
+/// simulated walks of 20 steps). Measured: RMS 0.012-0.026 px, 1 track of 300 said to hop (7502);
 /// while the check judged by the third differences alone, 76 were (8 recordings of 12, all
 /// with steps above 0.65 of (radius + 1 px)).
 /// Identity switches are printed, not asserted (see the crowded test): at steps of 4.8 px
