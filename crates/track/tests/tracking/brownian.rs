@@ -92,10 +92,8 @@ fn brownian_discs(seed: u64, crowded: bool) -> (TempDir, TrackTable, f64, f64) {
 /// simulated walks of 20 steps). Measured: RMS 0.012-0.026 px, 1 track of 300 said to hop (7502);
 /// while the check judged by the third differences alone, 76 were (8 recordings of 12, all
 /// with steps above 0.65 of (radius + 1 px)).
-/// Identity switches are printed, not asserted (see the crowded test): at steps of 4.8 px
-/// per axis seed 7500 has 2 (a random walk's constant-acceleration extrapolation, chosen on
-/// one residual, gated the track too narrowly for its next step; left, see the tracking
-/// docs), and 7505 1.
+/// Identity switches are printed, not asserted (see the crowded test): 7500 and 7505 each
+/// have one disc followed as two tracks (the second start warned of as a jump).
 #[test]
 fn small_discs_in_brownian_motion_are_not_taken_for_hops() {
     let mut report = String::new();
@@ -164,10 +162,11 @@ fn nearest_blob_errors(truth: &TrackTable) -> usize {
 }
 
 /// Twelve crowded recordings (seeds 7500-7511): identity switches no more than linking each
-/// disc to the nearest blob of the next frame makes, in each. Measured: 14 switches in all
+/// disc to the nearest blob of the next frame makes, in each. Measured: 8 switches in all
 /// (7500, whose discs step 4.8 px per axis) against 25 nearest-blob errors (20 in 7500, 1 in
 /// 7508, 4 in 7511); while a new track's first step was gated by half the way to its
-/// nearest neighbour, 199 (86, 39, 2, 37, 19 and 16 in 7500, 7502, 7506, 7508, 7510, 7511).
+/// nearest neighbour, 199 (86, 39, 2, 37, 19 and 16 in 7500, 7502, 7506, 7508, 7510, 7511),
+/// and 14 while constant acceleration was chosen on one residual.
 #[test]
 fn crowded_discs_in_brownian_motion_keep_their_identities() {
     let mut report = String::new();
