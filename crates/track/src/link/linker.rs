@@ -880,17 +880,17 @@ mod tests {
     /// starts a new one at the far detection.
     #[test]
     fn assign_refuses_a_candidate_beyond_the_gate() {
-        // Neighbours 40 px apart: each start scale is 40 / 2 / GATE_SIGMAS = 5 px, a 20 px gate.
+        // Neighbours 40 px apart: each start scale is 40 / GATE_SIGMAS = 10 px, a 40 px gate.
         let frames = [
             frame(0, &[[20.0, 20.0], [60.0, 20.0]]),
-            frame(1, &[[20.0, 50.0], [60.0, 20.0]]),
+            frame(1, &[[20.0, 70.0], [60.0, 20.0]]),
         ];
         let o = options(3);
         let mut linker = Linker::new(&frames, &o);
         let points: Vec<[f64; 2]> = frames[1].detections.iter().map(|d| [d.x, d.y]).collect();
         let view = linker.predict(&frames[1], &points);
         assert!(
-            view.preds[0].scale * GATE_SIGMAS < 30.0,
+            view.preds[0].scale * GATE_SIGMAS < 50.0,
             "the gate is narrower than the jump"
         );
         let (claims, unassigned) = linker.assign(&view);
@@ -900,7 +900,7 @@ mod tests {
         linker.step(&frames[1]);
         assert_eq!(last(&linker, 0), (20.0, 20.0, PointFlag::Interpolated));
         assert_eq!(linker.tracks.len(), 3);
-        assert_eq!(last(&linker, 2), (20.0, 50.0, PointFlag::Detected));
+        assert_eq!(last(&linker, 2), (20.0, 70.0, PointFlag::Detected));
     }
 
     /// Two tracks near one blob of one particle's mass: one takes it, and the other, left
