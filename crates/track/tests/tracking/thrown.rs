@@ -13,11 +13,12 @@ use crate::common::{draw_disc, keep_for_a_look, names_at_head, save_grey, TempDi
 const FRAMES: usize = 12;
 
 /// One recording: a ball of radius 3-9 px (log-uniform), 100-200 grey levels over a
-/// background of 20-60, thrown on a parabola at 4-10 of its radii a frame along x (a field
-/// of 1-4 px/frame² down, the top after 5.5-8 frames: in view throughout), across 30-60 static marks of radius 1-4 px at 5-25 % of its
-/// contrast, one of them beside its start (at 1.5-4 of its radii beyond their touching),
-/// none on its path; noise 0-4 grey levels; 12 frames of 480 x 320. Returns the folder, the
-/// ball's true positions per frame and its radius.
+/// background of 20-60, thrown on a parabola at 4-10 of its radii a frame along x (at most
+/// 34.5 px) under a field of 1-4 px/frame² down, its top after 5.5-8 frames (in view
+/// throughout), across 30-60 static marks of radius 1-4 px at 5-25 % of its contrast, one of
+/// them beside its start (1.5-4 of its radii beyond touching it), none on its path; noise
+/// 0-4 grey levels; 12 frames of 480 x 320. Returns the folder, the ball's true positions
+/// per frame and its radius.
 fn thrown_ball(seed: u64) -> (TempDir, Vec<[f64; 2]>, f64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (w, h) = (480usize, 320usize);
