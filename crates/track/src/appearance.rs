@@ -362,6 +362,14 @@ impl TrackAppearance {
         let zs = if zs.is_finite() { zs } else { 0.0 };
         (zm, zs)
     }
+
+    /// The squared standardised distance of a candidate `a` (one particle's image, sizes
+    /// compared) from the track's latest appearance: the sum of the squares of [`Self::z`],
+    /// a chi-square of two degrees of freedom where the candidate is the particle.
+    pub fn distance2(&self, a: &Appearance) -> f64 {
+        let (zm, zs) = self.z(a, true);
+        zm * zm + zs * zs
+    }
 }
 
 /// A track's located appearances (each with its frame index, oldest first), with the

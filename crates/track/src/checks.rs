@@ -479,10 +479,17 @@ const ERRATIC_RUNS: usize = 3;
 /// from its own blob to where no other was, and wanders off.
 fn erratic(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Concern> {
     let detected = |p: &TrackPoint| p.flag == PointFlag::Detected;
-    let thirds: Vec<[f64; 2]> = points
-        .windows(4)
-        .filter(|w| w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1))
-        .map(|w| {
+    // The runs: where four consecutive detected frames start.
+    let runs: Vec<usize> = (0..points.len().saturating_sub(3))
+        .filter(|&i| {
+            let w = &points[i..i + 4];
+            w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1)
+        })
+        .collect();
+    let thirds: Vec<[f64; 2]> = runs
+        .iter()
+        .map(|&i| {
+            let w = &points[i..i + 4];
             let third = |c: fn(&TrackPoint) -> f64| c(w[3]) - 3.0 * c(w[2]) + 3.0 * c(w[1]) - c(w[0]);
             [third(|p| p.x), third(|p| p.y)]
         })
@@ -514,14 +521,14 @@ fn erratic(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Co
     // The steps of the runs measured, and how many of them hopped onto another blob: the
     // point they land on lies nearer another blob of the frame before than half the step,
     // or the point they leave nearer another blob of the frame after.
-    let mut steps: Vec<(&TrackPoint, &TrackPoint)> = points
-        .windows(4)
-        .filter(|w| w.iter().all(|p| detected(p)) && w.windows(2).all(|q| q[1].frame == q[0].frame + 1))
-        .flat_map(|w| [(w[0], w[1]), (w[1], w[2]), (w[2], w[3])])
-        .collect();
-    steps.sort_by_key(|s| s.0.frame);
-    steps.dedup_by_key(|s| s.0.frame);
-    let hops = steps.iter().try_fold((0, 0), |(hops, of), (a, b)| {
+    let mut in_runs = vec![false; points.len()];
+    for &i in &runs {
+        in_runs[i..i + 3].fill(true);
+    }
+    let mut steps = (0..points.len())
+        .filter(|&i| in_runs[i])
+        .map(|i| (points[i], points[i + 1]));
+    let hops = steps.try_fold((0, 0), |(hops, of), (a, b)| {
         let (a, b) = ((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y]));
         let hop = blobs.hop_site(a, b.1)? || blobs.hop_site(b, a.1)?;
         Some((hops + usize::from(hop), of + 1))

@@ -152,7 +152,7 @@ impl<'o> Linker<'o> {
         let next_points: Vec<[f64; 2]> =
             next.map_or(Vec::new(), |f| f.detections.iter().map(|d| [d.x, d.y]).collect());
         let next_grid = PointGrid::new(&next_points);
-        let det_nn = nearest_other(&det_points);
+        let det_nn: Vec<f64> = det_points.iter().map(|p| det_grid.nearest_other(p)).collect();
         let nn = nearest_other(&starts.iter().map(|s| s.1).collect::<Vec<_>>());
         let assign = self.match_starts(dets, starts, &nn);
         // The particles that start in each blob.
@@ -242,8 +242,7 @@ impl<'o> Linker<'o> {
         });
         let alike = |d: &Detection, t: usize| match (look, Appearance::of(d, 1)) {
             (Some(look), Some(a)) => {
-                let (zm, zs) = look.z(&self.levels.apply(a, t), true);
-                zm * zm + zs * zs <= APPEARANCE_GATE_SIGMAS * APPEARANCE_GATE_SIGMAS
+                look.distance2(&self.levels.apply(a, t)) <= APPEARANCE_GATE_SIGMAS * APPEARANCE_GATE_SIGMAS
             }
             _ => true,
         };
@@ -408,15 +407,11 @@ impl<'o> Linker<'o> {
         // The two changes are judged together (their squared sum, as a chi-square).
         // A candidate that looks like the particle's usual self passes too (its image
         // coming back after a few blurred or shadowed frames).
-        let d2_of = |look: &TrackAppearance| {
-            let (zm, zs) = look.z(&a, true);
-            zm * zm + zs * zs
-        };
         let usual = TrackAppearance {
             last: look.usual,
             ..*look
         };
-        let d2 = d2_of(look).min(d2_of(&usual));
+        let d2 = look.distance2(&a).min(usual.distance2(&a));
         (d2 <= gate * gate).then_some(d2)
     }
 

@@ -267,6 +267,8 @@ pub(super) fn start_tracks(
         // their first step, and their tracks, extrapolated, took other discs' blobs (40
         // discs of 1.5-4 px at steps of 0.3-1.0 of (R + 1) a frame per axis: 199 identity
         // switches in 12 recordings, against 25 for linking each to the nearest blob; 14 since).
+        // A named track's first step is gated more narrowly (`Linker::first_step_reach`):
+        // there the blobs beside it are nobody's tracks, and nothing competes for them.
         let init = nn.min(diagonal(o)) / GATE_SIGMAS;
         let name = tracks.len().to_string();
         let mut track = Track::new(
