@@ -477,9 +477,14 @@ fn track_frames(
         if options.named_start.is_some() {
             let radii: Vec<String> = classes.iter().map(|c| format!("{:.2}", c.sizes.radius)).collect();
             let mut concerns: Vec<String> = concerns.into_iter().map(|c| c.text).collect();
+            // The structure gives each particle where it is in the first frame tracked: a window
+            // started later than the frame those positions were read in starts the tracks on
+            // whatever lies there (the ball toss from frame 3 with its frame-2 position took the
+            // hand, radius read 65 px).
             concerns.push(format!(
                 "no tracks written: if the particles are larger or smaller than {} px in radius, give it with \
-                 --radius; if they are held or hidden in the first frames (a hand), start after that with --window",
+                 --radius; if they are held or hidden in the first frames (a hand), start after that with --window; \
+                 the structure's positions must be where the particles are in frame {first}, the first frame tracked",
                 radii.join(" or ")
             ));
             return Err(TrackError::NotFollowed { concerns });

@@ -59,6 +59,35 @@ fn ball_toss_follows_the_hand_clicks_within_two_pixels() {
     );
 }
 
+/// The ball toss started a frame or more after the one its structure position was read in
+/// (frame 2): the hand lies near that position in frames 3-5, the track starts on it (radius
+/// read 31-65 px) and is refused. The refusal says that the structure's positions must be
+/// the particles' in the first frame tracked, and names that frame.
+#[test]
+fn a_window_started_after_the_structures_frame_is_refused_and_says_so() {
+    let Some(dir) = real_dir("ball-toss") else { return };
+    for start in [3, 5] {
+        let err = physfit_track::track_folder(
+            &dir.join("frames"),
+            &TrackOptions {
+                named_start: Some(vec![("ball".into(), [131.3, 207.9])]),
+                window: Some((start, 12)),
+                ..TrackOptions::default()
+            },
+            &|_, _| {},
+        )
+        .err()
+        .unwrap_or_else(|| panic!("ball-toss from frame {start} with its frame-2 position was tracked"))
+        .to_string();
+        assert!(
+            err.contains(&format!(
+                "where the particles are in frame {start}, the first frame tracked"
+            )),
+            "ball-toss from frame {start}: {err}"
+        );
+    }
+}
+
 /// The bouncing-ball recording tracked with the ball named at its frame-0 position (from the
 /// recording's structure file).
 fn bouncing_ball_named(dir: &Path) -> TrackOutcome {
