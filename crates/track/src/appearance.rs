@@ -25,6 +25,13 @@
 use crate::point_grid::PointGrid;
 use physfit_tracks::stats::{robust_spread_upper, MAD_TO_SIGMA};
 
+/// The spread of the change of a particle's log mass between two frames that the pixel noise
+/// alone makes (see the module doc): `2 √2 ep / W` for a particle located to `ep` px in a
+/// centroid window of radius `window` px (taken as 1 px at least).
+pub(crate) fn ln_mass_noise_spread(ep: f64, window: f64) -> f64 {
+    2.0 * std::f64::consts::SQRT_2 * ep / window.max(1.0)
+}
+
 use crate::link::FrameDetections;
 use crate::locate::Detection;
 
@@ -497,9 +504,7 @@ impl AppearanceHistory {
         };
         let ep = usual.ep;
         let spread = AppearanceSpread {
-            ln_mass: own
-                .ln_mass
-                .max(2.0 * std::f64::consts::SQRT_2 * ep / window.max(1.0)),
+            ln_mass: own.ln_mass.max(ln_mass_noise_spread(ep, window)),
             // Unknown (NaN) stays unknown: sizes are then not compared.
             size: if own.size.is_finite() {
                 own.size.max(std::f64::consts::SQRT_2 * ep)
@@ -775,7 +780,7 @@ mod tests {
             last: medians(&history[history.len().saturating_sub(3)..]),
             usual,
             spread: AppearanceSpread {
-                ln_mass: own_m.max(2.0 * std::f64::consts::SQRT_2 * usual.ep / window),
+                ln_mass: own_m.max(ln_mass_noise_spread(usual.ep, window)),
                 size: if own_s.is_finite() {
                     own_s.max(std::f64::consts::SQRT_2 * usual.ep)
                 } else {

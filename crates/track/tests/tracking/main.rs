@@ -14,3 +14,4 @@ mod scenes;
 mod styles;
 mod sweep;
 mod thrown;
+mod traps;
