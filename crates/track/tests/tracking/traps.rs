@@ -180,3 +180,54 @@ fn beads_jittering_in_traps_are_followed_and_not_taken_for_hops() {
     println!("{report}");
     assert!(wrong.is_empty(), "{wrong:?}\n{report}");
 }
+
+/// Faint beads of one size (seeds 7620-7631, about 3 noise deviations high), named: their
+/// scales in the first frame scatter with the noise, and a gap between two of them can split
+/// the beads into two size classes; each class links alone and sees the other's beads as
+/// free blobs (a track of one class, its bead missed for two frames, took a bead of the other
+/// 55 px away, written with a warning). They must be followed as one size, every bead under
+/// its own name. Measured: 12 of 12, RMS 0.18-0.24 px; while classes 1.3 apart stayed apart,
+/// 7622 was split into two sizes (one measured at 2.68 px) and refused, a track having jumped
+/// 23 px; before the checks asked whether a track keeps its image's mass, all 12 were refused
+/// (their tracks called hops).
+#[test]
+fn faint_beads_of_one_size_are_followed_as_one_size() {
+    let mut report = String::new();
+    let (mut wrong, mut refused) = (Vec::new(), 0);
+    for seed in 7620..7632u64 {
+        let Traps {
+            dir,
+            truth,
+            starts,
+            radius,
+            spread,
+        } = trapped_beads(seed, true);
+        let options = TrackOptions {
+            threads: Some(1),
+            named_start: Some(starts),
+            ..TrackOptions::default()
+        };
+        let label = format!("seed {seed}: R {radius:.2} px, spread {spread:.2} px per axis");
+        match track_folder(dir.path(), &options, &|_, _| {}) {
+            Ok(outcome) => {
+                let s = score_tracks(&outcome.table, &truth, radius);
+                report.push_str(&format!(
+                    "{label}: recall {:.3}, switches {}, wrong names {:?}, RMS {:.3}/{:.3} px, radii {:?}\n",
+                    s.recall, s.id_switches, s.name_mismatches, s.rms_x, s.rms_y, outcome.stats.radii
+                ));
+                if outcome.stats.radii.len() != 1 || s.id_switches > 0 || s.name_mismatches != Some(0) {
+                    wrong.push(seed);
+                }
+            }
+            Err(e) => {
+                report.push_str(&format!("{label}: refused: {e}\n"));
+                refused += 1;
+            }
+        }
+    }
+    println!("{report}");
+    assert!(
+        wrong.is_empty() && refused == 0,
+        "{wrong:?}, {refused} refused\n{report}"
+    );
+}
