@@ -8,7 +8,7 @@ use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackT
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::common::{draw_disc, gauss, keep_for_a_look, save_grey, TempDir};
+use crate::common::{draw_disc, gauss, keep_for_a_look, said_to_jump_about, save_grey, TempDir};
 
 /// Frames of each recording.
 const FRAMES: usize = 30;
@@ -116,11 +116,7 @@ fn small_discs_in_brownian_motion_are_not_taken_for_hops() {
         if std::env::var("PHYSFIT_SWEEP_DEBUG").is_ok() {
             report.push_str(&format!("  {:?}\n", outcome.warnings));
         }
-        let hops = outcome
-            .warnings
-            .iter()
-            .filter(|w| w.contains("positions jump about"))
-            .count();
+        let hops = said_to_jump_about(&outcome);
         report.push_str(&format!(
             "seed {seed}: R {radius:.2} px, steps {sigma:.2} px per axis: recall {:.3}, switches {}, RMS {:.3}/{:.3} px, {hops} said to hop\n",
             s.recall, s.id_switches, s.rms_x, s.rms_y

@@ -128,6 +128,15 @@ pub fn track(dir: &Path, options: &TrackOptions) -> TrackOutcome {
         .unwrap_or_else(|e| panic!("tracking {} failed: {e}", dir.display()))
 }
 
+/// How many of an outcome's warnings say a track's positions jump about (the hopping check).
+pub fn said_to_jump_about(outcome: &TrackOutcome) -> usize {
+    outcome
+        .warnings
+        .iter()
+        .filter(|w| w.contains("positions jump about"))
+        .count()
+}
+
 /// Scores an outcome against a truth table; a point farther than the particle radius from a
 /// true centre is on another particle or none, so it never matches.
 pub fn score(outcome: &TrackOutcome, truth: &TrackTable) -> TrackScore {

@@ -10,7 +10,7 @@ use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackT
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::common::{draw_disc, gauss, keep_for_a_look, save_grey, TempDir};
+use crate::common::{draw_disc, gauss, keep_for_a_look, said_to_jump_about, save_grey, TempDir};
 
 /// Frames of each recording.
 const FRAMES: usize = 40;
@@ -41,31 +41,15 @@ struct Traps {
 /// times (radius plus 1 px).
 fn trapped_beads(seed: u64, faint: bool) -> Traps {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (radius, background, noise, contrast, spread) = if faint {
-        let radius = rng.gen_range(1.8..2.5);
-        let background = rng.gen_range(20.0..60.0);
-        let noise = rng.gen_range(10.0..15.0);
-        let contrast = noise * rng.gen_range(2.6..3.2);
-        (
-            radius,
-            background,
-            noise,
-            contrast,
-            (radius + 1.0) * rng.gen_range(0.4..0.6),
-        )
+    let radius = if faint {
+        rng.gen_range(1.8..2.5)
     } else {
-        let radius = (1.5f64.ln() + (5f64.ln() - 1.5f64.ln()) * rng.gen::<f64>()).exp();
-        let background = rng.gen_range(20.0..60.0);
-        let noise = rng.gen_range(2.0..15.0);
-        let contrast = noise * rng.gen_range(3.0..25.0);
-        (
-            radius,
-            background,
-            noise,
-            contrast,
-            (radius + 1.0) * rng.gen_range(0.35..0.8),
-        )
+        (1.5f64.ln() + (5f64.ln() - 1.5f64.ln()) * rng.gen::<f64>()).exp()
     };
+    let background = rng.gen_range(20.0..60.0);
+    let noise = rng.gen_range(if faint { 10.0..15.0 } else { 2.0..15.0 });
+    let contrast = noise * rng.gen_range(if faint { 2.6..3.2 } else { 3.0..25.0 });
+    let spread = (radius + 1.0) * rng.gen_range(if faint { 0.4..0.6 } else { 0.35..0.8 });
     let correlation: f64 = rng.gen_range(0.0..0.5);
     let apart = 2.0 * radius + 12.0 * spread;
     let margin = radius + 4.0 * spread + 2.0;
@@ -138,22 +122,19 @@ fn beads_jittering_in_traps_are_followed_and_not_taken_for_hops() {
     let mut report = String::new();
     let mut wrong = Vec::new();
     for seed in 7600..7612u64 {
-        let Traps {
-            dir,
-            truth,
-            starts,
-            radius,
-            spread,
-        } = trapped_beads(seed, false);
-        let label = format!("seed {seed}: R {radius:.2} px, spread {spread:.2} px per axis");
+        let t = trapped_beads(seed, false);
+        let label = format!(
+            "seed {seed}: R {:.2} px, spread {:.2} px per axis",
+            t.radius, t.spread
+        );
         for named in [false, true] {
             let options = TrackOptions {
                 threads: Some(1),
-                named_start: named.then(|| starts.clone()),
+                named_start: named.then(|| t.starts.clone()),
                 ..TrackOptions::default()
             };
             let kind = if named { "named" } else { "unnamed" };
-            let outcome = match track_folder(dir.path(), &options, &|_, _| {}) {
+            let outcome = match track_folder(t.dir.path(), &options, &|_, _| {}) {
                 Ok(o) => o,
                 Err(e) => {
                     report.push_str(&format!("{label}: {kind}: refused: {e}\n"));
@@ -161,12 +142,8 @@ fn beads_jittering_in_traps_are_followed_and_not_taken_for_hops() {
                     continue;
                 }
             };
-            let s = score_tracks(&outcome.table, &truth, radius);
-            let hops = outcome
-                .warnings
-                .iter()
-                .filter(|w| w.contains("positions jump about"))
-                .count();
+            let s = score_tracks(&outcome.table, &t.truth, t.radius);
+            let hops = said_to_jump_about(&outcome);
             report.push_str(&format!(
                 "{label}: {kind}: recall {:.3}, switches {}, wrong names {:?}, RMS {:.3}/{:.3} px, radii {:?}, {hops} said to jump about\n",
                 s.recall, s.id_switches, s.name_mismatches, s.rms_x, s.rms_y, outcome.stats.radii
@@ -195,22 +172,19 @@ fn faint_beads_of_one_size_are_followed_as_one_size() {
     let mut report = String::new();
     let (mut wrong, mut refused) = (Vec::new(), 0);
     for seed in 7620..7632u64 {
-        let Traps {
-            dir,
-            truth,
-            starts,
-            radius,
-            spread,
-        } = trapped_beads(seed, true);
+        let t = trapped_beads(seed, true);
         let options = TrackOptions {
             threads: Some(1),
-            named_start: Some(starts),
+            named_start: Some(t.starts),
             ..TrackOptions::default()
         };
-        let label = format!("seed {seed}: R {radius:.2} px, spread {spread:.2} px per axis");
-        match track_folder(dir.path(), &options, &|_, _| {}) {
+        let label = format!(
+            "seed {seed}: R {:.2} px, spread {:.2} px per axis",
+            t.radius, t.spread
+        );
+        match track_folder(t.dir.path(), &options, &|_, _| {}) {
             Ok(outcome) => {
-                let s = score_tracks(&outcome.table, &truth, radius);
+                let s = score_tracks(&outcome.table, &t.truth, t.radius);
                 report.push_str(&format!(
                     "{label}: recall {:.3}, switches {}, wrong names {:?}, RMS {:.3}/{:.3} px, radii {:?}\n",
                     s.recall, s.id_switches, s.name_mismatches, s.rms_x, s.rms_y, outcome.stats.radii
