@@ -25,15 +25,15 @@
 use crate::point_grid::PointGrid;
 use physfit_tracks::stats::{robust_spread_upper, MAD_TO_SIGMA};
 
+use crate::link::FrameDetections;
+use crate::locate::Detection;
+
 /// The spread of the change of a particle's log mass between two frames that the pixel noise
 /// alone makes (see the module doc): `2 √2 ep / W` for a particle located to `ep` px in a
 /// centroid window of radius `window` px (taken as 1 px at least).
 pub(crate) fn ln_mass_noise_spread(ep: f64, window: f64) -> f64 {
     2.0 * std::f64::consts::SQRT_2 * ep / window.max(1.0)
 }
-
-use crate::link::FrameDetections;
-use crate::locate::Detection;
 
 /// Changes between successive located points needed before a track's own spread is used
 /// (the median absolute deviation of fewer is too often near zero by chance).
