@@ -52,6 +52,7 @@ use std::collections::BTreeMap;
 use crate::appearance::ln_mass_noise_spread;
 use crate::frames::FrameView;
 use crate::link::FrameDetections;
+use crate::locate::locate_window;
 use crate::point_grid::PointGrid;
 #[cfg(doc)]
 use crate::rim::rim_centre;
@@ -568,8 +569,8 @@ const STEADY_MASS_CHANGES: usize = 3;
 /// Whether the track `points` (frame order; particles of radius `radius` px) keeps its
 /// image's mass: the median of `|ln(m₂ / m₁)|` over consecutive detected frames is at most
 /// [`STEADY_MASS_CHANGE`] plus the spread the pixel noise makes it change by at the track's
-/// median position error ([`ln_mass_noise_spread`], in a window of `radius + 1` px, the
-/// linker's), from [`STEADY_MASS_CHANGES`] changes at least of positive masses (`false`
+/// median position error ([`ln_mass_noise_spread`], over the centroid window,
+/// [`locate_window`]), from [`STEADY_MASS_CHANGES`] changes at least of positive masses (`false`
 /// with fewer). Such a track follows one object, even where it does not move away as a
 /// random walk does (a bead jittering in a trap, a particle in a cage of neighbours:
 /// isolated beads of 2 px jittering by 1-2 px a frame about fixed places had their tracks,
@@ -590,7 +591,7 @@ fn keeps_its_mass(points: &[&TrackPoint], radius: f64) -> bool {
     let noise = if eps.is_empty() {
         0.0
     } else {
-        ln_mass_noise_spread(physfit_tracks::stats::median(&mut eps), radius + 1.0)
+        ln_mass_noise_spread(physfit_tracks::stats::median(&mut eps), locate_window(radius))
     };
     physfit_tracks::stats::median(&mut changes) <= STEADY_MASS_CHANGE + noise
 }

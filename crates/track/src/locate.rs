@@ -83,6 +83,19 @@ const MAX_FOLLOW: f64 = 0.95;
 /// Sums of [`window_stats`]: Σ w s, Σ w s dx, Σ w s dy, Σ w s r², Σ w² r², Σ_ramp f s r.
 const SUMS: usize = 6;
 
+/// Centroid window radius for particles of radius `radius` (at half the peak signal), px:
+/// the disc, its anti-aliased edge (half a pixel) and the half-pixel ramp of the window
+/// weight, so the window holds all of an isolated disc's signal and as little background
+/// noise as possible. Every background pixel in the window adds noise to the centroid in
+/// proportion to its distance from the centre, so the centroid's error grows as the square
+/// of the window radius: at `radius + 1` it is about 0.0022 px per grey level of pixel noise
+/// for the discs (radius 4, amplitude 200), against 0.0031 at `1.25 radius + 1`.
+/// Blur widens the measured radius, and with it the window. The linker compares appearances
+/// over it too.
+pub(crate) fn locate_window(radius: f64) -> f64 {
+    radius + 1.0
+}
+
 /// Refines seed positions (px) to sub-pixel centroids on `signal` (`width * height`,
 /// row-major, particles positive) with window radius `window` px. Seeds whose window
 /// holds no positive signal, or whose estimate runs off by more than the window, are

@@ -26,7 +26,7 @@ use super::track::{point_from, smooth_bridges, speed, start_tracks, Point, Predi
 use super::{APPEARANCE_GATE_SIGMAS, GATE_SIGMAS};
 use crate::appearance::{Appearance, AppearanceHistory, AppearanceLevels, AppearanceSpread, TrackAppearance};
 use crate::assignment::{solve_sparse, SparseProblem};
-use crate::locate::Detection;
+use crate::locate::{locate_window, Detection};
 use crate::point_grid::{nearest_other, PointGrid};
 use crate::track_table::{PointFlag, TrackPoint, TrackTable};
 
@@ -238,7 +238,7 @@ impl<'o> Linker<'o> {
         let look = Appearance::of(&first.detections[j], 1).and_then(|a| {
             let mut history = AppearanceHistory::default();
             history.push(first.frame, self.levels.apply(a, first.frame));
-            history.appearance(first.frame + 1, self.pooled, self.r + 1.0)
+            history.appearance(first.frame + 1, self.pooled, locate_window(self.r))
         });
         let alike = |d: &Detection, t: usize| match (look, Appearance::of(d, 1)) {
             (Some(look), Some(a)) => {
@@ -382,7 +382,7 @@ impl<'o> Linker<'o> {
             .get_or_init(|| {
                 self.tracks[view.live[k]]
                     .apps
-                    .appearance(view.t, self.pooled, self.r + 1.0)
+                    .appearance(view.t, self.pooled, locate_window(self.r))
             })
             .as_ref()
     }

@@ -324,14 +324,4 @@ impl Workers {
         self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 }
-/// Centroid window radius for particles of radius `radius` (at half the peak signal), px:
-/// the disc, its anti-aliased edge (half a pixel) and the half-pixel ramp of the window
-/// weight, so the window holds all of an isolated disc's signal and as little background
-/// noise as possible. Every background pixel in the window adds noise to the centroid in
-/// proportion to its distance from the centre, so the centroid's error grows as the square
-/// of the window radius: at `radius + 1` it is about 0.0022 px per grey level of pixel noise
-/// for the discs (radius 4, amplitude 200), against 0.0031 at `1.25 radius + 1`.
-/// Blur widens the measured radius, and with it the window.
-pub(super) fn locate_window(radius: f64) -> f64 {
-    radius + 1.0
-}
+pub(super) use crate::locate::locate_window;
