@@ -418,7 +418,7 @@ pub(crate) fn check_tracks(
         if let Some(concern) = skirt_concern(skirts.get(particle), radius)
             .or_else(|| located.get(particle).and_then(|m| off_rim(m)))
             .or_else(|| erratic(&points, radius, &blobs))
-            .or_else(|| jumped(&points, radius))
+            .or_else(|| jumped(&points, radius, &blobs))
         {
             out.push(TrackConcern {
                 particle: particle.to_string(),
@@ -683,7 +683,8 @@ const JUMP_FACTOR: f64 = 3.0;
 /// [`Concern::Jumped`] at the largest step per frame between two detected points of
 /// `points` (one track, frame order; frames missing between them allowed) that exceeds
 /// [`JUMP_FACTOR`] times the faster of the nearest steps between consecutive detected frames
-/// before it and after it (one at least measured), plus the diameter of a particle of
+/// before it and after it (at a track's end, the two nearest on its one side where the step
+/// lands on no other blob of `blobs` and leaves none; one at least measured), plus the diameter of a particle of
 /// radius `radius` (px) spread over the frames between the two points. A continuous motion's step over a frame lies between the steps
 /// either side of it, give or take its acceleration: a bounce reverses the step but keeps its
 /// size, a kick from rest is followed by steps as large as the kick's, and a frame lost from
@@ -692,7 +693,7 @@ const JUMP_FACTOR: f64 = 3.0;
 /// 24 px under a saturating exposure drift): the small sphere's track, lost at frame 11, took
 /// the large one's highlight at frame 12, 125 px away, moving 1.5 and 2.6 px a frame before
 /// and after.
-fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
+fn jumped(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Concern> {
     let detected: Vec<&TrackPoint> = points
         .iter()
         .copied()
@@ -714,9 +715,35 @@ fn jumped(points: &[&TrackPoint], radius: f64) -> Option<Concern> {
         // The nearest steps between consecutive frames on either side: two points found
         // after a gap on two other images make a step with no consecutive neighbour (fresh
         // 6165: 39 px in a frame between them, after the spot had moved 0.2-1.8 px a frame).
-        let before = steps[..i].iter().rev().find(|q| q.1).map(|q| q.0);
-        let after = steps[i + 1..].iter().find(|q| q.1).map(|q| q.0);
-        let around = before.into_iter().chain(after).reduce(f64::max)?;
+        // Two of them: the nearest on each side. At a track's end, where one side has none,
+        // the two nearest on the other side, unless the step lands on another blob or leaves
+        // one (a hop there is judged against its one neighbour: fresh 8312's last step, 65.6
+        // px onto another particle after steps of 0.8 and 23 px between two images). Against
+        // one alone, a random walk's step is three times its neighbour's one time in ten (the
+        // squared ratio of two Rayleigh steps is F(2, 2)); against the larger of two, one in
+        // sixty. Beads jittering in traps were refused at their tracks' first or last step
+        // (trap 7664: 15.4 px a frame against the 2.1 px of its one neighbour, where the
+        // bead's steps spread 5 px per axis).
+        let consecutive = |side: &mut dyn Iterator<Item = &(f64, bool)>| -> Vec<f64> {
+            side.filter(|q| q.1).map(|q| q.0).take(2).collect()
+        };
+        let before = consecutive(&mut steps[..i].iter().rev());
+        let after = consecutive(&mut steps[i + 1..].iter());
+        let around = match (before.first(), after.first()) {
+            (Some(&b), Some(&a)) => b.max(a),
+            (None, None) => return None,
+            _ => {
+                let (a, b) = (detected[i], detected[i + 1]);
+                let (a, b) = ((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y]));
+                let lone = blobs.hop_site(a, b.1) == Some(false) && blobs.hop_site(b, a.1) == Some(false);
+                let side = if before.is_empty() { after } else { before };
+                if lone {
+                    side.into_iter().fold(0.0, f64::max)
+                } else {
+                    side[0]
+                }
+            }
+        };
         let gap = (detected[i + 1].frame - detected[i].frame) as f64;
         (s > JUMP_FACTOR * around + 2.0 * radius / gap).then_some((i, s, around))
     });
@@ -1550,7 +1577,13 @@ mod tests {
                 .filter_map(|k| at(k).map(|p| TrackPoint::new(k, "p0".to_string(), p[0], p[1])))
                 .collect()
         };
-        let judged = |points: &[TrackPoint], radius: f64| jumped(&points.iter().collect::<Vec<_>>(), radius);
+        let judged = |points: &[TrackPoint], radius: f64| {
+            jumped(
+                &points.iter().collect::<Vec<_>>(),
+                radius,
+                &FrameBlobs::new(&[], &[]),
+            )
+        };
         let taken = track(&|k| match k {
             0..=10 => Some([210.0 + 1.5 * k as f64, 100.0]),
             11 => None,
@@ -1653,6 +1686,50 @@ mod tests {
             Some([x, y])
         });
         assert_eq!(judged(&walk, 1.5), None);
+        // A bead jittering in a trap (radius 4 px), its first step 15.4 px, the next 2.1 and
+        // the one after 6.0, alone in its frames: the first step is judged against the larger
+        // of the two, as an interior step is against the larger of its two neighbours. With
+        // another blob where it lands, or no frames to tell, against the one after it alone:
+        // a jump. The same step between steps of 2.1 px is a jump, alone or not.
+        use crate::link::tests::frame;
+        // Steps of the given lengths, turning back and forth.
+        let steps = |lengths: &[f64]| {
+            track(&|k| {
+                let x =
+                    (lengths.iter().take(k).enumerate())
+                        .fold(50.0, |x, (j, l)| if j % 2 == 0 { x + l } else { x - l });
+                (k <= lengths.len()).then_some([x, 80.0])
+            })
+        };
+        let with_blobs = |points: &[TrackPoint], other: Option<[f64; 2]>| {
+            let frames: Vec<FrameDetections> = points
+                .iter()
+                .map(|p| {
+                    frame(
+                        p.frame,
+                        &[[p.x, p.y]].into_iter().chain(other).collect::<Vec<_>>(),
+                    )
+                })
+                .collect();
+            let positions = FrameBlobs::positions(&frames);
+            let blobs = FrameBlobs::new(&frames, &positions);
+            jumped(&points.iter().collect::<Vec<_>>(), 4.0, &blobs)
+        };
+        let bead = steps(&[15.4, 2.1, 6.0, 4.0]);
+        assert_eq!(with_blobs(&bead, None), None);
+        assert!(matches!(
+            with_blobs(&bead, Some([65.4, 81.0])),
+            Some(Concern::Jumped { frames: (0, 1), .. })
+        ));
+        assert!(matches!(
+            judged(&bead, 4.0),
+            Some(Concern::Jumped { frames: (0, 1), .. })
+        ));
+        let between = steps(&[2.1, 2.1, 15.4, 2.1, 2.1]);
+        assert!(matches!(
+            with_blobs(&between, None),
+            Some(Concern::Jumped { frames: (2, 3), .. })
+        ));
     }
 
     /// A ball of 5 px thrown up and falling back at 30 frames/s (its step changing by 18 px a
