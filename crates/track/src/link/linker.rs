@@ -433,9 +433,25 @@ impl<'o> Linker<'o> {
         // a neighbour whose tight prediction sits a few of its own widths off (paper5 under
         // a field of 60 px/s²: p4 left the view, and 15 frames later took p3's blob 37 px
         // from its prediction, 3 px from p3's). Tracks bridged through a crossing for a few
-        // frames do not: there the widths are those of the motion, not of ignorance.
-        for (k, &Prediction { at: p, scale: s, .. }) in view.preds.iter().enumerate() {
-            let breadth = if self.tracks[view.live[k]].misses > self.options.memory {
+        // frames do not: there the widths are those of the motion, not of ignorance. An
+        // unnamed track seen once and then missed has learned no motion either, and may be a
+        // noise speck's: its width is a first guess grown by the misses (one, unseen for two
+        // frames, took a bead's blob 30 px off, 2.7 px from the bead's own track's
+        // prediction, and the bead's track lost it). A named track is a particle: the first
+        // frames of close pairs are not to be decided by which was seen in frame 1.
+        for (
+            k,
+            &Prediction {
+                at: p,
+                scale: s,
+                learned,
+                ..
+            },
+        ) in view.preds.iter().enumerate()
+        {
+            let misses = self.tracks[view.live[k]].misses;
+            let speck = !self.named && learned == 0 && misses > 0;
+            let breadth = if misses > self.options.memory || speck {
                 4.0 * (s / self.floor).max(1.0).ln()
             } else {
                 0.0
@@ -563,8 +579,14 @@ impl<'o> Linker<'o> {
             if !self.named && tr.seen < 2 {
                 continue;
             }
-            let Prediction { at: p, scale: s, .. } = view.preds[k];
-            let g = (GATE_SIGMAS * s * 2.0).max(2.0 * self.r + speed(tr));
+            let pred = &view.preds[k];
+            let (p, s) = (pred.at, pred.scale);
+            // A scale learned from a few residuals may be far too small (a jittering bead's
+            // first steps lined up by chance, then it turned 7 px from the line: the track
+            // ended and a second one took the bead), so the gate allows for its uncertainty.
+            let g = (GATE_SIGMAS * s * 2.0)
+                .max(2.0 * self.r + speed(tr))
+                .max(pred.learned_gate());
             for (b, &j) in free.iter().enumerate() {
                 let q = view.points[j];
                 let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2);

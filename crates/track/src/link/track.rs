@@ -47,6 +47,36 @@ pub(super) struct Prediction {
     pub(super) scale: f64,
     /// The extrapolations it was chosen from, which the observation then grades.
     pub(super) ahead: Extrapolations,
+    /// Residuals the scale was learned from (0 while it is the track's first guess).
+    pub(super) learned: u32,
+    /// How far the particle can have gone from the prediction, px: twice the recording's
+    /// step bound for each frame since the newest anchor, plus a diameter (infinite while
+    /// the recording has no step bound yet).
+    pub(super) reach: f64,
+}
+
+impl Prediction {
+    /// A gate (px) as sure to hold the particle as [`GATE_SIGMAS`] scales would be if the
+    /// scale were known, for a scale learned from [`Prediction::learned`] residuals, and no
+    /// wider than [`Prediction::reach`]. The squared distance over twice the learned squared
+    /// scale is F(2, ν)-distributed, ν being twice the residuals' effective number under the
+    /// running mean's weights; its tail at `f` is `(1 + 2f/ν)^(−ν/2)`, equal to the known
+    /// scale's `exp(−G²/2)` at `2f = ν (exp(G²/ν) − 1)`. One residual gives 77 scales, two
+    /// 19, three 10, and many 5.9 (the running mean weighs about 5.7 residuals). A first
+    /// guess (no residual) is left at [`GATE_SIGMAS`]: it is not learned from the track.
+    pub(super) fn learned_gate(&self) -> f64 {
+        if self.learned == 0 || !self.reach.is_finite() {
+            return GATE_SIGMAS * self.scale;
+        }
+        // Σ w² of the running mean after n residuals: the first weighs (1 − a)^(n − 1), the
+        // k-th from the newest a (1 − a)^k.
+        let keep = (1.0 - RESIDUAL_RATE).powi(2 * (self.learned as i32 - 1));
+        let sum_w2 =
+            keep + RESIDUAL_RATE * RESIDUAL_RATE * (1.0 - keep) / (1.0 - (1.0 - RESIDUAL_RATE).powi(2));
+        let nu = 2.0 / sum_w2;
+        let g = (nu * (GATE_SIGMAS * GATE_SIGMAS / nu).exp_m1()).sqrt();
+        (g * self.scale).min(self.reach).max(GATE_SIGMAS * self.scale)
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -65,8 +95,8 @@ pub(super) struct Track {
     err_cp: Option<f64>,
     err_cv: Option<f64>,
     err_ca: Option<f64>,
-    /// Residuals learned by the constant acceleration prediction.
-    learned_ca: u32,
+    /// Residuals learned by the constant position, velocity and acceleration predictions.
+    learned: [u32; 3],
     /// Prediction scale before any velocity is known, px.
     init_scale: f64,
     pub(super) ended: bool,
@@ -90,7 +120,7 @@ impl Track {
             err_cp: None,
             err_cv: None,
             err_ca: None,
-            learned_ca: 0,
+            learned: [0; 3],
             init_scale,
             ended: false,
             apps: AppearanceHistory::default(),
@@ -173,7 +203,7 @@ impl Track {
         let order = match (self.err_cp, self.err_cv, self.err_ca) {
             (Some(c), Some(v), a) => {
                 let a = a
-                    .filter(|_| self.learned_ca >= CA_RESIDUALS)
+                    .filter(|_| self.learned[2] >= CA_RESIDUALS)
                     .map_or(f64::INFINITY, |a| a * h * h);
                 if a < v && a < c {
                     3
@@ -186,18 +216,24 @@ impl Track {
             _ => 2,
         };
         let err = [self.err_cp, self.err_cv, self.err_ca][order - 1];
-        let (p, scale) = match (ahead.orders[order - 1], err) {
-            (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow),
-            (Some(p), None) => (p, self.init_scale.max(floor) * grow),
-            _ => (self.at(newest), self.init_scale.max(floor) * grow),
+        let (p, scale, learned) = match (ahead.orders[order - 1], err) {
+            (Some(p), Some(e)) => (p, e.sqrt().max(floor) * grow, self.learned[order - 1]),
+            (Some(p), None) => (p, self.init_scale.max(floor) * grow, 0),
+            _ => (self.at(newest), self.init_scale.max(floor) * grow, 0),
         };
-        let scale = match step {
-            Some(step) => scale
-                .min((2.0 * h * step + 2.0 * radius) / GATE_SIGMAS)
-                .max(floor),
-            None => scale,
+        let reach = step.map_or(f64::INFINITY, |step| 2.0 * h * step + 2.0 * radius);
+        let scale = if reach.is_finite() {
+            scale.min(reach / GATE_SIGMAS).max(floor)
+        } else {
+            scale
         };
-        Prediction { at: p, scale, ahead }
+        Prediction {
+            at: p,
+            scale,
+            ahead,
+            learned,
+            reach,
+        }
     }
 
     /// Updates the running prediction errors with an observation for the next frame, given
@@ -216,7 +252,9 @@ impl Track {
         upd(&mut self.err_cp, cp);
         upd(&mut self.err_cv, cv);
         upd(&mut self.err_ca, ca);
-        self.learned_ca = self.learned_ca.saturating_add(u32::from(ca.is_some()));
+        for (n, p) in self.learned.iter_mut().zip(ahead.orders) {
+            *n = n.saturating_add(u32::from(p.is_some()));
+        }
     }
 }
 pub(super) fn point_from(d: &Detection, flag: PointFlag, crowded: bool) -> Point {
@@ -334,4 +372,43 @@ fn lagrange(knots: &[(f64, [f64; 2])], t: f64) -> [f64; 2] {
         out[1] += w * pa[1];
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The gate of a scale learned from 1, 2, 3 and many residuals (77, 19, 10 and 5.9
+    /// scales), never narrower than the known scale's, capped by the reach, and left at the
+    /// known scale's for a first guess or without a step bound.
+    #[test]
+    fn a_scale_learned_from_few_residuals_gets_a_wider_gate() {
+        let gate = |learned: u32, reach: f64| {
+            Prediction {
+                at: [0.0; 2],
+                scale: 1.0,
+                ahead: Extrapolations {
+                    newest: None,
+                    orders: [None; 3],
+                },
+                learned,
+                reach,
+            }
+            .learned_gate()
+        };
+        for (n, expected) in [(1, 77.20), (2, 18.80), (3, 10.07), (100, 5.93)] {
+            let g = gate(n, 1e9);
+            assert!((g - expected).abs() < 0.01, "{n} residuals: {g}");
+        }
+        assert!((gate(1, 20.0) - 20.0).abs() < 1e-12, "capped by the reach");
+        assert!(
+            (gate(100, 1.0) - GATE_SIGMAS).abs() < 1e-12,
+            "never under the known gate"
+        );
+        assert!((gate(0, 1e9) - GATE_SIGMAS).abs() < 1e-12, "a first guess");
+        assert!(
+            (gate(2, f64::INFINITY) - GATE_SIGMAS).abs() < 1e-12,
+            "no step bound"
+        );
+    }
 }

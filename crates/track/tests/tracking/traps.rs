@@ -205,3 +205,65 @@ fn faint_beads_of_one_size_are_followed_as_one_size() {
         "{wrong:?}, {refused} refused\n{report}"
     );
 }
+
+/// Fifty more recordings (seeds 7650-7699, 800 beads), a sweep of the same draw. Unnamed,
+/// every bead is one track from the first frame to the last (unmatched only where bridged,
+/// with a warning), and no track changes bead:
+/// before, 6 of the 50 made a 17th track, 2 of them without a word. A track whose first 3-4
+/// steps lined up by chance learned a small scale from those 2-3 residuals, and its bead's
+/// next turn fell outside the gate: the track ended and a new one took the bead (7652: the
+/// bead 7.46 px from a prediction of scale 0.88 px). Where a noise speck started a track,
+/// the speck's track took a bead's blob 30 px away from the bead's own track (7663). Named,
+/// every bead is followed under its name, or the run is refused; a step three times both
+/// nearest steps and a diameter more is refused as a hop, and a bead's steps in its trap
+/// are random (their squared ratio F(2, 2)), so 2 refusals in 50 are allowed (measured 2,
+/// both at a track's last step after two short ones; 4 before the first step was judged
+/// against the two steps after it).
+#[test]
+fn a_sweep_of_trapped_beads_gives_one_track_a_bead() {
+    let mut report = String::new();
+    let mut wrong = Vec::new();
+    let mut refused = Vec::new();
+    for seed in 7650..7700u64 {
+        let t = trapped_beads(seed, false);
+        let label = format!("seed {seed}: R {:.2} px, spread {:.2} px", t.radius, t.spread);
+        for named in [false, true] {
+            let options = TrackOptions {
+                threads: Some(1),
+                named_start: named.then(|| t.starts.clone()),
+                ..TrackOptions::default()
+            };
+            let kind = if named { "named" } else { "unnamed" };
+            let outcome = match track_folder(t.dir.path(), &options, &|_, _| {}) {
+                Ok(o) => o,
+                Err(e) => {
+                    report.push_str(&format!("{label}: {kind}: refused: {e}\n"));
+                    if named {
+                        refused.push(seed);
+                    } else {
+                        wrong.push((seed, kind));
+                    }
+                    continue;
+                }
+            };
+            let s = score_tracks(&outcome.table, &t.truth, t.radius);
+            let tracks = outcome.table.by_particle().len();
+            let bridged = outcome.stats.interpolated_count;
+            report.push_str(&format!(
+                "{label}: {kind}: {tracks} tracks, recall {:.3} ({bridged} points bridged), switches {}, wrong names {:?}\n",
+                s.recall, s.id_switches, s.name_mismatches
+            ));
+            let names_right = !named || s.name_mismatches == Some(0);
+            // A faint bead the detector misses in a frame is bridged there with a warning, and
+            // its jitter may put it farther from the bridge than a radius (unnamed 7667: 5 of
+            // 8 bridged points): only bridged points may be unmatched.
+            let unmatched = s.truth_count - s.matched_count;
+            if tracks != BEADS || unmatched > bridged || s.id_switches > 0 || !names_right {
+                wrong.push((seed, kind));
+            }
+        }
+    }
+    println!("{report}");
+    assert!(wrong.is_empty(), "{wrong:?}\n{report}");
+    assert!(refused.len() <= 2, "refused {refused:?}\n{report}");
+}
