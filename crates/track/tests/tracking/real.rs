@@ -223,7 +223,8 @@ fn bouncing_ball_sizes_come_from_the_moving_blob_without_a_structure() {
 /// reference (a brightness tracker) is itself 1.0 px RMS off its best circle, 2 px at the
 /// bottom of the swing, where it follows the part of the bob above the line (frame 15: the
 /// bob's rows run from 201 to 213, the reference says 202.8): the RMS over every frame is
-/// held to 2 px (measured 1.81).
+/// held to 2 px (measured 1.81). The string says which is right: the lines along it meet at
+/// the centre of the track's circle, 13 px from the reference's.
 #[test]
 fn pendulum_scale_bob_is_followed_whole_across_the_grid_lines() {
     let Some(dir) = real_dir("pendulum-scale") else {
@@ -285,6 +286,100 @@ fn pendulum_scale_bob_is_followed_whole_across_the_grid_lines() {
     assert!(ours_rms < 0.3, "the track is {ours_rms:.2} px RMS off a circle");
     assert!(median < 0.3, "median distance from the reference {median:.2} px");
     assert!(rms < 2.0, "{rms:.2} px RMS from the reference");
+    // Where the string points, a measure independent of both tracks: in every fifth frame
+    // where it leans 20 degrees or more, the line from the bob's centre along the string;
+    // the lines meet at the pivot, and the bob swings about it. Measured: the strings of 8
+    // frames meet within 0.48 px of one point, 3.0 px from the centre of the track's circle
+    // and 13.0 px from the reference's (whose radius is 13 px longer: its bob rides high at
+    // the bottom of the swing).
+    let frames_dir = dir.join("frames");
+    let mut names: Vec<_> = std::fs::read_dir(&frames_dir)
+        .expect("frames")
+        .flatten()
+        .map(|e| e.path())
+        .collect();
+    names.sort();
+    let c = fit_circle(&ours);
+    let strings: Vec<([f64; 2], [f64; 2])> = bob
+        .iter()
+        .filter(|p| p.frame % 5 == 0 && ((p.x - c[0]) / c[2]).abs() > 20f64.to_radians().sin())
+        .map(|p| {
+            let image = image::open(&names[p.frame]).expect("frame").to_luma8();
+            ([p.x, p.y], string_direction(&image, [p.x, p.y]))
+        })
+        .collect();
+    let pivot = meeting_point(&strings);
+    let ours_off = (pivot[0] - c[0]).hypot(pivot[1] - c[1]);
+    let r = fit_circle(&theirs);
+    let theirs_off = (pivot[0] - r[0]).hypot(pivot[1] - r[1]);
+    let spread = strings
+        .iter()
+        .map(|(p, d)| ((pivot[0] - p[0]) * d[1] - (pivot[1] - p[1]) * d[0]).abs())
+        .fold(0.0f64, f64::max);
+    println!(
+        "strings of {} frames meet at ({:.1}, {:.1}) within {spread:.2} px; the track's circle \
+         is centred {ours_off:.1} px from it (radius {:.1}), the reference's {theirs_off:.1} px \
+         (radius {:.1})",
+        strings.len(),
+        pivot[0],
+        pivot[1],
+        c[2],
+        r[2]
+    );
+    assert!(
+        strings.len() >= 4,
+        "{} frames with a leaning string",
+        strings.len()
+    );
+    assert!(spread < 1.5, "the strings meet within {spread:.2} px");
+    assert!(
+        ours_off < 5.0,
+        "the track's circle centred {ours_off:.1} px from the pivot"
+    );
+}
+
+/// The unit direction (image axes, y down) from `from` (px) along which the pixels 25-100 px
+/// away are brightest on average: the string above a bob. Directions within 10 degrees of the
+/// grid's lines (horizontal and vertical) are not tried.
+fn string_direction(image: &image::GrayImage, from: [f64; 2]) -> [f64; 2] {
+    let (w, h) = (f64::from(image.width()), f64::from(image.height()));
+    let mut best = (f64::NEG_INFINITY, [0.0, -1.0]);
+    for k in 0..=1800 {
+        let a = -std::f64::consts::PI * k as f64 / 1800.0;
+        let off_grid =
+            (a.sin().abs() > 10f64.to_radians().sin()) && (a.cos().abs() > 10f64.to_radians().sin());
+        if !off_grid {
+            continue;
+        }
+        let d = [a.cos(), a.sin()];
+        let (mut sum, mut n) = (0.0, 0);
+        for step in 50..200 {
+            let t = 0.5 * f64::from(step);
+            let (x, y) = ((from[0] + t * d[0]).round(), (from[1] + t * d[1]).round());
+            if x >= 0.0 && y >= 0.0 && x < w && y < h {
+                sum += f64::from(image.get_pixel(x as u32, y as u32).0[0]);
+                n += 1;
+            }
+        }
+        if n >= 100 && sum / f64::from(n) > best.0 {
+            best = (sum / f64::from(n), d);
+        }
+    }
+    best.1
+}
+
+/// The point (px) nearest, in the least-squares sense, to the lines through each point along
+/// each unit direction of `lines`.
+fn meeting_point(lines: &[([f64; 2], [f64; 2])]) -> [f64; 2] {
+    let (mut a, mut b) = (nalgebra::Matrix2::zeros(), nalgebra::Vector2::zeros());
+    for (p, d) in lines {
+        let n = nalgebra::Vector2::new(-d[1], d[0]);
+        let nn = n * n.transpose();
+        a += nn;
+        b += nn * nalgebra::Vector2::new(p[0], p[1]);
+    }
+    let m = a.lu().solve(&b).expect("lines that meet");
+    [m[0], m[1]]
 }
 
 /// The circle `[cx, cy, r]` (px) through `points` by linear least squares (Kasa's fit).
