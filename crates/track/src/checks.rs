@@ -684,11 +684,12 @@ const JUMP_FACTOR: f64 = 3.0;
 /// `points` (one track, frame order; frames missing between them allowed) that exceeds
 /// [`JUMP_FACTOR`] times the faster of the nearest steps between consecutive detected frames
 /// before it and after it (at a track's end, the two nearest on its one side where the step
-/// lands on no other blob of `blobs` and leaves none; one at least measured), plus the diameter of a particle of
-/// radius `radius` (px) spread over the frames between the two points. A continuous motion's step over a frame lies between the steps
-/// either side of it, give or take its acceleration: a bounce reverses the step but keeps its
-/// size, a kick from rest is followed by steps as large as the kick's, and a frame lost from
-/// the recording doubles one step. The diameter covers a slow particle's noise and the
+/// lands on no other blob of `blobs` and leaves none; one at least measured), plus the
+/// diameter of a particle of radius `radius` (px) spread over the frames between the two
+/// points. A continuous motion's step over a frame lies between the steps either side of
+/// it, give or take its acceleration: a bounce reverses the step but keeps its size, a kick
+/// from rest is followed by steps as large as the kick's, and a frame lost from the
+/// recording doubles one step. The diameter covers a slow particle's noise and the
 /// detector's changes of mind about its extent. Sweep style 1038 (shaded spheres of 9.6 and
 /// 24 px under a saturating exposure drift): the small sphere's track, lost at frame 11, took
 /// the large one's highlight at frame 12, 125 px away, moving 1.5 and 2.6 px a frame before

@@ -582,7 +582,7 @@ impl<'o> Linker<'o> {
             let pred = &view.preds[k];
             let (p, s) = (pred.at, pred.scale);
             // A scale learned from a few residuals may be far too small (a jittering bead's
-            // first steps lined up by chance, then it turned 7 px from the line: the track
+            // first steps lined up by chance, then it turned 7.5 px from the line: the track
             // ended and a second one took the bead), so the gate allows for its uncertainty.
             let g = (GATE_SIGMAS * s * 2.0)
                 .max(2.0 * self.r + speed(tr))

@@ -70,7 +70,8 @@ impl Prediction {
         }
         // Σ w² of the running mean after n residuals: the first weighs (1 − a)^(n − 1), the
         // k-th from the newest a (1 − a)^k.
-        let keep = (1.0 - RESIDUAL_RATE).powi(2 * (self.learned as i32 - 1));
+        // (Beyond 64 residuals the first one's weight is nil in double precision.)
+        let keep = (1.0 - RESIDUAL_RATE).powi(2 * (self.learned.min(64) as i32 - 1));
         let sum_w2 =
             keep + RESIDUAL_RATE * RESIDUAL_RATE * (1.0 - keep) / (1.0 - (1.0 - RESIDUAL_RATE).powi(2));
         let nu = 2.0 / sum_w2;
