@@ -6,7 +6,9 @@
 //! under a structure, and faint beads of one size must not be split into two sizes by the
 //! noise of their measured scales.
 
-use physfit_track::{score_tracks, track_folder, TrackOptions, TrackPoint, TrackTable};
+use physfit_track::{
+    score_tracks, track_folder, TrackError, TrackOptions, TrackOutcome, TrackPoint, TrackTable,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -112,6 +114,19 @@ fn trapped_beads(seed: u64, faint: bool) -> Traps {
     }
 }
 
+/// `t` tracked on one thread without a structure and then with its beads named from their
+/// first-frame positions: whether named, which ("unnamed", "named"), and the outcome.
+fn tracked_both_ways(t: &Traps) -> [(bool, &'static str, Result<TrackOutcome, TrackError>); 2] {
+    [(false, "unnamed"), (true, "named")].map(|(named, kind)| {
+        let options = TrackOptions {
+            threads: Some(1),
+            named_start: named.then(|| t.starts.clone()),
+            ..TrackOptions::default()
+        };
+        (named, kind, track_folder(t.dir.path(), &options, &|_, _| {}))
+    })
+}
+
 /// Twelve recordings (seeds 7600-7611, 192 beads), each tracked named and unnamed: every bead
 /// found in every frame under its own name, no identity switch, no track said to jump about,
 /// none refused. Measured: RMS 0.024-0.134 px; before the checks asked whether a track keeps
@@ -127,14 +142,8 @@ fn beads_jittering_in_traps_are_followed_and_not_taken_for_hops() {
             "seed {seed}: R {:.2} px, spread {:.2} px per axis",
             t.radius, t.spread
         );
-        for named in [false, true] {
-            let options = TrackOptions {
-                threads: Some(1),
-                named_start: named.then(|| t.starts.clone()),
-                ..TrackOptions::default()
-            };
-            let kind = if named { "named" } else { "unnamed" };
-            let outcome = match track_folder(t.dir.path(), &options, &|_, _| {}) {
+        for (named, kind, tracked) in tracked_both_ways(&t) {
+            let outcome = match tracked {
                 Ok(o) => o,
                 Err(e) => {
                     report.push_str(&format!("{label}: {kind}: refused: {e}\n"));
@@ -227,14 +236,8 @@ fn a_sweep_of_trapped_beads_gives_one_track_a_bead() {
     for seed in 7650..7700u64 {
         let t = trapped_beads(seed, false);
         let label = format!("seed {seed}: R {:.2} px, spread {:.2} px", t.radius, t.spread);
-        for named in [false, true] {
-            let options = TrackOptions {
-                threads: Some(1),
-                named_start: named.then(|| t.starts.clone()),
-                ..TrackOptions::default()
-            };
-            let kind = if named { "named" } else { "unnamed" };
-            let outcome = match track_folder(t.dir.path(), &options, &|_, _| {}) {
+        for (named, kind, tracked) in tracked_both_ways(&t) {
+            let outcome = match tracked {
                 Ok(o) => o,
                 Err(e) => {
                     report.push_str(&format!("{label}: {kind}: refused: {e}\n"));
