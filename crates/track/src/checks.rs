@@ -533,8 +533,7 @@ fn erratic(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Co
         .map(|i| (points[i], points[i + 1]));
     let hops = steps.try_fold((0, 0), |(hops, of), (a, b)| {
         let (a, b) = ((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y]));
-        let hop = blobs.hop_site(a, b.1)? || blobs.hop_site(b, a.1)?;
-        Some((hops + usize::from(hop), of + 1))
+        Some((hops + usize::from(blobs.step_hops(a, b)?), of + 1))
     });
     match hops {
         Some((hops, of))
@@ -652,6 +651,13 @@ impl<'a> FrameBlobs<'a> {
         }
     }
 
+    /// Whether the step between the points `a` and `b` (frame, position px) hops: it lands on
+    /// another blob of `a`'s frame or leaves one of `b`'s ([`FrameBlobs::hop_site`] both
+    /// ways). `None` where a frame is not held.
+    fn step_hops(&self, a: (usize, [f64; 2]), b: (usize, [f64; 2])) -> Option<bool> {
+        Some(self.hop_site(a, b.1)? || self.hop_site(b, a.1)?)
+    }
+
     /// Whether a step from the point `from` (frame, position px) to `to` (px) lands on
     /// another blob of `from`'s frame: one other than the blob nearest `from` (its own)
     /// lies within half the step of `to`. `None` where the frame is not held.
@@ -725,28 +731,25 @@ fn jumped(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Con
         // sixty. Beads jittering in traps were refused at their tracks' first or last step
         // (trap 7664: 15.4 px a frame against the 2.1 px of its one neighbour, where the
         // bead's steps spread 5 px per axis).
-        let consecutive = |side: &mut dyn Iterator<Item = &(f64, bool)>| -> Vec<f64> {
-            side.filter(|q| q.1).map(|q| q.0).take(2).collect()
-        };
-        let before = consecutive(&mut steps[..i].iter().rev());
-        let after = consecutive(&mut steps[i + 1..].iter());
-        let around = match (before.first(), after.first()) {
-            (Some(&b), Some(&a)) => b.max(a),
+        let before = two_consecutive(steps[..i].iter().rev());
+        let after = two_consecutive(steps[i + 1..].iter());
+        let gap = (detected[i + 1].frame - detected[i].frame) as f64;
+        let beyond = |around: f64| s > JUMP_FACTOR * around + 2.0 * radius / gap;
+        let around = match (before[0], after[0]) {
+            (Some(b), Some(a)) => b.max(a),
             (None, None) => return None,
-            _ => {
+            // At an end: the blobs are looked at only where the one neighbour calls it a jump.
+            (Some(near), None) | (None, Some(near)) => {
+                let second = before[1].or(after[1]);
                 let (a, b) = (detected[i], detected[i + 1]);
-                let (a, b) = ((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y]));
-                let lone = blobs.hop_site(a, b.1) == Some(false) && blobs.hop_site(b, a.1) == Some(false);
-                let side = if before.is_empty() { after } else { before };
-                if lone {
-                    side.into_iter().fold(0.0, f64::max)
-                } else {
-                    side[0]
+                let lone = || blobs.step_hops((a.frame, [a.x, a.y]), (b.frame, [b.x, b.y])) == Some(false);
+                match second {
+                    Some(second) if beyond(near) && lone() => near.max(second),
+                    _ => near,
                 }
             }
         };
-        let gap = (detected[i + 1].frame - detected[i].frame) as f64;
-        (s > JUMP_FACTOR * around + 2.0 * radius / gap).then_some((i, s, around))
+        beyond(around).then_some((i, s, around))
     });
     jumps
         .max_by(|a, b| a.1.total_cmp(&b.1))
@@ -756,6 +759,13 @@ fn jumped(points: &[&TrackPoint], radius: f64, blobs: &FrameBlobs) -> Option<Con
             around,
             radius,
         })
+}
+
+/// The first two steps per frame of `side` (each with whether it joins consecutive frames)
+/// that join consecutive frames, nearest first.
+fn two_consecutive<'s>(side: impl Iterator<Item = &'s (f64, bool)>) -> [Option<f64>; 2] {
+    let mut found = side.filter(|q| q.1).map(|q| q.0);
+    [found.next(), found.next()]
 }
 
 /// Largest axial concentration of an erratic track's third differences (see [`erratic`]):
